@@ -1,0 +1,666 @@
+"""The one parameter schema, the validated parameter store and parameter files.
+
+One schema
+    :data:`SCHEMA` lists every parameter once (name, kind, default, range, units, one
+    sentence, enumeration labels), as ArduPilot's ``AP_Param`` tables or ros2_controllers'
+    ``generate_parameter_library`` do. Everything else reads it: :class:`Params` validation,
+    parameter files (:func:`load`, :func:`save`), the command line's ``--set NAME=VALUE``
+    (:func:`parse_assignment`), the README table (:func:`markdown_table`) and the MAVLink
+    parameter protocol (index = position in :data:`SCHEMA`). Names follow ArduPilot: at most
+    16 characters (the MAVLink ``param_id`` field), upper case, ``GROUP_NAME``; the schema is
+    checked when this module is imported and a bad entry raises.
+
+File format
+    The format MAVProxy (``param load``) and Mission Planner load: one ``NAME VALUE`` per line,
+    separated by whitespace or a comma (Mission Planner writes ``NAME,VALUE``); ``#`` starts a
+    comment, on its own line or after a value; blank lines are ignored. Values may be written
+    ``1``, ``1.0`` or ``1e3``; an int parameter needs an integral value. :func:`load` checks
+    every line and then the cross-parameter rules (:meth:`Params.check_consistency`) and
+    reports *all* problems at once as ``path:line: message`` in a :class:`ParamFileError`;
+    nothing is applied unless the whole file is valid, and the order of lines does not matter.
+    :func:`save` writes only full-line comments and ``NAME VALUE`` lines, because MAVProxy
+    rejects lines with a trailing comment.
+
+Float encoding
+    MAVLink carries every parameter value as a float32 (``PARAM_VALUE.param_value``). A float
+    parameter is therefore stored as the float32 it will travel as, written as the shortest
+    decimal that reads back to that float32 (``0.15``, not ``0.15000000596046448``; see
+    :func:`float32_canonical`). So the value a ground station shows, the value in a saved file
+    and the value the control loop reads are the same number, and save -> load and
+    float32 -> store -> float32 round trips are exact. The change is below 1e-7 relative. Int
+    parameters stay Python ints; their ranges are far inside float32's exact-integer range.
+
+Atomic save
+    :func:`save` writes a temporary file in the target's directory, flushes and ``fsync``-s
+    it, then ``os.replace``-s it over the target (and ``fsync``-s the directory on POSIX). A
+    crash or an exception leaves either the old file or the new one, never a half-written one,
+    and the temporary file is removed on any error.
+
+Usage::
+
+    params = load("params/example_400x300_97mm_wheels.parm")
+    params.set("INP_EXPO", 0.2)
+    speed = params["WHL_MAX_SPD"]          # float; a plain dict lookup, fine at 50 Hz
+    save(params, "robot.parm")
+
+``python -m mecanum_mav.params --table`` prints the README table and
+``python -m mecanum_mav.params --write-defaults params/default.parm`` regenerates the
+defaults file from the schema.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import difflib
+import math
+import numbers
+import os
+import re
+import stat
+import struct
+import sys
+import tempfile
+import types
+from collections.abc import Iterator, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from mecanum_mav import WHEEL_NAMES
+
+Value = int | float
+"""A parameter value: ``int`` for int parameters, ``float`` for float parameters."""
+
+NAME_MAX_LEN = 16
+"""MAVLink ``param_id`` is 16 characters."""
+
+_NAME_RE = re.compile(r"[A-Z][A-Z0-9]*(?:_[A-Z0-9]+)+")
+_NUMBER_RE = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?")
+_NON_FINITE_RE = re.compile(r"[+-]?(?:nan|inf|infinity)", re.IGNORECASE)
+_FLOAT32 = struct.Struct("<f")
+_FLOAT32_EXACT_INT = 2**24
+
+
+class ParamError(ValueError):
+    """One parameter name or value was rejected; the message says which and why."""
+
+
+class ParamFileError(ValueError):
+    """A parameter file was rejected; nothing from it was applied.
+
+    ``errors`` holds every problem found, each formatted ``"{path}:{line}: {message}"``.
+    """
+
+    def __init__(self, errors: Sequence[str]) -> None:
+        self.errors: list[str] = list(errors)
+        super().__init__(self.errors)
+
+    def __str__(self) -> str:
+        count = len(self.errors)
+        heading = f"parameter file rejected, nothing applied ({count} error{'s' * (count != 1)}):"
+        return "\n".join([heading, *(f"  {e}" for e in self.errors)])
+
+
+def float32_canonical(x: float) -> float:
+    """Return the float that ``x`` becomes as a MAVLink float32, written shortest.
+
+    ``x`` is rounded to float32 and the result is the shortest decimal (at most 9
+    significant digits) that reads back to that same float32, e.g. ``0.15`` for any input
+    that rounds to float32(0.15). The function is idempotent and monotonic, and
+    ``float32_canonical(float32(v)) == v`` for every value it returns.
+    Raises ``OverflowError`` outside float32's range.
+    """
+    single = _FLOAT32.unpack(_FLOAT32.pack(x))[0]
+    for digits in range(1, 10):
+        shortest = float(format(single, f".{digits}g"))
+        if _FLOAT32.unpack(_FLOAT32.pack(shortest))[0] == single:
+            return shortest
+    return single  # pragma: no cover - 9 significant digits always identify a float32
+
+
+def _show(x: float) -> str:
+    """Format a number for a message: integral values without decimals."""
+    if math.isfinite(x) and x == int(x) and abs(x) < 1e15:
+        return str(int(x))
+    return repr(x)
+
+
+def _join(items: Sequence[str], word: str = "or") -> str:
+    """``A``, ``A or B``, ``A, B or C``."""
+    return items[0] if len(items) == 1 else f"{', '.join(items[:-1])} {word} {items[-1]}"
+
+
+@dataclass(frozen=True)
+class ParamSpec:
+    """One parameter: name, kind, default, inclusive range, units, meaning, labels.
+
+    Construction checks the entry and raises ``ValueError`` when it is inconsistent (bad
+    name, default out of range, int parameter with a non-int bound, float bound that does
+    not survive float32, enumeration labels that do not cover the range).
+    """
+
+    name: str
+    kind: type[int] | type[float]
+    default: Value
+    minimum: Value
+    maximum: Value
+    units: str
+    description: str
+    values: Mapping[int, str] | None = field(default=None, hash=False)
+    """Enumeration labels (value -> label); ``None`` for a plain number."""
+
+    def __post_init__(self) -> None:
+        if self.values is not None:
+            object.__setattr__(self, "values", types.MappingProxyType(dict(self.values)))
+        problem = self._problem()
+        if problem:
+            raise ValueError(f"parameter schema: {self.name}: {problem}")
+
+    def _problem(self) -> str | None:
+        """Say what is wrong with this entry, or ``None``."""
+        bounds = (self.default, self.minimum, self.maximum)
+        if len(self.name) > NAME_MAX_LEN or not _NAME_RE.fullmatch(self.name):
+            return f"name must be GROUP_NAME in upper case, at most {NAME_MAX_LEN} characters"
+        if self.kind not in (int, float):
+            return "kind must be int or float"
+        if any(isinstance(b, bool) or not isinstance(b, self.kind) for b in bounds):
+            return f"default, minimum and maximum must be of kind {self.kind.__name__}"
+        if not self.minimum <= self.default <= self.maximum:
+            return "default must lie within minimum .. maximum"
+        if self.kind is float and any(float32_canonical(b) != b for b in bounds):
+            return "default, minimum and maximum must be exact as float32 (float32_canonical)"
+        if self.kind is int and max(abs(self.minimum), abs(self.maximum)) > _FLOAT32_EXACT_INT:
+            return "int range must be exact as float32 (within +-2**24)"
+        if not self.description.strip().endswith("."):
+            return "description must be one sentence ending with a full stop"
+        if self.values is not None:
+            if self.kind is not int:
+                return "an enumeration must be of kind int"
+            if set(self.values) != set(range(self.minimum, self.maximum + 1)):
+                return "enumeration labels must cover minimum .. maximum exactly"
+        return None
+
+    @property
+    def group(self) -> str:
+        """The group a file and the table list this parameter under (``MOT_FL``, ``GEO``)."""
+        parts = self.name.split("_")
+        return "_".join(parts[:2]) if parts[0] == "MOT" else parts[0]
+
+    def with_units(self, x: float) -> str:
+        """Format ``x`` followed by this parameter's units, if any."""
+        return f"{_show(x)} {self.units}" if self.units else _show(x)
+
+    def range_text(self, *, units: bool = True) -> str:
+        """The accepted values: ``0.02 .. 5 m`` or ``0 = normal, 1 = reversed``."""
+        if self.values is not None:
+            return ", ".join(f"{k} = {label}" for k, label in sorted(self.values.items()))
+        high = self.with_units(self.maximum) if units else _show(self.maximum)
+        return f"{_show(self.minimum)} .. {high}"
+
+    def format(self, value: Value) -> str:
+        """Write ``value`` as a parameter file does: ints without decimals, floats shortest."""
+        return str(int(value)) if self.kind is int else repr(float(value))
+
+    def check(self, value: object) -> Value:
+        """Validate ``value`` and return it as stored (``int``, or float32-canonical ``float``).
+
+        A float is rounded to float32 before the range check, so a value that float32 carries
+        as a bound (``0.02`` arrives as ``0.019999999552965164``) is accepted as that bound.
+        Raises :class:`ParamError` for a non-number, a non-finite value, a non-integral
+        value for an int parameter, or a value outside the range.
+        """
+        if isinstance(value, (bool, str, bytes)) or not isinstance(value, numbers.Real):
+            raise ParamError(f"{self.name}: expected a number, got {value!r}")
+        try:
+            x = float(value)
+        except OverflowError:  # an int beyond float's range
+            raise ParamError(f"{self.name}: {value} is outside {self.range_text()}") from None
+        if not math.isfinite(x):
+            raise ParamError(f"{self.name}: value must be finite, got {x!r}")
+        if self.kind is int and not x.is_integer():
+            raise ParamError(f"{self.name}: {x!r} is not an integer; this parameter is an int")
+        if self.kind is float:  # the range applies to the value as stored and sent
+            with contextlib.suppress(OverflowError):  # beyond float32: out of range anyway
+                x = float32_canonical(x)
+        if not self.minimum <= x <= self.maximum:
+            raise ParamError(self._range_message(x))
+        return int(x) if self.kind is int else x
+
+    def _range_message(self, x: float) -> str:
+        if self.values is not None:
+            return f"{self.name}: {_show(x)} is not one of {self.range_text()}"
+        return f"{self.name}: {self.with_units(x)} is outside the range {self.range_text()}"
+
+    def parse(self, text: str) -> Value:
+        """Parse and validate a value written in a file or on the command line."""
+        text = text.strip()
+        if not text:
+            raise ParamError(f"{self.name}: missing value")
+        if not (_NUMBER_RE.fullmatch(text) or _NON_FINITE_RE.fullmatch(text)):
+            raise ParamError(f"{self.name}: {text!r} is not a number")
+        return self.check(float(text))
+
+
+WHEELS: tuple[str, str, str, str] = ("FL", "FR", "RL", "RR")
+"""Wheel abbreviations in parameter names, in the order of ``mecanum_mav.WHEEL_NAMES``."""
+
+_WHEEL_WORDS = {
+    abbreviation: full.replace("_", "-")
+    for abbreviation, full in zip(WHEELS, WHEEL_NAMES, strict=True)
+}
+
+
+# fmt: off
+# (the schema tables keep each entry's numbers on one line)
+def _wheel_specs(wheel: str, channel: int) -> tuple[ParamSpec, ...]:
+    """The five motor output parameters of one wheel (``FL`` ... ``RR``)."""
+    words = _WHEEL_WORDS[wheel]
+    prefix = f"MOT_{wheel}"
+    return (
+        ParamSpec(
+            f"{prefix}_CH", int, default=channel, minimum=1, maximum=18, units="",
+            description=f"RC channel (1-18, sent in RC_CHANNELS_OVERRIDE) whose flight "
+            f"controller output drives the {words} wheel's ESC.",
+        ),
+        ParamSpec(
+            f"{prefix}_MIN", int, default=1000, minimum=800, maximum=2200, units="us",
+            description=f"ESC pulse width for full output in the {words} motor's negative "
+            f"direction (full backward for the robot unless {prefix}_REV = 1).",
+        ),
+        ParamSpec(
+            f"{prefix}_TRIM", int, default=1500, minimum=800, maximum=2200, units="us",
+            description=f"ESC pulse width at which the {words} motor stands still; sent as "
+            f"neutral when disarmed or in failsafe.",
+        ),
+        ParamSpec(
+            f"{prefix}_MAX", int, default=2000, minimum=800, maximum=2200, units="us",
+            description=f"ESC pulse width for full output in the {words} motor's positive "
+            f"direction (full forward for the robot unless {prefix}_REV = 1).",
+        ),
+        ParamSpec(
+            f"{prefix}_REV", int, default=0, minimum=0, maximum=1, units="",
+            values={0: "normal", 1: "reversed"},
+            description=f"Reverse the {words} motor at the PWM edge (set 1 for a mirrored "
+            f"motor) so that a positive wheel command rolls the robot forward.",
+        ),
+    )
+
+
+GROUP_TITLES: dict[str, str] = {
+    "MIX": "Stick mixing",
+    "INP": "Stick input shaping",
+    "GEO": "Geometry (metres)",
+    "WHL": "Wheel speed",
+    **{f"MOT_{w}": f"Motor output, {_WHEEL_WORDS[w]} wheel" for w in WHEELS},
+}
+"""Title of each parameter group, in file order."""
+
+SCHEMA: tuple[ParamSpec, ...] = (
+    ParamSpec(
+        "MIX_ALGO", int, default=0, minimum=0, maximum=3, units="",
+        values={0: "cartesian", 1: "polar_2011", 2: "max_speed_scaled", 3: "holonomic_2010"},
+        description="Stick mixing algorithm that turns the (x forward, y right, r clockwise) "
+        "drive command into four wheel commands.",
+    ),
+    ParamSpec(
+        "MIX_DESAT", int, default=0, minimum=0, maximum=2, units="",
+        values={0: "proportional", 1: "rotation_priority", 2: "translation_priority"},
+        description="How wheel commands beyond [-1, 1] are brought back: proportional scales "
+        "all four wheels together (WPILib), rotation_priority keeps the yaw command and "
+        "shrinks translation along its direction (PX4), translation_priority keeps "
+        "translation and shrinks rotation.",
+    ),
+    ParamSpec(
+        "INP_DEADBAND", float, default=0.05, minimum=0.0, maximum=0.5, units="",
+        description="Stick deadband as a fraction of full stick on each axis: inputs inside "
+        "it read 0 and the rest is rescaled to reach 1 at full stick (WPILib applyDeadband).",
+    ),
+    ParamSpec(
+        "INP_EXPO", float, default=0.0, minimum=0.0, maximum=1.0, units="",
+        description="Cubic expo on each stick axis, out = (1 - e) * in + e * in^3 (PX4 "
+        "style): 0 is linear, 1 fully cubic.",
+    ),
+    ParamSpec(
+        "INP_CIRCLE", int, default=1, minimum=0, maximum=1, units="",
+        values={0: "off", 1: "on"},
+        description="Map the square stick range onto the unit circle by clamping the "
+        "(x forward, y right) magnitude to 1, so a diagonal is not faster than a straight line.",
+    ),
+    ParamSpec(
+        "GEO_HALF_LEN", float, default=0.15, minimum=0.02, maximum=5.0, units="m",
+        description="Distance along body x (forward) from the robot centre to each wheel "
+        "centre, half the wheelbase.",
+    ),
+    ParamSpec(
+        "GEO_HALF_WID", float, default=0.15, minimum=0.02, maximum=5.0, units="m",
+        description="Distance along body y (right) from the robot centre to each wheel "
+        "centre, half the track width.",
+    ),
+    ParamSpec(
+        "GEO_WHEEL_RAD", float, default=0.04, minimum=0.005, maximum=1.0, units="m",
+        description="Wheel radius from the axle to the rollers' contact with the ground.",
+    ),
+    ParamSpec(
+        "WHL_MAX_SPD", float, default=1.0, minimum=0.01, maximum=20.0, units="m/s",
+        description="Wheel surface speed at full PWM (MOT_x_MIN or MOT_x_MAX), which maps a "
+        "wheel command of 1 to m/s and back.",
+    ),
+    *(spec for i, w in enumerate(WHEELS) for spec in _wheel_specs(w, channel=i + 1)),
+)
+"""Every parameter, in file, table and MAVLink index order."""
+# fmt: on
+
+
+def _index(schema: Sequence[ParamSpec]) -> dict[str, ParamSpec]:
+    """Map names to specs, raising on a duplicate name or a group without a title."""
+    specs: dict[str, ParamSpec] = {}
+    for spec in schema:
+        if spec.name in specs:
+            raise ValueError(f"parameter schema: {spec.name} is listed twice")
+        if spec.group not in GROUP_TITLES:
+            raise ValueError(f"parameter schema: {spec.name}: group {spec.group} has no title")
+        specs[spec.name] = spec
+    return specs
+
+
+SPECS: dict[str, ParamSpec] = _index(SCHEMA)
+"""Name -> spec, in schema order."""
+
+
+def _unknown_name(name: str) -> str:
+    """Message for an unknown name, with the closest known names."""
+    close = difflib.get_close_matches(name.upper(), SPECS, n=3, cutoff=0.6)
+    hint = f"; did you mean {_join(close)}?" if close else ""
+    return f"unknown parameter {name!r}{hint}"
+
+
+def get_spec(name: str) -> ParamSpec:
+    """The spec of ``name``; :class:`ParamError` with a did-you-mean when it is unknown."""
+    try:
+        return SPECS[name]
+    except KeyError:
+        raise ParamError(_unknown_name(name)) from None
+
+
+def _consistency_problems(values: Mapping[str, Value]) -> list[tuple[str, tuple[str, ...]]]:
+    """Cross-parameter rule violations as (message, names involved)."""
+    problems: list[tuple[str, tuple[str, ...]]] = []
+    users: dict[Value, list[str]] = {}
+    for w in WHEELS:
+        names = (f"MOT_{w}_MIN", f"MOT_{w}_TRIM", f"MOT_{w}_MAX")
+        low, trim, high = (values[n] for n in names)
+        if not low < trim < high:
+            got = ", ".join(f"{n} {values[n]}" for n in names)
+            problems.append((f"MOT_{w}: need MIN < TRIM < MAX, got {got} us", names))
+        users.setdefault(values[f"MOT_{w}_CH"], []).append(f"MOT_{w}_CH")
+    for channel, on_channel in users.items():
+        if len(on_channel) > 1:
+            message = f"{_join(on_channel, 'and')} share RC channel {channel}; one motor each"
+            problems.append((message, tuple(on_channel)))
+    return problems
+
+
+_DEFAULT_PROBLEMS = _consistency_problems({s.name: s.default for s in SCHEMA})
+if _DEFAULT_PROBLEMS:
+    raise ValueError(f"parameter schema: defaults break a rule: {_DEFAULT_PROBLEMS[0][0]}")
+
+
+class Params(Mapping[str, Value]):
+    """A mutable, always valid and consistent store of parameter values.
+
+    ``params["NAME"]`` is a plain dict lookup returning an ``int`` for int parameters and a
+    ``float`` for float parameters. Every change goes through :meth:`set` or :meth:`update`,
+    which validate against :data:`SCHEMA` and the cross-parameter rules and leave the store
+    unchanged when they raise. A change replaces the internal dict in one assignment, so a
+    reader never sees half of an :meth:`update`.
+    """
+
+    __slots__ = ("_values",)
+
+    def __init__(self, values: Mapping[str, float] | None = None) -> None:
+        """Start from the schema defaults, then apply ``values`` (see :meth:`update`)."""
+        self._values: dict[str, Value] = {s.name: s.default for s in SCHEMA}
+        if values:
+            self.update(values)
+
+    def __getitem__(self, name: str) -> Value:
+        try:
+            return self._values[name]
+        except KeyError:
+            raise KeyError(_unknown_name(name)) from None
+
+    def __contains__(self, name: object) -> bool:
+        return name in self._values
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._values)
+
+    def __len__(self) -> int:
+        return len(self._values)
+
+    def __repr__(self) -> str:
+        changed = {name: self._values[name] for name in self.changed()}
+        return f"Params({changed!r})"
+
+    def set(self, name: str, value: float) -> Value:
+        """Validate and store one value; return it as stored (see :meth:`ParamSpec.check`).
+
+        Raises :class:`ParamError` (store unchanged) for an unknown name (with suggestions),
+        an invalid value, or a value that breaks a cross-parameter rule; change such
+        parameters in an order that stays consistent, or together with :meth:`update`.
+        """
+        stored = get_spec(name).check(value)
+        if self._values[name] != stored:
+            self._commit({**self._values, name: stored}, f"{name} = {_show(stored)} rejected: ")
+        return stored
+
+    def update(self, values: Mapping[str, float]) -> None:
+        """Validate and store several values at once; all or nothing.
+
+        The cross-parameter rules are checked after all values are applied, so their order
+        does not matter (channels can be swapped in one call). Raises :class:`ParamError`.
+        """
+        candidate = dict(self._values)
+        for name, value in values.items():
+            candidate[name] = get_spec(name).check(value)
+        self._commit(candidate, "")
+
+    def _commit(self, candidate: dict[str, Value], prefix: str) -> None:
+        problems = _consistency_problems(candidate)
+        if problems:
+            raise ParamError(prefix + "; ".join(message for message, _ in problems))
+        self._values = candidate
+
+    def names(self) -> tuple[str, ...]:
+        """All parameter names, in schema order."""
+        return tuple(self._values)
+
+    def as_dict(self) -> dict[str, Value]:
+        """A copy of all values, in schema order."""
+        return dict(self._values)
+
+    def changed(self) -> list[str]:
+        """Names whose value differs from the schema default, in schema order."""
+        return [s.name for s in SCHEMA if self._values[s.name] != s.default]
+
+    def copy(self) -> Params:
+        """An independent store with the same values."""
+        clone = Params.__new__(Params)
+        clone._values = dict(self._values)
+        return clone
+
+    def check_consistency(self) -> list[str]:
+        """Messages for broken cross-parameter rules (always empty for a store built here):
+        each wheel's MOT_x_MIN < MOT_x_TRIM < MOT_x_MAX, and four distinct MOT_x_CH."""
+        return [message for message, _ in _consistency_problems(self._values)]
+
+
+def parse_assignment(text: str) -> tuple[str, Value]:
+    """Parse a command line ``NAME=VALUE`` into the name and the validated value.
+
+    The value is checked against the parameter's kind and range (not the cross-parameter
+    rules, which :meth:`Params.set` applies). Raises :class:`ParamError`.
+    """
+    name, sep, value = text.partition("=")
+    name = name.strip()
+    if not sep or not name:
+        raise ParamError(f"expected NAME=VALUE, got {text!r}")
+    return name, get_spec(name).parse(value)
+
+
+def parse_text(text: str, source: str = "<string>", base: Params | None = None) -> Params:
+    """Parse parameter file text (see the module docstring) on top of ``base``.
+
+    Returns a new store: ``base`` (default: the schema defaults) with the file's values
+    applied; ``base`` itself is never modified. Raises :class:`ParamFileError` listing every
+    problem as ``"{source}:{line}: {message}"`` when any line or cross-parameter rule fails.
+    """
+    result = base.copy() if base is not None else Params()
+    errors: list[str] = []
+    first_line: dict[str, int] = {}
+    candidate = result.as_dict()
+    for number, line in enumerate(text.splitlines(), start=1):
+        fields = line.split("#", 1)[0].replace(",", " ").split()
+        if not fields:
+            continue
+        name, rest = fields[0], fields[1:]
+        where = f"{source}:{number}: "
+        if name not in SPECS:
+            errors.append(where + _unknown_name(name))
+            continue
+        duplicate = name in first_line
+        if duplicate:
+            errors.append(where + f"{name}: duplicate, already set on line {first_line[name]}")
+        else:
+            first_line[name] = number
+        if len(rest) > 1:
+            errors.append(where + f"{name}: unexpected text after the value: {rest[1:]!r}")
+            continue
+        try:
+            value = SPECS[name].parse(rest[0] if rest else "")
+        except ParamError as exc:
+            errors.append(where + str(exc))
+            continue
+        if not duplicate:
+            candidate[name] = value
+    for message, names in _consistency_problems(candidate):
+        number = max(first_line.get(n, 0) for n in names)
+        errors.append(f"{source}:{number}: {message}")
+    if errors:
+        raise ParamFileError(errors)
+    result._values = candidate
+    return result
+
+
+def load(path: str | os.PathLike[str], base: Params | None = None) -> Params:
+    """Read a parameter file on top of ``base`` (default: the schema defaults).
+
+    See :func:`parse_text`; raises :class:`ParamFileError` (nothing applied) or ``OSError``.
+    A UTF-8 byte-order mark and Windows line ends are accepted.
+    """
+    text = Path(path).read_text(encoding="utf-8-sig", errors="replace")
+    return parse_text(text, source=str(path), base=base)
+
+
+DEFAULT_HEADER = (
+    "mecanum-mav parameters: NAME VALUE per line, # starts a comment.\n"
+    "Loads with mecanum-mav, MAVProxy (param load) and Mission Planner."
+)
+"""The comment header :func:`save` writes when given none."""
+
+DEFAULTS_FILE_HEADER = (
+    "mecanum-mav: every parameter at its default.\n"
+    "Generated from the schema in mecanum_mav/params.py; do not edit by hand, regenerate with\n"
+    "  python -m mecanum_mav.params --write-defaults params/default.parm"
+)
+"""The header of ``params/default.parm``."""
+
+
+def format_text(params: Mapping[str, Value], *, header: str | None = None) -> str:
+    """The text :func:`save` writes: a comment header, then every parameter in schema order,
+    grouped under comment lines, as ``NAME VALUE`` (no trailing comments, for MAVProxy)."""
+    header = DEFAULT_HEADER if header is None else header
+    lines = [f"# {line}".rstrip() for line in header.splitlines()]
+    group = None
+    for s in SCHEMA:
+        if s.group != group:
+            group = s.group
+            lines += [""] * bool(lines) + [f"# {GROUP_TITLES[group]}"]
+        lines.append(f"{s.name:<{NAME_MAX_LEN}} {s.format(params[s.name])}")
+    return "\n".join(lines) + "\n"
+
+
+def save(
+    params: Mapping[str, Value], path: str | os.PathLike[str], *, header: str | None = None
+) -> None:
+    """Write every parameter to ``path`` atomically (see the module docstring).
+
+    The file keeps the permissions of the file it replaces (0644 for a new file). On any
+    exception the temporary file is removed and ``path`` is untouched.
+    """
+    target = Path(path)
+    data = format_text(params, header=header).encode("utf-8")
+    try:
+        mode = stat.S_IMODE(target.stat().st_mode)
+    except FileNotFoundError:
+        mode = 0o644
+    fd, tmp_name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
+    tmp = Path(tmp_name)
+    try:
+        with os.fdopen(fd, "wb") as stream:
+            stream.write(data)
+            stream.flush()
+            os.fsync(stream.fileno())
+        tmp.chmod(mode)
+        tmp.replace(target)
+    except BaseException:
+        with contextlib.suppress(FileNotFoundError):
+            tmp.unlink()
+        raise
+    _fsync_directory(target.parent)
+
+
+def _fsync_directory(directory: Path) -> None:
+    """Make a rename durable (POSIX); a no-op where directories cannot be opened."""
+    if not hasattr(os, "O_DIRECTORY"):
+        return
+    fd = os.open(directory, os.O_RDONLY | os.O_DIRECTORY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+def markdown_table() -> str:
+    """The README's parameter table, generated from :data:`SCHEMA`."""
+    rows = [
+        "| Name | Default | Range / values | Units | Description |",
+        "| --- | --- | --- | --- | --- |",
+    ]
+    for s in SCHEMA:
+        default = s.format(s.default)
+        if s.values is not None:
+            default += f" ({s.values[s.default]})"
+        cells = (f"`{s.name}`", default, s.range_text(units=False), s.units, s.description)
+        rows.append("| " + " | ".join(c.replace("|", "\\|") for c in cells) + " |")
+    return "\n".join(rows) + "\n"
+
+
+def _main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(
+        prog="python -m mecanum_mav.params", description="Generate files from the schema."
+    )
+    parser.add_argument("--table", action="store_true", help="print the README table")
+    parser.add_argument("--write-defaults", metavar="PATH", help="write the defaults file")
+    args = parser.parse_args(argv)
+    if args.table:
+        sys.stdout.write(markdown_table())
+    if args.write_defaults:
+        save(Params(), args.write_defaults, header=DEFAULTS_FILE_HEADER)
+    if not (args.table or args.write_defaults):
+        parser.print_help()
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(_main())
