@@ -1,0 +1,129 @@
+"""The `mecanum-mav` command line: mix (single and batch), params, plot."""
+
+from __future__ import annotations
+
+import io
+import json
+import subprocess
+import sys
+
+import pytest
+
+from mecanum_mav.cli import main, run_batch
+from mecanum_mav.mixing import Desaturation
+from mecanum_mav.params import Params
+
+
+def run(capsys, *argv):
+    code = main(list(argv))
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+def test_mix_prints_normalized_wheels_and_pwm_for_a_polar_command(capsys):
+    code, out, _ = run(capsys, "mix", "--algo", "polar_2011", "-m", "1", "-d", "90")
+    assert code == 0
+    rows = {line.split()[0]: line.split()[1:] for line in out.splitlines()[2:]}
+    assert rows["FL"][:2] == ["+1.0000", "2000"]
+    assert rows["FR"][:2] == ["-1.0000", "1000"]
+
+
+def test_mix_json_reports_channels_and_desaturation(capsys):
+    code, out, _ = run(capsys, "mix", "-x", "1", "-r", "1", "--json", "--desat",
+                       "rotation_priority")
+    doc = json.loads(out)
+    assert code == 0 and doc["desaturation"] == "rotation_priority"
+    assert doc["wheels"] == [1.0, -1.0, 1.0, -1.0]  # rotation kept, translation gave way
+    assert doc["channels"] == [1, 2, 3, 4]
+
+
+def test_mix_uses_parameter_file_and_set_overrides(capsys, tmp_path):
+    path = tmp_path / "robot.parm"
+    path.write_text("MOT_FL_REV 1  # mirrored\nMIX_ALGO,3\n")
+    code, out, _ = run(capsys, "mix", "-x", "1", "--params", str(path), "--set",
+                       "MOT_RR_MAX=1900", "--json")
+    doc = json.loads(out)
+    assert code == 0 and doc["algorithm"] == "holonomic_2010"
+    assert doc["pwm"][0] < 1500 and doc["pwm"][3] == 1500 + round(0.7071068 * 400)
+
+
+def test_a_parameter_file_with_a_typo_is_rejected_with_file_line_and_suggestion(capsys, tmp_path):
+    path = tmp_path / "typo.parm"
+    path.write_text("# robot\nMIX_ALOG 1\n")
+    code, _, err = run(capsys, "mix", "-x", "1", "--params", str(path))
+    assert code == 2
+    assert f"{path}:2:" in err and "MIX_ALGO" in err
+
+
+def test_a_bad_set_override_is_rejected(capsys):
+    code, _, err = run(capsys, "mix", "-x", "1", "--set", "INP_EXPO=7")
+    assert code == 2 and "INP_EXPO" in err
+
+
+def test_mix_rejects_polar_and_cartesian_together(capsys):
+    code, _, err = run(capsys, "mix", "-x", "1", "-m", "1")
+    assert code == 2 and "not both" in err
+
+
+def batch(text, algo="cartesian"):
+    out, err = io.StringIO(), io.StringIO()
+    code = run_batch(io.StringIO(text), out, err, Params(), algo, Desaturation.PROPORTIONAL)
+    return code, out.getvalue().splitlines(), err.getvalue()
+
+
+def test_batch_writes_one_line_per_command_and_a_header_for_a_header():
+    code, lines, err = batch("x,y,rotation\n0.5,0,0\n# comment\n\n0,1,0\n")
+    assert code == 0 and err == ""
+    assert lines[0].startswith("w_fl,w_fr,w_rl,w_rr,pwm_fl")
+    assert lines[1:] == ["0.5,0.5,0.5,0.5,1750,1750,1750,1750,",
+                         "1.0,-1.0,-1.0,1.0,2000,1000,1000,2000,"]
+
+
+def test_batch_without_header_reads_the_algorithms_own_columns():
+    code, lines, _ = batch("1,90,0\n", algo="polar_2011")
+    assert code == 0 and lines == ["1.0,-1.0,-1.0,1.0,2000,1000,1000,2000,"]
+
+
+def test_batch_json_lines_may_choose_their_algorithm():
+    code, lines, _ = batch('{"magnitude": 1, "direction_deg": 0, "algo": "holonomic_2010"}\n'
+                           '{"x": 0, "y": 0, "rotation": 0.5}\n')
+    docs = [json.loads(line) for line in lines]
+    assert code == 0
+    assert docs[0]["algorithm"] == "holonomic_2010" and docs[0]["wheels"][0] == 0.707107
+    assert docs[1]["wheels"] == [0.5, -0.5, 0.5, -0.5]
+
+
+@pytest.mark.parametrize(
+    ("line", "message"),
+    [("abc,0,0", "not a number"), ("nan,0,0", "finite"), ("1,2,3,4,5", "at most"),
+     ('{"x": 1, "speed": 2}', "unknown field"), ('{"x": ', "bad JSON"), ("[1, 2]", "not a number"),
+     ('{"x": 1, "algo": "tank"}', "unknown algorithm")],
+)
+def test_batch_answers_a_bad_line_with_its_error_and_keeps_going(line, message):
+    code, lines, err = batch(f"{line}\n0.5,0,0\n")
+    assert code == 1
+    assert len(lines) == 2 and message in lines[0] and message in err
+    assert "line 1" in err
+    assert lines[1].startswith("0.5,0.5,0.5,0.5")
+
+
+def test_params_markdown_lists_every_parameter(capsys):
+    code, out, _ = run(capsys, "params", "--markdown")
+    assert code == 0
+    for name in Params().names():
+        assert f"`{name}`" in out or name in out
+
+
+def test_params_save_writes_a_loadable_file(capsys, tmp_path):
+    path = tmp_path / "saved.parm"
+    code, _, _ = run(capsys, "params", "--set", "INP_EXPO=0.25", "--save", str(path))
+    assert code == 0
+    code, out, _ = run(capsys, "params", "--params", str(path))
+    assert code == 0 and "INP_EXPO 0.25  # changed" in out
+
+
+def test_console_script_runs_as_a_module():
+    done = subprocess.run([sys.executable, "-m", "mecanum_mav.cli", "mix", "-x", "1", "--json"],
+                          capture_output=True, text=True, timeout=60, check=False)
+    assert done.returncode == 0, done.stderr
+    assert json.loads(done.stdout)["wheels"] == [1.0, 1.0, 1.0, 1.0]

@@ -1,0 +1,120 @@
+"""Stick shaping (deadband, expo, circle) and the PWM edge."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from mecanum_mav.params import Params
+from mecanum_mav.pwm import PwmMap, WheelOutput
+from mecanum_mav.shaping import deadband, expo, shape_stick, square_to_circle
+
+unit = st.floats(-1.0, 1.0, allow_nan=False)
+
+
+def test_deadband_matches_wpilib_apply_deadband():
+    # WPILib MathUtilTest: applyDeadband(0.5, 0.02) == (0.5 - 0.02) / (1 - 0.02).
+    assert deadband(0.5, 0.02) == pytest.approx((0.5 - 0.02) / (1 - 0.02))
+    assert deadband(-0.5, 0.02) == pytest.approx(-(0.5 - 0.02) / (1 - 0.02))
+    assert deadband(0.01, 0.02) == 0.0
+    assert deadband(2.5, 0.2, max_magnitude=2.5) == pytest.approx(2.5)
+
+
+@given(unit, st.floats(0.0, 0.5))
+def test_deadband_is_continuous_monotonic_and_reaches_full_stick(v, band):
+    out = deadband(v, band)
+    assert abs(out) <= 1.0 + 1e-12
+    assert out * v >= 0.0
+    assert deadband(1.0, band) == pytest.approx(1.0)
+    assert deadband(band + 1e-9, band) == pytest.approx(0.0, abs=1e-6)
+
+
+def test_deadband_on_arrays_matches_scalars():
+    v = np.linspace(-1, 1, 41)
+    np.testing.assert_allclose(deadband(v, 0.1), [deadband(float(x), 0.1) for x in v])
+
+
+@pytest.mark.parametrize("band", [-0.1, 1.0, math.nan])
+def test_deadband_rejects_a_band_that_is_not_inside_the_range(band):
+    with pytest.raises(ValueError, match="deadband"):
+        deadband(0.5, band)
+
+
+@given(unit, st.floats(0.0, 1.0))
+def test_expo_keeps_the_end_points_and_sign_and_softens_the_centre(v, e):
+    assert expo(1.0, e) == pytest.approx(1.0)
+    assert expo(-1.0, e) == pytest.approx(-1.0)
+    assert expo(v, e) * v >= 0.0
+    assert abs(expo(v, e)) <= abs(v) + 1e-12
+
+
+def test_expo_rejects_a_weight_outside_zero_to_one():
+    with pytest.raises(ValueError, match="expo"):
+        expo(0.5, 1.5)
+
+
+def test_square_stick_corner_becomes_a_unit_diagonal():
+    x, y = square_to_circle(1.0, 1.0)
+    assert (x, y) == pytest.approx((math.sqrt(0.5), math.sqrt(0.5)))
+    assert square_to_circle(0.3, -0.4) == (0.3, -0.4)
+    xa, ya = square_to_circle(np.array([1.0, 0.3]), np.array([1.0, -0.4]))
+    np.testing.assert_allclose(np.hypot(xa, ya), [1.0, 0.5])
+
+
+def test_shape_stick_applies_deadband_expo_then_circle():
+    assert shape_stick(0.04, -0.04, 0.04, deadband_width=0.05) == (0.0, 0.0, 0.0)
+    x, y, r = shape_stick(1.0, 1.0, 0.5, deadband_width=0.05, expo_weight=0.3)
+    assert math.hypot(x, y) == pytest.approx(1.0)
+    assert r == pytest.approx(expo(deadband(0.5, 0.05), 0.3))
+    assert shape_stick(3.0, 0.0, -3.0, circle=False) == (1.0, 0.0, -1.0)
+
+
+@pytest.mark.parametrize("bad", [math.nan, math.inf])
+def test_shape_stick_reads_a_non_finite_axis_as_a_stop(bad):
+    assert shape_stick(0.5, bad, 0.2) == (0.0, 0.0, 0.0)
+
+
+# --------------------------------------------------------------------------- PWM
+
+
+def test_default_pwm_is_trim_at_zero_and_ends_at_full_command():
+    out = PwmMap.from_params(Params())
+    assert out.pulses_us([0, 0, 0, 0]) == out.neutral() == (1500, 1500, 1500, 1500)
+    assert out.pulses_us([1, -1, 0.5, -0.5]) == (2000, 1000, 1750, 1250)
+    assert out.channels == (1, 2, 3, 4)
+
+
+def test_reversed_wheel_maps_forward_to_its_minimum():
+    params = Params()
+    params.set("MOT_FR_REV", 1)
+    out = PwmMap.from_params(params)
+    assert out.pulses_us([1, 1, 1, 1]) == (2000, 1000, 2000, 2000)
+
+
+def test_off_centre_trim_keeps_full_range_on_both_sides():
+    wheel = WheelOutput(channel=1, minimum=1100, trim=1520, maximum=1900)
+    assert (wheel.pulse_us(-1.0), wheel.pulse_us(0.0), wheel.pulse_us(1.0)) == (1100, 1520, 1900)
+    assert wheel.pulse_us(0.5) == 1710 and wheel.pulse_us(-0.5) == 1310
+
+
+@pytest.mark.parametrize("bad", [math.nan, math.inf, -math.inf])
+def test_non_finite_wheel_command_gives_trim(bad):
+    wheel = WheelOutput(channel=1, minimum=1000, trim=1500, maximum=2000)
+    assert wheel.pulse_us(bad) == 1500
+
+
+def test_out_of_range_wheel_command_is_limited():
+    wheel = WheelOutput(channel=1, minimum=1000, trim=1500, maximum=2000)
+    assert (wheel.pulse_us(7.0), wheel.pulse_us(-7.0)) == (2000, 1000)
+
+
+@given(st.lists(st.floats(allow_nan=True, allow_infinity=True), min_size=4, max_size=4))
+def test_vector_pwm_matches_scalar_pwm(wheels):
+    params = Params()
+    params.set("MOT_RL_REV", 1)
+    out = PwmMap.from_params(params)
+    assert tuple(out.pulses_us_array(np.array([wheels]))[0]) == out.pulses_us(wheels)
