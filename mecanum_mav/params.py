@@ -292,6 +292,14 @@ GROUP_TITLES: dict[str, str] = {
     "GEO": "Geometry (metres)",
     "WHL": "Wheel speed",
     **{f"MOT_{w}": f"Motor output, {_WHEEL_WORDS[w]} wheel" for w in WHEELS},
+    "SYSID": "MAVLink identity",
+    "FC": "Flight-controller link",
+    "OUT": "Output to the flight controller",
+    "FS": "Failsafes",
+    "RCMAP": "Ground-station stick channels (RC_CHANNELS_OVERRIDE input)",
+    "RCIN": "Ground-station stick pulse range",
+    "MAN": "Manual driving",
+    "SIM": "Built-in simulator (flight controller and chassis)",
 }
 """Title of each parameter group, in file order."""
 
@@ -346,6 +354,118 @@ SCHEMA: tuple[ParamSpec, ...] = (
         "wheel command of 1 to m/s and back.",
     ),
     *(spec for i, w in enumerate(WHEELS) for spec in _wheel_specs(w, channel=i + 1)),
+    ParamSpec(
+        "SYSID_THISMAV", int, default=1, minimum=1, maximum=255, units="",
+        description="MAVLink system id of the vehicle (this companion) on the ground-station "
+        "link; component id is always 1.",
+    ),
+    ParamSpec(
+        "SYSID_MYGCS", int, default=0, minimum=0, maximum=255, units="",
+        description="Only the ground station with this system id may drive and command the "
+        "rover (0 = any ground station).",
+    ),
+    ParamSpec(
+        "FC_SYSID", int, default=1, minimum=1, maximum=255, units="",
+        description="System id of the flight controller that RC_CHANNELS_OVERRIDE is "
+        "addressed to.",
+    ),
+    ParamSpec(
+        "FC_COMPID", int, default=1, minimum=0, maximum=255, units="",
+        description="Component id of the flight controller that RC_CHANNELS_OVERRIDE is "
+        "addressed to.",
+    ),
+    ParamSpec(
+        "FC_GCS_SYSID", int, default=255, minimum=1, maximum=255, units="",
+        description="System id the companion sends as on the flight-controller link; it must "
+        "equal the flight controller's SYSID_MYGCS (MAV_GCS_SYSID), or ArduPilot silently "
+        "drops the overrides.",
+    ),
+    ParamSpec(
+        "OUT_RATE", float, default=20.0, minimum=2.0, maximum=200.0, units="Hz",
+        description="Rate at which RC_CHANNELS_OVERRIDE is re-sent between input-driven "
+        "updates, keeping the flight controller's override timeout from lapsing.",
+    ),
+    ParamSpec(
+        "FS_INPUT_TMO", float, default=0.5, minimum=0.1, maximum=10.0, units="s",
+        description="Stick input (MANUAL_CONTROL or ground-station RC override) older than "
+        "this while driving by hand brings the wheels to neutral until new input arrives.",
+    ),
+    ParamSpec(
+        "FS_GCS_TMO", float, default=3.0, minimum=0.5, maximum=60.0, units="s",
+        description="No ground-station HEARTBEAT for this long triggers the ground-station "
+        "failsafe action.",
+    ),
+    ParamSpec(
+        "FS_GCS_ACTION", int, default=0, minimum=0, maximum=1, units="",
+        values={0: "hold", 1: "disarm"},
+        description="Ground-station failsafe action: switch to HOLD (neutral, stay armed) or "
+        "disarm.",
+    ),
+    ParamSpec(
+        "FS_FC_TMO", float, default=3.0, minimum=0.5, maximum=60.0, units="s",
+        description="No flight-controller HEARTBEAT for this long reports the link lost, "
+        "disarms and refuses to arm until it is back.",
+    ),
+    ParamSpec(
+        "RCMAP_STEER", int, default=1, minimum=1, maximum=18, units="",
+        description="Ground-station RC override channel read as the rotation (steering) "
+        "stick, clockwise for pulses above trim (ArduPilot Rover: channel 1).",
+    ),
+    ParamSpec(
+        "RCMAP_THROTTLE", int, default=3, minimum=1, maximum=18, units="",
+        description="Ground-station RC override channel read as the forward (throttle) "
+        "stick, forward for pulses above trim (ArduPilot Rover: channel 3).",
+    ),
+    ParamSpec(
+        "RCMAP_LATERAL", int, default=4, minimum=1, maximum=18, units="",
+        description="Ground-station RC override channel read as the lateral stick, right for "
+        "pulses above trim (ArduPilot Rover: channel 4).",
+    ),
+    ParamSpec(
+        "RCIN_MIN", int, default=1000, minimum=800, maximum=2200, units="us",
+        description="Ground-station stick pulse width for full negative deflection.",
+    ),
+    ParamSpec(
+        "RCIN_TRIM", int, default=1500, minimum=800, maximum=2200, units="us",
+        description="Ground-station stick pulse width at centre.",
+    ),
+    ParamSpec(
+        "RCIN_MAX", int, default=2000, minimum=800, maximum=2200, units="us",
+        description="Ground-station stick pulse width for full positive deflection.",
+    ),
+    ParamSpec(
+        "MAN_Z_SCALE", int, default=0, minimum=0, maximum=1, units="",
+        values={0: "off", 1: "on"},
+        description="Use MANUAL_CONTROL z (0..1000) as a speed scale on the translation and "
+        "rotation sticks; off ignores z.",
+    ),
+    ParamSpec(
+        "SIM_MOTOR_TAU", float, default=0.08, minimum=0.001, maximum=5.0, units="s",
+        description="Simulator: first-order time constant of each motor's speed response.",
+    ),
+    ParamSpec(
+        "SIM_SLIP", float, default=0.0, minimum=0.0, maximum=0.5, units="",
+        description="Simulator: standard deviation of each wheel's traction error as a "
+        "fraction of its speed (0 = no slip).",
+    ),
+    ParamSpec(
+        "SIM_RC_TMO", float, default=3.0, minimum=0.1, maximum=60.0, units="s",
+        description="Simulator: override timeout after which an un-refreshed RC override "
+        "lapses to neutral (ArduPilot RC_OVERRIDE_TIME).",
+    ),
+    ParamSpec(
+        "SIM_GCS_SYSID", int, default=255, minimum=1, maximum=255, units="",
+        description="Simulator: the only sender system id whose RC overrides it obeys "
+        "(ArduPilot SYSID_MYGCS).",
+    ),
+    ParamSpec(
+        "SIM_RATE", float, default=100.0, minimum=10.0, maximum=1000.0, units="Hz",
+        description="Simulator: physics update rate.",
+    ),
+    ParamSpec(
+        "SIM_SEED", int, default=0, minimum=0, maximum=1000000, units="",
+        description="Simulator: random seed of the slip noise, for repeatable runs.",
+    ),
 )
 """Every parameter, in file, table and MAVLink index order."""
 # fmt: on
@@ -385,18 +505,24 @@ def get_spec(name: str) -> ParamSpec:
 def _consistency_problems(values: Mapping[str, Value]) -> list[tuple[str, tuple[str, ...]]]:
     """Cross-parameter rule violations as (message, names involved)."""
     problems: list[tuple[str, tuple[str, ...]]] = []
-    users: dict[Value, list[str]] = {}
-    for w in WHEELS:
-        names = (f"MOT_{w}_MIN", f"MOT_{w}_TRIM", f"MOT_{w}_MAX")
+    for prefix in (*(f"MOT_{w}" for w in WHEELS), "RCIN"):
+        names = (f"{prefix}_MIN", f"{prefix}_TRIM", f"{prefix}_MAX")
         low, trim, high = (values[n] for n in names)
         if not low < trim < high:
             got = ", ".join(f"{n} {values[n]}" for n in names)
-            problems.append((f"MOT_{w}: need MIN < TRIM < MAX, got {got} us", names))
-        users.setdefault(values[f"MOT_{w}_CH"], []).append(f"MOT_{w}_CH")
-    for channel, on_channel in users.items():
-        if len(on_channel) > 1:
-            message = f"{_join(on_channel, 'and')} share RC channel {channel}; one motor each"
-            problems.append((message, tuple(on_channel)))
+            problems.append((f"{prefix}: need MIN < TRIM < MAX, got {got} us", names))
+    channel_groups = (
+        ([f"MOT_{w}_CH" for w in WHEELS], "one motor each"),
+        (["RCMAP_STEER", "RCMAP_THROTTLE", "RCMAP_LATERAL"], "one stick axis each"),
+    )
+    for group, rule in channel_groups:
+        users: dict[Value, list[str]] = {}
+        for name in group:
+            users.setdefault(values[name], []).append(name)
+        for channel, on_channel in users.items():
+            if len(on_channel) > 1:
+                message = f"{_join(on_channel, 'and')} share RC channel {channel}; {rule}"
+                problems.append((message, tuple(on_channel)))
     return problems
 
 

@@ -71,6 +71,11 @@ def test_the_schema_has_exactly_the_parameters_the_rest_of_the_code_reads():
         "GEO_WHEEL_RAD",
         "WHL_MAX_SPD",
         *motor,
+        "SYSID_THISMAV", "SYSID_MYGCS", "FC_SYSID", "FC_COMPID", "FC_GCS_SYSID", "OUT_RATE",
+        "FS_INPUT_TMO", "FS_GCS_TMO", "FS_GCS_ACTION", "FS_FC_TMO",
+        "RCMAP_STEER", "RCMAP_THROTTLE", "RCMAP_LATERAL", "RCIN_MIN", "RCIN_TRIM", "RCIN_MAX",
+        "MAN_Z_SCALE",
+        "SIM_MOTOR_TAU", "SIM_SLIP", "SIM_RC_TMO", "SIM_GCS_SYSID", "SIM_RATE", "SIM_SEED",
     ]
     assert [s.name for s in SCHEMA] == list(SPECS)
     assert SPECS["MIX_ALGO"].values == {
@@ -99,7 +104,7 @@ def test_every_default_lies_in_its_range_and_has_its_kind(spec):
     for number in (spec.default, spec.minimum, spec.maximum):
         assert type(number) is spec.kind
     assert spec.description.endswith(".")
-    assert spec.units in ("", "m", "m/s", "us")
+    assert spec.units in ("", "m", "m/s", "us", "s", "Hz")
 
 
 @pytest.mark.parametrize("spec", [s for s in SCHEMA if s.values], ids=lambda s: s.name)
@@ -477,12 +482,17 @@ def valid_params(draw: st.DrawFn) -> Params:
         else:
             values[spec.name] = draw(st.floats(spec.minimum, spec.maximum))
     channels = draw(st.lists(st.integers(1, 18), min_size=4, max_size=4, unique=True))
-    for wheel, channel in zip(WHEELS, channels, strict=True):
+    for prefix in (*(f"MOT_{w}" for w in WHEELS), "RCIN"):
         pwm = sorted(draw(st.lists(st.integers(800, 2200), min_size=3, max_size=3, unique=True)))
         values.update(
-            {f"MOT_{wheel}_{f}": v for f, v in zip(("MIN", "TRIM", "MAX"), pwm, strict=True)}
+            {f"{prefix}_{f}": v for f, v in zip(("MIN", "TRIM", "MAX"), pwm, strict=True)}
         )
+    for wheel, channel in zip(WHEELS, channels, strict=True):
         values[f"MOT_{wheel}_CH"] = channel
+    sticks = draw(st.lists(st.integers(1, 18), min_size=3, max_size=3, unique=True))
+    for name, channel in zip(("RCMAP_STEER", "RCMAP_THROTTLE", "RCMAP_LATERAL"), sticks,
+                             strict=True):
+        values[name] = channel
     return Params(values)
 
 
@@ -570,3 +580,9 @@ def test_the_module_command_prints_the_table_and_writes_the_defaults_file(tmp_pa
     assert _main(["--table", "--write-defaults", str(tmp_path / "d.parm")]) == 0
     assert capsys.readouterr().out == markdown_table()
     assert (tmp_path / "d.parm").read_text() == DEFAULT_FILE.read_text()
+
+
+def test_ground_station_stick_channels_must_be_distinct_and_range_ordered():
+    errors = file_errors("RCMAP_LATERAL 3\nRCIN_TRIM 2100\n")
+    assert any("RCMAP_THROTTLE and RCMAP_LATERAL share RC channel 3" in e for e in errors)
+    assert any("RCIN: need MIN < TRIM < MAX" in e for e in errors)
