@@ -1,0 +1,129 @@
+"""MAVLink links: pymavlink connections driven by a selector loop, MAVLink 2, never raising.
+
+Importing this module selects MAVLink 2 and the ArduPilot dialect for pymavlink (it sets
+``MAVLINK20=1`` before pymavlink is imported and re-selects the dialect, so it works even when
+pymavlink was imported first). URLs are pymavlink connection strings: ``udpin:HOST:PORT``
+(listen; replies go to every peer heard), ``udpout:HOST:PORT``, ``tcp:HOST:PORT``,
+``tcpin:HOST:PORT``, or a serial device ``/dev/ttyUSB0,57600`` (pyserial).
+
+A :class:`Link` is read when its file descriptor is readable: :meth:`Link.read` returns every
+message that arrived, parsed from the raw bytes with ``parse_buffer`` (a datagram may carry
+several). Malformed bytes, bad CRCs and truncated packets are counted in :attr:`Link.bad`, never
+raised; a send that fails (peer gone, no route) is counted in :attr:`Link.send_errors`.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import os
+from typing import Any
+
+os.environ["MAVLINK20"] = "1"
+
+from pymavlink import mavutil
+
+mavutil.set_dialect("ardupilotmega")
+mavlink: Any = mavutil.mavlink
+"""The pymavlink dialect module (MAVLink 2, ardupilotmega): constants and message classes."""
+
+log = logging.getLogger(__name__)
+
+__all__ = ["Link", "mavlink", "open_link"]
+
+_READ_CHUNK = 4096
+_MAX_READS = 64  # per readiness event: bounded work, the selector calls again if more waits
+
+
+class Link:
+    """One MAVLink connection with non-blocking reads for a selector-driven loop.
+
+    Args:
+        url: pymavlink connection string.
+        source_system: system id this side sends as (1..255).
+        source_component: component id this side sends as.
+        name: short name for logs (``"gcs"``, ``"fc"``).
+    """
+
+    def __init__(self, url: str, *, source_system: int, source_component: int, name: str) -> None:
+        self.url = url
+        self.name = name
+        self.conn: Any = mavutil.mavlink_connection(
+            url, source_system=source_system, source_component=source_component
+        )
+        self.conn.mav.robust_parsing = True
+        self.received = 0
+        self.bad = 0
+        self.sent = 0
+        self.send_errors = 0
+
+    @property
+    def mav(self) -> Any:
+        """The pymavlink ``MAVLink`` object: ``link.mav.heartbeat_send(...)`` etc."""
+        return self.conn.mav
+
+    @property
+    def local_port(self) -> int | None:
+        """The bound local UDP/TCP port (useful after binding port 0), else None."""
+        sock = getattr(self.conn, "port", None)
+        try:
+            return int(sock.getsockname()[1])  # type: ignore[union-attr]
+        except (AttributeError, OSError, TypeError, IndexError):
+            return None
+
+    def fileno(self) -> int:
+        """File descriptor to wait on (may change for ``tcpin`` after a client connects)."""
+        return int(self.conn.fd)
+
+    def read(self) -> list[Any]:
+        """Every complete message waiting on the link, oldest first; never raises."""
+        messages: list[Any] = []
+        for _ in range(_MAX_READS):
+            try:
+                data = self.conn.recv(_READ_CHUNK)
+            except OSError as exc:
+                log.debug("%s: read failed: %s", self.name, exc)
+                break
+            if not data:
+                break
+            if self.conn.first_byte:
+                self.conn.auto_mavlink_version(data)
+            try:
+                parsed = self.conn.mav.parse_buffer(data) or []
+            except Exception as exc:  # pymavlink raises MAVError (and worse) on some garbage
+                self.bad += 1
+                log.debug("%s: unparseable bytes: %s", self.name, exc)
+                self.conn.mav.buf = bytearray()
+                self.conn.mav.buf_index = 0
+                continue
+            for msg in parsed:
+                if msg.get_type() == "BAD_DATA":
+                    self.bad += 1
+                else:
+                    messages.append(msg)
+        self.received += len(messages)
+        return messages
+
+    def send(self, msg: Any) -> bool:
+        """Pack and send one message object; returns False (and counts) on failure."""
+        try:
+            self.conn.mav.send(msg)
+        except Exception as exc:  # a send must never take the control loop down
+            self.send_errors += 1
+            log.debug("%s: send failed: %s", self.name, exc)
+            return False
+        self.sent += 1
+        return True
+
+    def close(self) -> None:
+        """Close the connection; idempotent."""
+        with contextlib.suppress(OSError):
+            self.conn.close()
+
+
+def open_link(url: str, *, source_system: int, source_component: int, name: str) -> Link:
+    """Open a :class:`Link`; raises ``OSError``/``ValueError`` with the URL on failure."""
+    try:
+        return Link(url, source_system=source_system, source_component=source_component, name=name)
+    except (OSError, ValueError) as exc:
+        raise type(exc)(f"cannot open {name} link {url!r}: {exc}") from exc
