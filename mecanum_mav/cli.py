@@ -1,6 +1,9 @@
 """The ``mecanum-mav`` command line.
 
 Sub-commands:
+    sim     the companion and the built-in simulated flight controller (the quick start)
+    run     the companion between a ground station (--gcs) and a flight controller (--fc)
+    simfc   the simulated flight controller alone, as its own process
     mix     wheel outputs (normalized and PWM) for one command, or a batch from stdin
     plot    the speed-envelope figures of seed 000 (and of our mixers) as PNGs
     params  validate a parameter file, print the parameters, or the schema as Markdown
@@ -12,9 +15,11 @@ and parameter files that do not validate.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import csv
 import io
 import json
+import logging
 import math
 import sys
 from collections.abc import Iterable, Sequence
@@ -256,6 +261,59 @@ def cmd_params(args: argparse.Namespace, params: Params) -> int:
     return 0
 
 
+# --------------------------------------------------------------------------- the companion
+
+DEFAULT_GCS_URL = "udpout:127.0.0.1:14550"
+"""Where QGroundControl and MAVProxy listen by default."""
+
+
+def serve(params: Params, gcs_url: str, fc_url: str, param_path: Path | None,
+          tlog_path: Path | None) -> int:
+    """Run the companion in the foreground until SIGINT/SIGTERM; ``fc_url`` may be ``sim``."""
+    from mecanum_mav.companion import Companion
+    from mecanum_mav.shutdown import on_termination
+    from mecanum_mav.simfc import SimFlightController
+
+    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s: %(message)s")
+    with contextlib.ExitStack() as stack:
+        try:
+            if fc_url == "sim":
+                sim = SimFlightController("udpin:127.0.0.1:0", params)
+                sim.start()
+                stack.callback(sim.stop)
+                fc_url = f"udpout:127.0.0.1:{sim.local_port}"
+            tlog = stack.enter_context(tlog_path.open("ab")) if tlog_path else None
+            companion = Companion(params, gcs_url, fc_url, param_path=param_path, tlog=tlog)
+        except (OSError, ValueError) as exc:
+            print(f"mecanum-mav: {exc}", file=sys.stderr)
+            return 2
+        stack.callback(companion.close)
+        print(f"mecanum-mav: rover system {params['SYSID_THISMAV']} on {gcs_url}, flight "
+              f"controller on {fc_url}. Ctrl-C stops (wheels to neutral, channels released).",
+              flush=True)
+        with on_termination(companion.stop):
+            companion.run()
+    return 0
+
+
+def cmd_run(args: argparse.Namespace, params: Params) -> int:
+    return serve(params, args.gcs, args.fc, args.params, args.tlog)
+
+
+def cmd_sim(args: argparse.Namespace, params: Params) -> int:
+    host_port = args.gcs.split(":", 1)[1] if ":" in args.gcs else args.gcs
+    print(f"mecanum-mav sim: point a ground station at UDP {host_port} "
+          f"(QGroundControl and Mission Planner listen on 14550; "
+          f"MAVProxy: mavproxy.py --master=udpin:{host_port})", flush=True)
+    return serve(params, args.gcs, "sim", args.params, args.tlog)
+
+
+def cmd_simfc(args: argparse.Namespace, params: Params) -> int:
+    from mecanum_mav.simfc import main as simfc_main
+
+    return simfc_main(args.listen, params)
+
+
 # --------------------------------------------------------------------------- parser
 
 
@@ -273,6 +331,33 @@ def build_parser() -> argparse.ArgumentParser:
                         help="parameter file (NAME VALUE per line, # comments)")
     common.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
                         help="override a parameter (repeatable)")
+
+    sim = sub.add_parser("sim", parents=[common],
+                         help="companion + simulated flight controller (start here)",
+                         description="Run the companion with the built-in simulated flight "
+                         "controller and chassis; a ground station drives it over UDP.")
+    sim.add_argument("--gcs", default=DEFAULT_GCS_URL, metavar="URL",
+                     help=f"ground-station link (default {DEFAULT_GCS_URL})")
+    sim.add_argument("--tlog", type=Path, metavar="FILE", help="record all traffic (tlog)")
+    sim.set_defaults(handler=cmd_sim)
+
+    run = sub.add_parser("run", parents=[common], help="the companion",
+                         description="Run the companion: the rover a ground station sees, "
+                         "driving the flight controller's outputs by RC_CHANNELS_OVERRIDE.")
+    run.add_argument("--gcs", default=DEFAULT_GCS_URL, metavar="URL",
+                     help=f"ground-station link, a pymavlink URL (default {DEFAULT_GCS_URL})")
+    run.add_argument("--fc", required=True, metavar="URL",
+                     help="flight-controller link: a pymavlink URL (e.g. /dev/ttyACM0,115200 or "
+                     "udpout:HOST:PORT), or 'sim' for the built-in simulator")
+    run.add_argument("--tlog", type=Path, metavar="FILE", help="record all traffic (tlog)")
+    run.set_defaults(handler=cmd_run)
+
+    simfc = sub.add_parser("simfc", parents=[common], help="the simulated flight controller",
+                           description="Run the simulated ArduPilot Rover flight controller "
+                           "and chassis alone, listening on a MAVLink URL.")
+    simfc.add_argument("--listen", default="udpin:127.0.0.1:14551", metavar="URL",
+                       help="where to listen (default udpin:127.0.0.1:14551)")
+    simfc.set_defaults(handler=cmd_simfc)
 
     mix = sub.add_parser("mix", parents=[common], help="wheel outputs for a drive command",
                          description="Print the four wheel commands (normalized and PWM) for a "

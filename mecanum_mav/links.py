@@ -17,7 +17,9 @@ from __future__ import annotations
 import contextlib
 import logging
 import os
-from typing import Any
+import struct
+import time
+from typing import Any, BinaryIO
 
 os.environ["MAVLINK20"] = "1"
 
@@ -29,9 +31,10 @@ mavlink: Any = mavutil.mavlink
 
 log = logging.getLogger(__name__)
 
-__all__ = ["Link", "mavlink", "open_link"]
+__all__ = ["Link", "mavlink", "mavutil", "open_link"]
 
 _READ_CHUNK = 4096
+_TLOG_STAMP = struct.Struct(">Q")
 _MAX_READS = 64  # per readiness event: bounded work, the selector calls again if more waits
 
 
@@ -52,10 +55,23 @@ class Link:
             url, source_system=source_system, source_component=source_component
         )
         self.conn.mav.robust_parsing = True
+        self._datagrams = url.startswith(("udp:", "udpin:", "udpout:", "udpbcast:"))
         self.received = 0
         self.bad = 0
         self.sent = 0
         self.send_errors = 0
+        self._tlog: BinaryIO | None = None
+
+    def record_to(self, tlog: BinaryIO) -> None:
+        """Record every message received and sent to ``tlog`` in the telemetry-log format
+        MAVProxy and Mission Planner read: 8-byte big-endian Unix microseconds, raw packet."""
+        self._tlog = tlog
+        self.conn.mav.set_send_callback(self._record)
+
+    def _record(self, msg: Any) -> None:
+        if self._tlog is not None:
+            with contextlib.suppress(OSError, ValueError):
+                self._tlog.write(_TLOG_STAMP.pack(int(time.time() * 1e6)) + msg.get_msgbuf())
 
     @property
     def mav(self) -> Any:
@@ -93,16 +109,28 @@ class Link:
             except Exception as exc:  # pymavlink raises MAVError (and worse) on some garbage
                 self.bad += 1
                 log.debug("%s: unparseable bytes: %s", self.name, exc)
-                self.conn.mav.buf = bytearray()
-                self.conn.mav.buf_index = 0
+                self._reset_parser()
                 continue
+            if self._datagrams and self.conn.mav.buf_len() > 0:
+                # A MAVLink packet never spans UDP datagrams: a leftover is a truncated
+                # packet, and keeping it would swallow the start of the next datagram.
+                self.bad += 1
+                self._reset_parser()
             for msg in parsed:
                 if msg.get_type() == "BAD_DATA":
                     self.bad += 1
                 else:
                     messages.append(msg)
+                    self._record(msg)
         self.received += len(messages)
         return messages
+
+    def _reset_parser(self) -> None:
+        mav = self.conn.mav
+        mav.buf = bytearray()
+        mav.buf_index = 0
+        mav.expected_length = mavlink.HEADER_LEN_V1 + 2
+        mav.have_prefix_error = False
 
     def send(self, msg: Any) -> bool:
         """Pack and send one message object; returns False (and counts) on failure."""

@@ -52,6 +52,20 @@ class WheelOutput:
         span = (self.maximum - self.trim) if c >= 0.0 else (self.trim - self.minimum)
         return round(self.trim + c * span)
 
+    def command_from_pulse(self, pulse_us: float) -> float:
+        """Normalized command in [-1, 1] that a pulse width (microseconds) stands for.
+
+        The inverse of :meth:`pulse_us` (exact up to its rounding to whole microseconds):
+        each side of trim is linear on its own, reverse flips the sign, and pulses outside
+        [minimum, maximum] are limited to them. A non-finite pulse gives 0 (stopped).
+        """
+        if not math.isfinite(pulse_us):
+            return 0.0
+        p = min(max(float(pulse_us), self.minimum), self.maximum)
+        span = (self.maximum - self.trim) if p >= self.trim else (self.trim - self.minimum)
+        c = (p - self.trim) / span
+        return -c if self.reversed else c
+
 
 @dataclass(frozen=True)
 class PwmMap:

@@ -258,7 +258,7 @@ def test_translation_priority_keeps_translation_that_fits(x, y, r):
     w = cartesian(x, y, r, priority=Desaturation.TRANSLATION_PRIORITY)
     cx, cy, cr = chassis_from_wheels(w)
     assert (cx, cy) == pytest.approx((x, y), abs=1e-12)
-    assert cr * r >= 0.0 and abs(cr) <= abs(r) + 1e-12
+    assert cr * r >= -1e-12 and abs(cr) <= abs(r) + 1e-12
 
 
 @given(st.lists(st.floats(-3, 3), min_size=4, max_size=4),

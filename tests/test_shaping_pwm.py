@@ -118,3 +118,22 @@ def test_vector_pwm_matches_scalar_pwm(wheels):
     params.set("MOT_RL_REV", 1)
     out = PwmMap.from_params(params)
     assert tuple(out.pulses_us_array(np.array([wheels]))[0]) == out.pulses_us(wheels)
+
+
+@given(st.floats(-1.0, 1.0), st.booleans(), st.integers(1000, 1499), st.integers(1501, 2000))
+def test_command_from_pulse_inverts_pulse_us_to_the_microsecond(command, rev, low, high):
+    wheel = WheelOutput(channel=1, minimum=low - 100, trim=low, maximum=high, reversed=rev)
+    back = wheel.command_from_pulse(wheel.pulse_us(command))
+    assert wheel.pulse_us(back) == wheel.pulse_us(command)
+    span = min(wheel.maximum - wheel.trim, wheel.trim - wheel.minimum)
+    assert back == pytest.approx(command, abs=0.5 / span)
+
+
+def test_command_from_pulse_limits_the_pulse_and_reads_non_finite_as_stopped():
+    wheel = WheelOutput(channel=1, minimum=1100, trim=1520, maximum=1900)
+    assert [wheel.command_from_pulse(p) for p in (1900, 1520, 1100)] == [1.0, 0.0, -1.0]
+    assert (wheel.command_from_pulse(2500), wheel.command_from_pulse(0)) == (1.0, -1.0)
+    assert wheel.command_from_pulse(1710) == pytest.approx(0.5)
+    assert wheel.command_from_pulse(math.nan) == 0.0
+    mirrored = WheelOutput(channel=2, minimum=1000, trim=1500, maximum=2000, reversed=True)
+    assert mirrored.command_from_pulse(1250) == 0.5

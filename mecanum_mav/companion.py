@@ -1,0 +1,379 @@
+"""The companion: the rover a ground station sees, driving four wheels through a flight controller.
+
+One thread, one loop, top to bottom (:meth:`Companion.run`):
+
+1. Wait until a link is readable or the next timer is due (``selectors``; it never polls, so
+   an idle companion uses no CPU).
+2. Read everything waiting on both links and handle each message: cheap state updates only.
+   Under overload this drains the queue and acts on the newest stick, so latency stays bounded.
+3. ``vehicle.update(now)``: timeouts and failsafes.
+4. Output: if the vehicle is driving, mix the latest stick into four wheel commands and PWM,
+   else neutral (each wheel's trim). Sent at once when new input arrived or the output changed,
+   and re-sent at ``OUT_RATE`` so the flight controller's override timeout never lapses.
+5. Timers: HEARTBEAT to both links at 1 Hz; STATUSTEXT for every state change.
+
+Identity on the ground-station link: system ``SYSID_THISMAV``, component 1, ArduPilot Rover
+dialect (see README). On the flight-controller link the companion is a ground station: it sends
+from system ``FC_GCS_SYSID`` (255, ArduPilot's default SYSID_MYGCS), component 190.
+
+Safety: disarmed, HOLD, any failsafe, stale input, an exception while handling a message or
+computing the output, and shutdown all end at neutral PWM. On shutdown the wheels go to neutral
+first, then the override channels are released to the flight controller.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import math
+import os
+import selectors
+import threading
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any, BinaryIO
+
+from mecanum_mav.links import Link, mavlink, open_link
+from mecanum_mav.manual import InputError, RcStickState, stick_from_manual_control
+from mecanum_mav.mixing import ALGORITHM_NAMES, Desaturation, mix_stick
+from mecanum_mav.params import Params, save
+from mecanum_mav.pwm import PwmMap
+from mecanum_mav.rcout import override_fields, release_fields
+from mecanum_mav.shaping import shape_stick
+from mecanum_mav.vehicle import Decision, Mode, Severity, Vehicle
+
+log = logging.getLogger(__name__)
+
+__all__ = ["Companion"]
+
+COMPANION_COMPID = 1  # MAVSDK only talks to component 1 (the autopilot)
+FC_LINK_COMPID = 190  # MAV_COMP_ID_MISSIONPLANNER: a ground station on the FC link
+HEARTBEAT_PERIOD_S = 1.0
+STATUSTEXT_REPEAT_S = 1.0  # the same rejection is reported at most once a second
+ARM_FORCE_MAGIC = 21196  # ArduPilot's "force" value of MAV_CMD_COMPONENT_ARM_DISARM param2
+MAX_STATUSTEXT = 50
+
+Stick = tuple[float, float, float]
+
+
+class Companion:
+    """The companion process's state and loop.
+
+    Args:
+        params: the parameter store (read live; :meth:`reconfigure` after changing it).
+        gcs_url: pymavlink URL of the ground-station link.
+        fc_url: pymavlink URL of the flight-controller link.
+        param_path: the parameter file the companion was started with (saved on change).
+        tlog: an open binary file to record both links' traffic to, or None.
+        clock: monotonic time source in seconds (tests may inject one).
+    """
+
+    def __init__(
+        self,
+        params: Params,
+        gcs_url: str,
+        fc_url: str,
+        *,
+        param_path: Path | None = None,
+        tlog: BinaryIO | None = None,
+        clock: Callable[[], float] = time.monotonic,
+    ) -> None:
+        self.params = params
+        self.param_path = param_path
+        self.clock = clock
+        self.vehicle = Vehicle(params)
+        self.sysid = int(params["SYSID_THISMAV"])
+        self.gcs: Link = open_link(gcs_url, source_system=self.sysid,
+                                   source_component=COMPANION_COMPID, name="gcs")
+        self.fc: Link = open_link(fc_url, source_system=int(params["FC_GCS_SYSID"]),
+                                  source_component=FC_LINK_COMPID, name="fc")
+        if tlog is not None:
+            self.gcs.record_to(tlog)
+            self.fc.record_to(tlog)
+        self.rc_sticks = RcStickState()
+        self.stick: Stick = (0.0, 0.0, 0.0)
+        self.pulses_us: tuple[int, ...] = ()
+        self.overrides_sent = 0
+        self._new_input = False
+        self._next_output_s = 0.0
+        self._next_heartbeat_s = 0.0
+        self._said: dict[str, float] = {}
+        self._handlers: dict[str, Callable[[Any, float], None]] = {
+            "HEARTBEAT": self._on_gcs_heartbeat,
+            "MANUAL_CONTROL": self._on_manual_control,
+            "RC_CHANNELS_OVERRIDE": self._on_rc_override,
+            "COMMAND_LONG": self._on_command,
+            "COMMAND_INT": self._on_command,
+            "SET_MODE": self._on_set_mode,
+        }
+        self._stop = threading.Event()
+        self._wake_r, self._wake_w = os.pipe()
+        self._thread: threading.Thread | None = None
+        self.reconfigure()
+
+    # ================================================================== the loop
+
+    def run(self) -> None:
+        """Run until :meth:`stop`; always ends with neutral wheels and released channels."""
+        selector = selectors.DefaultSelector()
+        selector.register(self._wake_r, selectors.EVENT_READ, None)
+        registered = {self.gcs: self.gcs.fileno(), self.fc: self.fc.fileno()}
+        for link, fd in registered.items():
+            selector.register(fd, selectors.EVENT_READ, link)
+        try:
+            while not self._stop.is_set():
+                now = self.clock()
+                timeout = max(0.0, min(self._next_output_s, self._next_heartbeat_s) - now)
+                ready = selector.select(timeout)
+                for key, _ in ready:
+                    if key.data is None:
+                        os.read(self._wake_r, 64)
+                    else:
+                        self._drain(key.data)
+                self._tick(self.clock())
+                for link, fd in registered.items():  # tcpin swaps its fd on accept
+                    if link.fileno() != fd:
+                        selector.unregister(fd)
+                        registered[link] = link.fileno()
+                        selector.register(registered[link], selectors.EVENT_READ, link)
+        finally:
+            selector.close()
+            self._shutdown_outputs()
+
+    def _drain(self, link: Link) -> None:
+        now = self.clock()
+        for msg in link.read():
+            try:
+                if link is self.gcs:
+                    self._on_gcs_message(msg, now)
+                else:
+                    self._on_fc_message(msg, now)
+            except Exception:  # never let one message take the control path down
+                log.exception("error handling %s", msg.get_type())
+                self._say(Severity.ERROR, f"Error handling {msg.get_type()}: neutral")
+                self._send_output(self._neutral(), now)
+
+    def _tick(self, now: float) -> None:
+        """Steps 3-5 of the loop: failsafes, output, heartbeats, status texts."""
+        self.vehicle.update(now)
+        try:
+            pulses = self._compute_output()
+        except Exception:
+            log.exception("error computing the output")
+            self._say(Severity.ERROR, "Error computing output: neutral")
+            pulses = self._neutral()
+        if self._new_input or pulses != self.pulses_us or now >= self._next_output_s:
+            self._send_output(pulses, now)
+        if now >= self._next_heartbeat_s:
+            self._send_heartbeats()
+            self._next_heartbeat_s = now + HEARTBEAT_PERIOD_S
+        for severity, text in self.vehicle.take_events():
+            self._say(severity, text)
+
+    # ================================================================== output
+
+    def reconfigure(self) -> None:
+        """Re-read the parameters the loop caches (after a parameter changed)."""
+        p = self.params
+        self.pwm = PwmMap.from_params(p)
+        self.algorithm = ALGORITHM_NAMES[int(p["MIX_ALGO"])]
+        self.priority = Desaturation(int(p["MIX_DESAT"]))
+        self.output_period_s = 1.0 / float(p["OUT_RATE"])
+        self.fc_target = (int(p["FC_SYSID"]), int(p["FC_COMPID"]))
+
+    def _neutral(self) -> tuple[int, ...]:
+        return self.pwm.neutral()
+
+    def _compute_output(self) -> tuple[int, ...]:
+        if not self.vehicle.driving():
+            return self._neutral()
+        p = self.params
+        x, y, r = shape_stick(*self.stick, deadband_width=p["INP_DEADBAND"],
+                              expo_weight=p["INP_EXPO"], circle=bool(p["INP_CIRCLE"]))
+        wheels = mix_stick(x, y, r, self.algorithm, priority=self.priority)
+        return self.pwm.pulses_us(wheels)
+
+    def _send_output(self, pulses: tuple[int, ...], now: float) -> None:
+        fields = override_fields(self.pwm.channels, pulses)
+        self.fc.mav.rc_channels_override_send(*self.fc_target, *fields)
+        self.pulses_us = pulses
+        self.overrides_sent += 1
+        self._new_input = False
+        self._next_output_s = now + self.output_period_s
+
+    def _shutdown_outputs(self) -> None:
+        """Neutral first (the wheels stop), then hand the channels back to the radio."""
+        neutral = override_fields(self.pwm.channels, self._neutral())
+        release = release_fields(self.pwm.channels)
+        for fields in (neutral, neutral, release):
+            self.fc.mav.rc_channels_override_send(*self.fc_target, *fields)
+        self.pulses_us = self._neutral()
+
+    def _send_heartbeats(self) -> None:
+        v = self.vehicle
+        base = mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
+        if v.armed:
+            base |= mavlink.MAV_MODE_FLAG_SAFETY_ARMED
+        base |= {
+            Mode.MANUAL: mavlink.MAV_MODE_FLAG_MANUAL_INPUT_ENABLED,
+            Mode.GUIDED: mavlink.MAV_MODE_FLAG_GUIDED_ENABLED,
+            Mode.AUTO: mavlink.MAV_MODE_FLAG_AUTO_ENABLED | mavlink.MAV_MODE_FLAG_GUIDED_ENABLED,
+        }.get(v.mode, 0)
+        if v.failsafe:
+            status = mavlink.MAV_STATE_CRITICAL
+        else:
+            status = mavlink.MAV_STATE_ACTIVE if v.armed else mavlink.MAV_STATE_STANDBY
+        self.gcs.mav.heartbeat_send(mavlink.MAV_TYPE_GROUND_ROVER,
+                                    mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA, base, int(v.mode), status)
+        self.fc.mav.heartbeat_send(mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID, 0, 0,
+                                   mavlink.MAV_STATE_ACTIVE)
+
+    def _say(self, severity: Severity, text: str, *, repeat_s: float = 0.0) -> None:
+        """STATUSTEXT to the ground station (and the log); long texts go in chunks."""
+        now = self.clock()
+        if repeat_s and now - self._said.get(text, -math.inf) < repeat_s:
+            return
+        self._said[text] = now
+        log.log(logging.WARNING if severity <= Severity.WARNING else logging.INFO, "%s", text)
+        data = text.encode("utf-8", "replace")
+        if len(data) <= MAX_STATUSTEXT:
+            self.gcs.mav.statustext_send(int(severity), data)
+            return
+        chunk_id = (hash(text) & 0x7FFF) or 1
+        for seq, start in enumerate(range(0, len(data), MAX_STATUSTEXT)):
+            self.gcs.mav.statustext_send(int(severity), data[start:start + MAX_STATUSTEXT],
+                                         chunk_id, seq)
+
+    # ================================================================== messages
+
+    def _for_us(self, target_system: int, target_component: int | None = None) -> bool:
+        if target_system not in (0, self.sysid):
+            return False
+        return target_component is None or target_component in (0, COMPANION_COMPID)
+
+    def _from_permitted_gcs(self, msg: Any) -> bool:
+        wanted = int(self.params["SYSID_MYGCS"])
+        return wanted == 0 or msg.get_srcSystem() == wanted
+
+    def _on_gcs_message(self, msg: Any, now: float) -> None:
+        handler = self._handlers.get(msg.get_type())
+        if handler is not None and msg.get_srcSystem() != self.sysid:
+            handler(msg, now)
+
+    def _on_fc_message(self, msg: Any, now: float) -> None:
+        if msg.get_srcSystem() != self.fc_target[0]:
+            return
+        if msg.get_type() == "HEARTBEAT":
+            self.vehicle.on_fc_heartbeat(now)
+
+    def _on_gcs_heartbeat(self, msg: Any, now: float) -> None:
+        if self._from_permitted_gcs(msg):
+            self.vehicle.on_gcs_heartbeat(now)
+
+    def _reject_input(self, reason: str) -> None:
+        self._say(Severity.WARNING, f"Rejected: {reason}", repeat_s=STATUSTEXT_REPEAT_S)
+
+    def _take_stick(self, stick: Stick, now: float) -> None:
+        self.stick = stick
+        self.vehicle.on_stick_input(now)
+        self._new_input = True
+
+    def _on_manual_control(self, msg: Any, now: float) -> None:
+        if not (self._for_us(msg.target) and self._from_permitted_gcs(msg)):
+            return
+        try:
+            stick = stick_from_manual_control(msg.x, msg.y, msg.r, msg.z,
+                                              z_scale=bool(self.params["MAN_Z_SCALE"]))
+        except InputError as exc:
+            self._reject_input(str(exc))
+            return
+        self._take_stick(stick, now)
+
+    def _on_rc_override(self, msg: Any, now: float) -> None:
+        if not (self._for_us(msg.target_system, msg.target_component)
+                and self._from_permitted_gcs(msg)):
+            return
+        channels = [getattr(msg, f"chan{i}_raw") for i in range(1, 19)]
+        try:
+            self.rc_sticks.apply(channels)
+        except InputError as exc:
+            self._reject_input(str(exc))
+            return
+        if self.rc_sticks.touches_sticks(channels, self.params):
+            self._take_stick(self.rc_sticks.stick(self.params), now)
+
+    # ------------------------------------------------------------------ commands
+
+    def _on_command(self, msg: Any, now: float) -> None:
+        if not (self._for_us(msg.target_system, msg.target_component)
+                and self._from_permitted_gcs(msg)):
+            return
+        params = (msg.param1, msg.param2, msg.param3, msg.param4)
+        result = self._command(int(msg.command), params, now)
+        self.gcs.mav.command_ack_send(msg.command, result, 0, 0, msg.get_srcSystem(),
+                                      msg.get_srcComponent())
+
+    def _command(self, command: int, p: tuple[float, ...], now: float) -> int:
+        """Carry out a COMMAND_LONG / COMMAND_INT; returns its MAV_RESULT."""
+        if command == mavlink.MAV_CMD_COMPONENT_ARM_DISARM:
+            if p[0] == 1.0:
+                return self._result(self.vehicle.request_arm(now))
+            if p[0] == 0.0:
+                return self._result(self.vehicle.request_disarm(now, "by command"))
+            self._say(Severity.WARNING, f"Arm/disarm: param1 must be 0 or 1, got {p[0]}")
+            return mavlink.MAV_RESULT_DENIED
+        if command == mavlink.MAV_CMD_DO_SET_MODE:
+            return self._set_mode(p[0], p[1], now)
+        return mavlink.MAV_RESULT_UNSUPPORTED
+
+    def _set_mode(self, base_mode: float, custom_mode: float, now: float) -> int:
+        if not (math.isfinite(base_mode) and math.isfinite(custom_mode)):
+            self._say(Severity.WARNING, "Set mode: base and custom mode must be numbers")
+            return mavlink.MAV_RESULT_DENIED
+        if not int(base_mode) & mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED:
+            self._say(Severity.WARNING, "Set mode: only custom (Rover) modes are supported")
+            return mavlink.MAV_RESULT_UNSUPPORTED
+        return self._result(self.vehicle.request_mode(int(custom_mode), now))
+
+    def _on_set_mode(self, msg: Any, now: float) -> None:
+        if not (self._for_us(msg.target_system) and self._from_permitted_gcs(msg)):
+            return
+        result = self._set_mode(float(msg.base_mode), float(msg.custom_mode), now)
+        # ArduPilot acknowledges SET_MODE with COMMAND_ACK whose command is SET_MODE's id (11).
+        self.gcs.mav.command_ack_send(mavlink.MAVLINK_MSG_ID_SET_MODE, result, 0, 0,
+                                      msg.get_srcSystem(), msg.get_srcComponent())
+
+    @staticmethod
+    def _result(decision: Decision) -> int:
+        return mavlink.MAV_RESULT_ACCEPTED if decision.accepted else mavlink.MAV_RESULT_DENIED
+
+    # ================================================================== lifecycle
+
+    def start(self) -> None:
+        """Run the loop in a background thread (tests, ``--fc sim``)."""
+        self._thread = threading.Thread(target=self.run, name="companion", daemon=True)
+        self._thread.start()
+
+    def stop(self, timeout_s: float = 5.0) -> None:
+        """Ask the loop to end (neutral, then release) and wait for it; idempotent."""
+        self._stop.set()
+        with contextlib.suppress(OSError):
+            os.write(self._wake_w, b"x")
+        if self._thread is not None:
+            self._thread.join(timeout_s)
+            self._thread = None
+
+    def close(self) -> None:
+        """Stop and close both links."""
+        self.stop()
+        self.gcs.close()
+        self.fc.close()
+        for fd in (self._wake_r, self._wake_w):
+            with contextlib.suppress(OSError):
+                os.close(fd)
+
+    def save_params(self) -> None:
+        """Save the parameters to the file the companion was started with (atomic)."""
+        if self.param_path is not None:
+            save(self.params, self.param_path)

@@ -1,0 +1,198 @@
+"""The vehicle's state machine: arming, modes and failsafes. Pure logic; time is passed in.
+
+This is what a ground station sees as the rover's state, in the ArduPilot Rover dialect:
+modes use Rover's ``custom_mode`` numbering (MANUAL 0, HOLD 4, AUTO 10, GUIDED 15). The
+companion loop feeds it events (heartbeats, stick input, commands) with a monotonic time in
+seconds, calls :meth:`Vehicle.update` regularly, and asks :meth:`Vehicle.driving` whether the
+sticks may move the wheels. Every way out of normal driving (disarm, HOLD, any failsafe, stale
+input) makes :meth:`Vehicle.driving` False, which the loop turns into neutral PWM.
+
+Failsafes (each a parameter):
+
+- Stale stick input (``FS_INPUT_TMO``): while armed in MANUAL, no stick input for the timeout
+  brings the wheels to neutral; driving resumes with the next input. Reported once each way.
+- Ground-station loss (``FS_GCS_TMO``, ``FS_GCS_ACTION``): once a ground station has been
+  seen, no HEARTBEAT from it for the timeout while armed switches to HOLD (default) or
+  disarms. Like ArduPilot, the rover stays in HOLD when the link returns: the pilot chooses.
+- Flight-controller loss (``FS_FC_TMO``): no flight-controller HEARTBEAT for the timeout (or
+  never one) reports CRITICAL, disarms, and refuses to arm until it is back.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from enum import IntEnum
+
+from mecanum_mav.params import Params
+
+__all__ = ["Decision", "Mode", "Severity", "Vehicle"]
+
+
+class Mode(IntEnum):
+    """Rover modes, numbered as ArduPilot Rover's ``custom_mode``."""
+
+    MANUAL = 0
+    HOLD = 4
+    AUTO = 10
+    GUIDED = 15
+
+
+class Severity(IntEnum):
+    """MAVLink ``MAV_SEVERITY`` of a STATUSTEXT."""
+
+    EMERGENCY = 0
+    ALERT = 1
+    CRITICAL = 2
+    ERROR = 3
+    WARNING = 4
+    NOTICE = 5
+    INFO = 6
+
+
+AVAILABLE_MODES: frozenset[Mode] = frozenset({Mode.MANUAL, Mode.HOLD})
+"""Modes this build can enter; asking for another is DENIED with a reason."""
+
+
+@dataclass(frozen=True)
+class Decision:
+    """The answer to a command: accepted or not, and why (for COMMAND_ACK and STATUSTEXT)."""
+
+    accepted: bool
+    reason: str = ""
+
+
+Event = tuple[Severity, str]
+"""A state change a pilot must know about: (severity, STATUSTEXT text)."""
+
+
+class Vehicle:
+    """Arming, mode and failsafe state of the rover.
+
+    Args:
+        params: the parameter store (timeouts and failsafe action are read live, so a changed
+            parameter takes effect at the next update).
+    """
+
+    def __init__(self, params: Params) -> None:
+        self.params = params
+        self.armed = False
+        self.mode = Mode.MANUAL
+        self.gcs_seen_s: float | None = None
+        self.fc_seen_s: float | None = None
+        self.input_s: float | None = None
+        self.gcs_failsafe = False
+        self.fc_lost = True
+        self.input_stale = True
+        self._events: list[Event] = []
+
+    # ----------------------------------------------------------------- inputs
+
+    def on_gcs_heartbeat(self, now_s: float) -> None:
+        """A HEARTBEAT from the (permitted) ground station arrived."""
+        self.gcs_seen_s = now_s
+        if self.gcs_failsafe:
+            self.gcs_failsafe = False
+            self._say(Severity.NOTICE, f"GCS link regained, mode {self.mode.name}")
+
+    def on_fc_heartbeat(self, now_s: float) -> None:
+        """A HEARTBEAT from the flight controller arrived."""
+        self.fc_seen_s = now_s
+        if self.fc_lost:
+            self.fc_lost = False
+            self._say(Severity.NOTICE, "Flight controller link up")
+
+    def on_stick_input(self, now_s: float) -> None:
+        """Valid stick input (MANUAL_CONTROL or ground-station RC override) arrived."""
+        self.input_s = now_s
+        if self.input_stale:
+            self.input_stale = False
+            if self.armed and self.mode is Mode.MANUAL:
+                self._say(Severity.INFO, "Manual input resumed")
+
+    # ----------------------------------------------------------------- commands
+
+    def request_arm(self, now_s: float) -> Decision:
+        """Arm, unless the flight controller link is down. Arming when armed is accepted."""
+        self.update(now_s)
+        if self.armed:
+            return Decision(True)
+        if self.fc_lost:
+            return self._refuse("Arm refused: flight controller link down")
+        self.armed = True
+        self.input_stale = True  # the wheels wait for fresh sticks after arming
+        self._say(Severity.INFO, f"Armed, mode {self.mode.name}")
+        return Decision(True)
+
+    def request_disarm(self, now_s: float, reason: str = "") -> Decision:
+        """Disarm (always allowed). Disarming when disarmed is accepted."""
+        if self.armed:
+            self.armed = False
+            self._say(Severity.INFO, f"Disarmed{': ' + reason if reason else ''}")
+        return Decision(True)
+
+    def request_mode(self, mode_number: int, now_s: float) -> Decision:
+        """Switch to a Rover mode number; unknown and unavailable modes are refused."""
+        try:
+            mode = Mode(mode_number)
+        except ValueError:
+            return self._refuse(f"Mode {mode_number} unknown")
+        if mode not in AVAILABLE_MODES:
+            return self._refuse(f"Mode {mode.name} not available")
+        if mode is not self.mode:
+            self.mode = mode
+            self._say(Severity.INFO, f"Mode {mode.name}")
+        return Decision(True)
+
+    # ----------------------------------------------------------------- time
+
+    def update(self, now_s: float) -> None:
+        """Check every timeout at time ``now_s`` (monotonic seconds); queue the events."""
+        p = self.params
+        fc_down = self.fc_seen_s is None or now_s - self.fc_seen_s > p["FS_FC_TMO"]
+        if fc_down and not self.fc_lost:
+            self.fc_lost = True
+            self._say(Severity.CRITICAL, "Flight controller link lost")
+        if self.fc_lost and self.armed:
+            self.request_disarm(now_s, "flight controller link lost")
+        gcs_late = self.gcs_seen_s is not None and now_s - self.gcs_seen_s > p["FS_GCS_TMO"]
+        if gcs_late and not self.gcs_failsafe:
+            self.gcs_failsafe = True
+            self._say(Severity.CRITICAL, "GCS link lost: failsafe")
+            if self.armed:
+                if p["FS_GCS_ACTION"] == 1:
+                    self.request_disarm(now_s, "GCS failsafe")
+                else:
+                    self.request_mode(Mode.HOLD, now_s)
+        stale = self.input_s is None or now_s - self.input_s > p["FS_INPUT_TMO"]
+        if stale and not self.input_stale:
+            self.input_stale = True
+            if self.armed and self.mode is Mode.MANUAL:
+                self._say(Severity.WARNING, "Manual input lost: wheels neutral")
+
+    # ----------------------------------------------------------------- outputs
+
+    def driving(self) -> bool:
+        """True when the sticks may move the wheels: armed, MANUAL, fresh input, no failsafe."""
+        return (
+            self.armed and self.mode is Mode.MANUAL and not self.input_stale
+            and not self.fc_lost and not self.gcs_failsafe
+        )
+
+    @property
+    def failsafe(self) -> bool:
+        """Any link failsafe is active (the heartbeat then reports CRITICAL)."""
+        return self.fc_lost or self.gcs_failsafe
+
+    def take_events(self) -> list[Event]:
+        """The state changes since the last call, oldest first (for STATUSTEXT)."""
+        events, self._events = self._events, []
+        return events
+
+    # ----------------------------------------------------------------- helpers
+
+    def _say(self, severity: Severity, text: str) -> None:
+        self._events.append((severity, text))
+
+    def _refuse(self, reason: str) -> Decision:
+        self._say(Severity.WARNING, reason)
+        return Decision(False, reason)
