@@ -334,3 +334,16 @@ def test_clean_shutdown_sends_neutral_then_releases_the_channels(rig):
     ordered = [channels(m)[:4] for m in rig.fc.overrides(since)]
     assert NEUTRAL in ordered and ordered.index(NEUTRAL) < ordered.index([0, 0, 0, 0])
     assert channels(release)[4:8] == [65535] * 4
+
+
+def test_an_exception_in_the_control_path_ends_at_neutral(rig, monkeypatch):
+    rig.arm()
+    assert drive(rig, 1000, 0, 0, [2000] * 4) is not None
+
+    def broken(*args, **kwargs):
+        raise RuntimeError("mixer bug")
+
+    monkeypatch.setattr("mecanum_mav.companion.mix_stick", broken)
+    since = rig.gcs.mark()
+    assert drive(rig, 1000, 0, 0, NEUTRAL) is not None
+    assert statustext(rig, "Error computing output: neutral", since)

@@ -1,0 +1,642 @@
+#!/usr/bin/env python3
+"""Benchmark the companion's control path: MANUAL_CONTROL in -> RC_CHANNELS_OVERRIDE out.
+
+Method
+    This script plays both peers of the companion on 127.0.0.1 (OS-assigned ports): a ground
+    station (``udpin``, sends MANUAL_CONTROL) and a flight controller (``udpin``, sends HEARTBEAT
+    at 2 Hz from a thread, receives the overrides). The system under test (SUT) runs in its own
+    process (multiprocessing, "spawn") and connects ``udpout`` to both, so its CPU time can be
+    read exactly (``time.process_time()`` in the child, asked for over a pipe at each phase
+    boundary). Two SUTs are measured in the same run with the same harness:
+
+    - baseline: a minimal pymavlink relay, a ``selectors`` loop on two ``udpout`` links that
+      parses each datagram (``parse_buffer``) and answers every MANUAL_CONTROL at once with an
+      RC_CHANNELS_OVERRIDE (channels 1-4 = 1500 + x // 2), nothing else;
+    - companion: the real :class:`mecanum_mav.companion.Companion` with default parameters,
+      armed over COMMAND_LONG first, doing everything it does (20 Hz refresh, 1 Hz heartbeats,
+      failsafe checks, status texts).
+
+    Each command's forward stick ``x`` is taken from a cycle of values whose expected pulse on
+    the matched channel (FL for the companion, computed with mecanum_mav's own decoding,
+    shaping, mixing and PWM code; channel 1 for the baseline) is unique within ~900 commands,
+    so every override maps back to the command that caused it; consecutive commands always
+    differ, so refreshes (repeats) never match a later command. Delay = kernel receive time
+    of the override datagram on the flight-controller socket (``SO_TIMESTAMPNS``) minus the
+    wall-clock time taken just before the MANUAL_CONTROL's ``sendto``: the harness's own
+    wake-up and parsing are not part of it. A command with no matching override within the
+    phase (lost, or coalesced by a SUT that acts on the newest input) is a drop.
+
+    Phases per SUT: a short warm-up, 50 Hz input (~5 s), 1 kHz input (~3 s), then idle (~3 s,
+    no input, after the companion's stale-input timeout; it still refreshes at 20 Hz and sends
+    heartbeats). Sends follow an absolute schedule; between sends the harness waits in
+    ``select`` on both sockets, reading while it waits (no busy loop).
+
+Goals (issue text)
+    - The companion adds at most ~20 % to the baseline's median delay (ratio <= 1.20).
+    - It keeps up with 1 kHz input: its median delay in the last quarter of the 1 kHz phase is
+      not above the first quarter's by more than 20 %, and it drops < 1 % of the commands.
+    - Near-zero CPU when idle (< 1 % of one core: no busy loops).
+    CPU per message is reported (companion and baseline) without a goal.
+
+The report gives percentiles and ratios and says whether each goal was met; the exit status
+is 0 unless a SUT crashed or could not be started/armed (1).
+
+    .venv/bin/python tools/bench_latency.py [--quick] [--profile]
+
+``--profile`` runs the companion's loop under cProfile (its delays are then inflated) and
+prints the top functions after the report.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import cProfile
+import io
+import logging
+import multiprocessing as mp
+import os
+import platform
+import pstats
+import selectors
+import socket
+import struct
+import sys
+import threading
+import time
+import traceback
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from multiprocessing.connection import Connection
+from typing import Any
+
+import numpy as np
+
+from mecanum_mav.links import Link, mavlink, open_link
+from mecanum_mav.manual import stick_from_manual_control
+from mecanum_mav.mixing import ALGORITHM_NAMES, Desaturation, mix_stick
+from mecanum_mav.params import Params
+from mecanum_mav.pwm import PwmMap
+from mecanum_mav.shaping import shape_stick
+
+# ---------------------------------------------------------------------------- constants
+
+GOAL_DELAY_RATIO = 1.20  # companion p50 / baseline p50
+GOAL_GROWTH_RATIO = 1.20  # 1 kHz: p50 of the last quarter / p50 of the first quarter
+GOAL_DROPS_PCT = 1.0  # 1 kHz drops
+GOAL_IDLE_CPU_PCT = 1.0  # % of one core
+
+SO_TIMESTAMPNS = getattr(socket, "SO_TIMESTAMPNS", 35)  # Linux value; not exported by Python
+TIMESPEC = struct.Struct("@qq")
+RECV_SIZE = 2048
+
+HARNESS_GCS_ID = (255, 190)  # the ground station the companion accepts (SYSID_MYGCS 0 = any)
+HARNESS_FC_ID = (1, 1)  # the flight controller (FC_SYSID / FC_COMPID defaults)
+FC_HEARTBEAT_PERIOD_S = 0.5
+MANUAL_Z = 500
+BASELINE = "baseline"
+COMPANION = "companion"
+
+
+@dataclass(frozen=True)
+class PhasePlan:
+    """How long each phase runs."""
+
+    warmup_commands: int
+    slow_commands: int  # at 50 Hz
+    fast_commands: int  # at 1 kHz
+    idle_s: float
+    drain_s: float = 0.25  # after the last command, overrides still count
+
+
+FULL = PhasePlan(warmup_commands=20, slow_commands=250, fast_commands=3000, idle_s=3.0)
+QUICK = PhasePlan(warmup_commands=10, slow_commands=50, fast_commands=1000, idle_s=1.0)
+
+
+# ---------------------------------------------------------------------------- stick encoding
+
+def relay_pulse(x: int) -> int:
+    """The baseline relay's pulse on channels 1-4 for a MANUAL_CONTROL x."""
+    return 1500 + x // 2
+
+
+def companion_pulse_fn(params: Params) -> tuple[int, Callable[[int], int]]:
+    """The companion's FL channel and its expected FL pulse for a MANUAL_CONTROL x (y = r = 0),
+    computed with the companion's own decoding, shaping, mixing and PWM code."""
+    pwm = PwmMap.from_params(params)
+    algorithm = ALGORITHM_NAMES[int(params["MIX_ALGO"])]
+    priority = Desaturation(int(params["MIX_DESAT"]))
+
+    def pulse(x: int) -> int:
+        stick = stick_from_manual_control(x, 0, 0, MANUAL_Z, z_scale=bool(params["MAN_Z_SCALE"]))
+        sx, sy, sr = shape_stick(*stick, deadband_width=params["INP_DEADBAND"],
+                                 expo_weight=params["INP_EXPO"], circle=bool(params["INP_CIRCLE"]))
+        return pwm.pulses_us(mix_stick(sx, sy, sr, algorithm, priority=priority))[0]
+
+    return pwm.channels[0], pulse
+
+
+def stick_cycle(encoders: list[Callable[[int], int]], neutral: set[int]) -> list[int]:
+    """x values (-1000..1000) whose pulse is unique under every encoder and never neutral."""
+    seen: list[set[int]] = [set(neutral) for _ in encoders]
+    cycle = []
+    for x in range(-1000, 1001):
+        pulses = [encode(x) for encode in encoders]
+        if all(p not in s for p, s in zip(pulses, seen, strict=True)):
+            cycle.append(x)
+            for p, s in zip(pulses, seen, strict=True):
+                s.add(p)
+    return cycle
+
+
+# ---------------------------------------------------------------------------- SUT process
+
+def run_relay(gcs_url: str, fc_url: str, stop_fd: int) -> None:
+    """The baseline: the least a pymavlink relay can do (plus one hello heartbeat per link)."""
+    from pymavlink import mavutil
+
+    gcs = mavutil.mavlink_connection(gcs_url, source_system=1, source_component=1)
+    fc = mavutil.mavlink_connection(fc_url, source_system=255, source_component=190)
+    for conn in (gcs, fc):  # a udpin peer only learns where we are from a first datagram
+        conn.mav.heartbeat_send(mavlink.MAV_TYPE_GROUND_ROVER, mavlink.MAV_AUTOPILOT_INVALID,
+                                0, 0, mavlink.MAV_STATE_ACTIVE)
+    send_override = fc.mav.rc_channels_override_send
+    selector = selectors.DefaultSelector()
+    selector.register(gcs.fd, selectors.EVENT_READ, gcs)
+    selector.register(fc.fd, selectors.EVENT_READ, fc)
+    selector.register(stop_fd, selectors.EVENT_READ, None)
+    try:
+        while True:
+            for key, _ in selector.select():
+                conn = key.data
+                if conn is None:
+                    return
+                while data := conn.recv():
+                    for msg in conn.mav.parse_buffer(data) or ():
+                        if conn is gcs and msg.get_type() == "MANUAL_CONTROL":
+                            p = relay_pulse(msg.x)
+                            send_override(1, 1, p, p, p, p, 65535, 65535, 65535, 65535)
+    finally:
+        selector.close()
+        gcs.close()
+        fc.close()
+
+
+def sut_main(kind: str, gcs_url: str, fc_url: str, ctl: Connection, profile: bool) -> None:
+    """Child process: run one SUT in a thread; answer "cpu" and "stop" on ``ctl``."""
+    logging.basicConfig(level=logging.ERROR)
+    profiler = cProfile.Profile() if profile else None
+    try:
+        if kind == BASELINE:
+            stop_r, stop_w = os.pipe()
+            thread = threading.Thread(target=run_relay, args=(gcs_url, fc_url, stop_r),
+                                      daemon=True)
+
+            def stop() -> None:
+                os.write(stop_w, b"x")
+                thread.join(5.0)
+        else:
+            from mecanum_mav.companion import Companion
+
+            companion = Companion(Params(), gcs_url, fc_url)
+            loop = companion.run if profiler is None else lambda: profiler.runcall(companion.run)
+            thread = threading.Thread(target=loop, name="companion", daemon=True)
+
+            def stop() -> None:
+                companion.stop()
+                thread.join(5.0)
+                companion.close()
+        thread.start()
+    except Exception:
+        ctl.send(("error", traceback.format_exc()))
+        return
+    ctl.send(("ready", time.process_time()))
+    while True:
+        command = ctl.recv()
+        if command == "cpu":
+            ctl.send(("cpu", time.process_time()))
+        elif command == "stop":
+            alive = thread.is_alive()
+            stop()
+            ctl.send(("stopped", {"alive": alive, "profile": _profile_text(profiler)}))
+            return
+
+
+def _profile_text(profiler: cProfile.Profile | None, top: int = 22) -> str:
+    if profiler is None:
+        return ""
+    out = io.StringIO()
+    stats = pstats.Stats(profiler, stream=out).strip_dirs()
+    stats.sort_stats("tottime").print_stats(top)
+    stats.sort_stats("cumulative").print_stats(top)
+    return out.getvalue()
+
+
+class SutError(RuntimeError):
+    """The SUT process died, stopped answering, or could not be set up."""
+
+
+class SutProcess:
+    """The parent's handle on a SUT child process."""
+
+    def __init__(self, kind: str, gcs_url: str, fc_url: str, profile: bool) -> None:
+        ctx = mp.get_context("spawn")
+        self.kind = kind
+        self.ctl, child_ctl = ctx.Pipe()
+        self.process = ctx.Process(target=sut_main, args=(kind, gcs_url, fc_url, child_ctl,
+                                                          profile), daemon=True)
+        self.process.start()
+        child_ctl.close()
+        self._ask(None, "ready", timeout_s=30.0)
+
+    def _ask(self, command: str | None, reply: str, timeout_s: float = 5.0) -> Any:
+        if command is not None:
+            try:
+                self.ctl.send(command)
+            except OSError as exc:
+                raise SutError(f"{self.kind}: control pipe broken ({exc})") from exc
+        try:
+            if not self.ctl.poll(timeout_s):
+                raise SutError(f"{self.kind}: no answer to {command or 'start'!r}")
+            tag, value = self.ctl.recv()
+        except (EOFError, OSError) as exc:
+            raise SutError(f"{self.kind}: process died (exit {self.process.exitcode})") from exc
+        if tag != reply:
+            raise SutError(f"{self.kind}: {tag}: {value}")
+        return value
+
+    def cpu_s(self) -> float:
+        """CPU seconds (user + system, all threads) the SUT process has used so far."""
+        return float(self._ask("cpu", "cpu"))
+
+    def stop(self) -> dict[str, Any]:
+        """Stop the SUT; its final report (``alive``: its loop was still running)."""
+        result: dict[str, Any] = self._ask("stop", "stopped", timeout_s=10.0)
+        self.process.join(5.0)
+        return result
+
+    def kill(self) -> None:
+        if self.process.is_alive():
+            self.process.kill()
+        self.process.join(2.0)
+
+
+# ---------------------------------------------------------------------------- results
+
+@dataclass
+class PhaseResult:
+    """One input phase against one SUT."""
+
+    rate_hz: float
+    sent: int
+    delays_us: list[float | None]  # per command, None = no matching override
+    cpu_s: float
+    overrides: int  # every override received, refreshes included
+
+    @property
+    def matched(self) -> list[float]:
+        return [d for d in self.delays_us if d is not None]
+
+    @property
+    def drops_pct(self) -> float:
+        return 100.0 * (self.sent - len(self.matched)) / self.sent if self.sent else 0.0
+
+    def pct(self, q: float) -> float:
+        m = self.matched
+        return float(np.percentile(m, q)) if m else float("nan")
+
+    def growth(self) -> float:
+        """p50 delay of the last quarter of commands / p50 of the first quarter."""
+        quarter = max(1, self.sent // 4)
+        first = [d for d in self.delays_us[:quarter] if d is not None]
+        last = [d for d in self.delays_us[-quarter:] if d is not None]
+        if not first or not last:
+            return float("nan")
+        return float(np.median(last) / np.median(first))
+
+    @property
+    def cpu_per_msg_us(self) -> float:
+        return 1e6 * self.cpu_s / self.sent if self.sent else float("nan")
+
+
+@dataclass
+class SutResult:
+    """Everything measured for one SUT."""
+
+    kind: str
+    phases: dict[str, PhaseResult] = field(default_factory=dict)
+    idle_cpu_pct: float = float("nan")
+    idle_overrides_per_s: float = float("nan")
+    profile: str = ""
+
+
+# ---------------------------------------------------------------------------- harness
+
+class Harness:
+    """The ground station and the flight controller, in this process."""
+
+    def __init__(self, match_channel: int, encode: Callable[[int], int], cycle: list[int]
+                 ) -> None:
+        self.gcs: Link = open_link("udpin:127.0.0.1:0", source_system=HARNESS_GCS_ID[0],
+                                   source_component=HARNESS_GCS_ID[1], name="gcs")
+        self.fc: Link = open_link("udpin:127.0.0.1:0", source_system=HARNESS_FC_ID[0],
+                                  source_component=HARNESS_FC_ID[1], name="fc")
+        self.fc_sock: socket.socket = self.fc.conn.port
+        self.fc_sock.setsockopt(socket.SOL_SOCKET, SO_TIMESTAMPNS, 1)
+        self.gcs_sock: socket.socket = self.gcs.conn.port
+        self.selector = selectors.SelectSelector()  # microsecond timeouts (epoll rounds to ms)
+        self.selector.register(self.gcs.fileno(), selectors.EVENT_READ, self.gcs)
+        self.selector.register(self.fc.fileno(), selectors.EVENT_READ, self.fc)
+        self.chan_attr = f"chan{match_channel}_raw"
+        self.encode = encode
+        self.cycle = cycle
+        self.seq = 0  # commands sent so far, all phases (position in the stick cycle)
+        self.gcs_peer: tuple[str, int] | None = None
+        self.fc_peer: tuple[str, int] | None = None
+        self.gcs_messages: list[Any] = []
+        self.overrides = 0
+        self._on_override: Callable[[int, int], None] = lambda pulse, rx_ns: None
+        self._closed = threading.Event()
+        self._beat_thread = threading.Thread(target=self._beat, daemon=True)
+        self._beat_thread.start()
+
+    @property
+    def urls(self) -> tuple[str, str]:
+        """The SUT's (gcs_url, fc_url)."""
+        return (f"udpout:127.0.0.1:{self.gcs.local_port}",
+                f"udpout:127.0.0.1:{self.fc.local_port}")
+
+    def close(self) -> None:
+        self._closed.set()
+        self._beat_thread.join(2.0)
+        self.selector.close()
+        self.gcs.close()
+        self.fc.close()
+
+    # ------------------------------------------------------------------ I/O
+
+    def _beat(self) -> None:
+        """The flight controller's HEARTBEAT at 2 Hz (this thread is the FC link's only sender)."""
+        mav = self.fc.mav
+        while True:
+            peer = self.fc_peer
+            if peer is not None:
+                msg = mav.heartbeat_encode(mavlink.MAV_TYPE_GROUND_ROVER,
+                                           mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA, 0, 0,
+                                           mavlink.MAV_STATE_ACTIVE)
+                with contextlib.suppress(OSError):
+                    self.fc_sock.sendto(msg.pack(mav), peer)
+                mav.seq = (mav.seq + 1) % 256
+            if self._closed.wait(FC_HEARTBEAT_PERIOD_S if peer is not None else 0.02):
+                return
+
+    def _read_fc(self) -> None:
+        """Every datagram waiting on the FC socket; overrides go to ``_on_override``."""
+        mav = self.fc.mav
+        while True:
+            try:
+                data, ancillary, _, address = self.fc_sock.recvmsg(RECV_SIZE,
+                                                                   socket.CMSG_SPACE(16))
+            except (BlockingIOError, InterruptedError):
+                return
+            except OSError:  # e.g. ICMP port unreachable from a vanished peer
+                return
+            rx_ns = 0
+            for level, kind, payload in ancillary:
+                if level == socket.SOL_SOCKET and kind == SO_TIMESTAMPNS:
+                    sec, nsec = TIMESPEC.unpack_from(payload)
+                    rx_ns = sec * 1_000_000_000 + nsec
+            if not rx_ns:
+                rx_ns = time.time_ns()
+            self.fc_peer = address
+            for msg in mav.parse_buffer(data) or ():
+                if msg.get_type() == "RC_CHANNELS_OVERRIDE":
+                    self.overrides += 1
+                    self._on_override(getattr(msg, self.chan_attr), rx_ns)
+
+    def _read_gcs(self) -> None:
+        self.gcs_messages.extend(self.gcs.read())
+        if self.gcs.conn.clients:
+            self.gcs_peer = next(iter(self.gcs.conn.clients))
+
+    def pump(self, timeout_s: float) -> None:
+        """Wait up to ``timeout_s`` for either socket and read what is there."""
+        for key, _ in self.selector.select(max(0.0, timeout_s)):
+            if key.data is self.fc:
+                self._read_fc()
+            else:
+                self._read_gcs()
+
+    def pump_until(self, deadline: float) -> None:
+        while (remaining := deadline - time.perf_counter()) > 0:
+            self.pump(remaining)
+
+    def wait_gcs(self, predicate: Callable[[Any], bool], timeout_s: float) -> Any | None:
+        deadline = time.perf_counter() + timeout_s
+        index = 0
+        while True:
+            while index < len(self.gcs_messages):
+                msg = self.gcs_messages[index]
+                index += 1
+                if predicate(msg):
+                    return msg
+            remaining = deadline - time.perf_counter()
+            if remaining <= 0:
+                return None
+            self.pump(min(remaining, 0.05))
+
+    # ------------------------------------------------------------------ setup
+
+    def connect(self, timeout_s: float = 10.0) -> None:
+        """Wait until the SUT has spoken on both links (so both udpin sides know its address)."""
+        deadline = time.perf_counter() + timeout_s
+        while self.gcs_peer is None or self.fc_peer is None:
+            if time.perf_counter() > deadline:
+                raise SutError("the SUT never spoke on both links")
+            self.pump(0.05)
+
+    def arm(self, timeout_s: float = 6.0) -> None:
+        """Arm the companion (retried until it has heard the flight controller)."""
+        deadline = time.perf_counter() + timeout_s
+        command = mavlink.MAV_CMD_COMPONENT_ARM_DISARM
+        while time.perf_counter() < deadline:
+            self.gcs_messages.clear()
+            self.gcs.mav.command_long_send(1, 1, command, 0, 1, 0, 0, 0, 0, 0, 0)
+            ack = self.wait_gcs(lambda m: m.get_type() == "COMMAND_ACK"
+                                and m.command == command, 0.5)
+            if ack is not None and ack.result == mavlink.MAV_RESULT_ACCEPTED:
+                return
+            self.pump_until(time.perf_counter() + 0.2)
+        raise SutError("the companion refused to arm")
+
+    # ------------------------------------------------------------------ phases
+
+    def _send_manual(self, x: int) -> int:
+        """Send one MANUAL_CONTROL; returns the wall-clock ns just before ``sendto``."""
+        mav = self.gcs.mav
+        buf = mav.manual_control_encode(1, x, 0, MANUAL_Z, 0, 0).pack(mav)
+        mav.seq = (mav.seq + 1) % 256
+        t_ns = time.time_ns()
+        self.gcs_sock.sendto(buf, self.gcs_peer)
+        return t_ns
+
+    def run_input(self, rate_hz: float, count: int, drain_s: float) -> tuple[list[float | None],
+                                                                            int]:
+        """Send ``count`` commands at ``rate_hz`` on an absolute schedule; per-command delays
+        (microseconds, None = dropped) and the number of overrides received."""
+        sent_ns = [0] * count
+        delays: list[float | None] = [None] * count
+        pending: dict[int, int] = {}  # expected pulse -> index of the newest command sending it
+
+        def on_override(pulse: int, rx_ns: int) -> None:
+            index = pending.pop(pulse, None)
+            if index is not None and rx_ns >= sent_ns[index]:
+                delays[index] = (rx_ns - sent_ns[index]) / 1000.0
+
+        self._on_override = on_override
+        overrides_before = self.overrides
+        period_s = 1.0 / rate_hz
+        start = time.perf_counter() + 0.002
+        i = 0
+        while i < count:
+            wait = start + i * period_s - time.perf_counter()
+            if wait > 0:
+                self.pump(wait)
+                continue
+            x = self.cycle[self.seq % len(self.cycle)]
+            pending[self.encode(x)] = i
+            sent_ns[i] = self._send_manual(x)
+            self.seq += 1
+            i += 1
+        self.pump_until(time.perf_counter() + drain_s)
+        self._on_override = lambda pulse, rx_ns: None
+        return delays, self.overrides - overrides_before
+
+
+# ---------------------------------------------------------------------------- one SUT
+
+def measure(kind: str, plan: PhasePlan, cycle: list[int], profile: bool) -> SutResult:
+    """Start one SUT, drive it through the phases, stop it."""
+    if kind == BASELINE:
+        channel, encode = 1, relay_pulse
+    else:
+        channel, encode = companion_pulse_fn(Params())
+    harness = Harness(channel, encode, cycle)
+    result = SutResult(kind)
+    sut: SutProcess | None = None
+    try:
+        sut = SutProcess(kind, *harness.urls, profile=profile and kind == COMPANION)
+        harness.connect()
+        if kind == COMPANION:
+            harness.arm()
+        harness.run_input(200.0, plan.warmup_commands, drain_s=0.05)
+        for name, rate, count in (("50 Hz", 50.0, plan.slow_commands),
+                                  ("1 kHz", 1000.0, plan.fast_commands)):
+            cpu0 = sut.cpu_s()
+            delays, overrides = harness.run_input(rate, count, plan.drain_s)
+            cpu = sut.cpu_s() - cpu0
+            result.phases[name] = PhaseResult(rate, count, delays, cpu, overrides)
+        # Idle: past the stale-input timeout (0.5 s by default), then no input at all.
+        harness.pump_until(time.perf_counter() + float(Params()["FS_INPUT_TMO"]) + 0.2)
+        overrides0, cpu0, t0 = harness.overrides, sut.cpu_s(), time.perf_counter()
+        harness.pump_until(t0 + plan.idle_s)
+        cpu, wall = sut.cpu_s() - cpu0, time.perf_counter() - t0
+        result.idle_cpu_pct = 100.0 * cpu / wall
+        result.idle_overrides_per_s = (harness.overrides - overrides0) / wall
+        final = sut.stop()
+        if not final["alive"]:
+            raise SutError(f"{kind}: its loop thread had died")
+        result.profile = final["profile"]
+        return result
+    finally:
+        if sut is not None:
+            sut.kill()
+        harness.close()
+
+
+# ---------------------------------------------------------------------------- report
+
+def _fmt(value: float, digits: int = 0) -> str:
+    return "nan" if value != value else f"{value:.{digits}f}"
+
+
+def _verdict(ok: bool) -> str:
+    return "met" if ok else "NOT MET"
+
+
+def report(results: dict[str, SutResult], plan: PhasePlan, profile: bool) -> None:
+    header = (f"{'SUT':<10} {'input':>6} {'sent':>5} {'matched':>7} {'drops%':>6} "
+              f"{'p50 us':>7} {'p99 us':>7} {'max us':>7} {'growth':>6} {'CPU/msg us':>10} "
+              f"{'overrides':>9}")
+    print(header)
+    print("-" * len(header))
+    for res in results.values():
+        for name, ph in res.phases.items():
+            print(f"{res.kind:<10} {name:>6} {ph.sent:>5} {len(ph.matched):>7} "
+                  f"{ph.drops_pct:>6.1f} {_fmt(ph.pct(50)):>7} {_fmt(ph.pct(99)):>7} "
+                  f"{_fmt(max(ph.matched, default=float('nan'))):>7} {_fmt(ph.growth(), 2):>6} "
+                  f"{_fmt(ph.cpu_per_msg_us):>10} {ph.overrides:>9}")
+    for res in results.values():
+        print(f"{res.kind:<10} idle {plan.idle_s:.1f} s: CPU {res.idle_cpu_pct:.2f} % of a core, "
+              f"{res.idle_overrides_per_s:.1f} overrides/s")
+    print()
+
+    base, comp = results[BASELINE], results[COMPANION]
+    for name in ("50 Hz", "1 kHz"):
+        ratio = comp.phases[name].pct(50) / base.phases[name].pct(50)
+        print(f"companion/baseline p50 delay at {name}: {ratio:.2f} "
+              f"(goal <= {GOAL_DELAY_RATIO:.2f}): {_verdict(ratio <= GOAL_DELAY_RATIO)}")
+    fast = comp.phases["1 kHz"]
+    growth = fast.growth()
+    print(f"1 kHz delay growth (last/first quarter p50): {growth:.2f} "
+          f"(baseline {base.phases['1 kHz'].growth():.2f}; goal <= {GOAL_GROWTH_RATIO:.2f}): "
+          f"{_verdict(growth <= GOAL_GROWTH_RATIO)}")
+    print(f"companion drops at 1 kHz: {fast.drops_pct:.1f} % "
+          f"(baseline {base.phases['1 kHz'].drops_pct:.1f} %; goal < {GOAL_DROPS_PCT:.0f} %): "
+          f"{_verdict(fast.drops_pct < GOAL_DROPS_PCT)}")
+    print(f"companion idle CPU: {comp.idle_cpu_pct:.2f} % of a core "
+          f"(baseline {base.idle_cpu_pct:.2f} %; goal < {GOAL_IDLE_CPU_PCT:.0f} %): "
+          f"{_verdict(comp.idle_cpu_pct < GOAL_IDLE_CPU_PCT)}")
+    for name in ("50 Hz", "1 kHz"):
+        print(f"companion CPU per message at {name}: {comp.phases[name].cpu_per_msg_us:.0f} us "
+              f"(baseline {base.phases[name].cpu_per_msg_us:.0f} us)")
+    if profile:
+        print("\nNOTE: the companion ran under cProfile; its delays and CPU are inflated.")
+        print(f"\n# cProfile of the companion loop (all phases)\n{comp.profile}")
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="short phases (smoke run)")
+    parser.add_argument("--profile", action="store_true",
+                        help="run the companion's loop under cProfile and print the top entries")
+    args = parser.parse_args()
+    plan = QUICK if args.quick else FULL
+
+    import pymavlink
+
+    print(f"# bench_latency  python {platform.python_version()}  "
+          f"pymavlink {getattr(pymavlink, '__version__', '?')}  {platform.machine()}  "
+          f"{os.cpu_count()} cores  {'quick' if args.quick else 'full'}: warm-up "
+          f"{plan.warmup_commands}, 50 Hz x {plan.slow_commands}, 1 kHz x {plan.fast_commands}, "
+          f"idle {plan.idle_s:.0f} s")
+    params = Params()
+    channel, companion_pulse = companion_pulse_fn(params)
+    neutral = {PwmMap.from_params(params).neutral()[0], relay_pulse(0)}
+    cycle = stick_cycle([companion_pulse, relay_pulse], neutral)
+    print(f"# stick cycle: {len(cycle)} distinct x values (matched on companion channel "
+          f"{channel}, baseline channel 1); delay = kernel rx stamp - send time")
+    results: dict[str, SutResult] = {}
+    for kind in (BASELINE, COMPANION):
+        try:
+            results[kind] = measure(kind, plan, cycle, args.profile)
+        except SutError as exc:
+            print(f"ERROR: {exc}", file=sys.stderr)
+            return 1
+    print()
+    report(results, plan, args.profile)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
