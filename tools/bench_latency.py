@@ -24,7 +24,10 @@ Method
     of the override datagram on the flight-controller socket (``SO_TIMESTAMPNS``) minus the
     wall-clock time taken just before the MANUAL_CONTROL's ``sendto``: the harness's own
     wake-up and parsing are not part of it. A command with no matching override within the
-    phase (lost, or coalesced by a SUT that acts on the newest input) is a drop.
+    phase is a drop: lost, or superseded. On loopback nothing is lost; the companion reads
+    everything waiting and acts on the newest stick (by design), so when it is held up for a
+    millisecond at 1 kHz the older commands of that batch get no override of their own. The
+    baseline answers every message, so it shows the same hold-ups as delay instead.
 
     Phases per SUT: a short warm-up, 50 Hz input (~5 s), 1 kHz input (~3 s), then idle (~3 s,
     no input, after the companion's stale-input timeout; it still refreshes at 20 Hz and sends
@@ -254,16 +257,23 @@ class SutProcess:
             try:
                 self.ctl.send(command)
             except OSError as exc:
-                raise SutError(f"{self.kind}: control pipe broken ({exc})") from exc
+                raise SutError(f"{self.kind}: control pipe broken ({exc}); "
+                               f"{self._exit_status()}") from exc
         try:
             if not self.ctl.poll(timeout_s):
                 raise SutError(f"{self.kind}: no answer to {command or 'start'!r}")
             tag, value = self.ctl.recv()
         except (EOFError, OSError) as exc:
-            raise SutError(f"{self.kind}: process died (exit {self.process.exitcode})") from exc
+            raise SutError(f"{self.kind}: {self._exit_status()}") from exc
         if tag != reply:
             raise SutError(f"{self.kind}: {tag}: {value}")
         return value
+
+    def _exit_status(self) -> str:
+        self.process.join(1.0)
+        if self.process.exitcode is None:
+            return "process still running"
+        return f"process died (exit code {self.process.exitcode})"
 
     def cpu_s(self) -> float:
         """CPU seconds (user + system, all threads) the SUT process has used so far."""
@@ -348,8 +358,8 @@ class Harness:
         self.selector.register(self.gcs.fileno(), selectors.EVENT_READ, self.gcs)
         self.selector.register(self.fc.fileno(), selectors.EVENT_READ, self.fc)
         self.chan_attr = f"chan{match_channel}_raw"
-        self.encode = encode
         self.cycle = cycle
+        self.expected = [encode(x) for x in cycle]  # the pulse each x must produce
         self.seq = 0  # commands sent so far, all phases (position in the stick cycle)
         self.gcs_peer: tuple[str, int] | None = None
         self.fc_peer: tuple[str, int] | None = None
@@ -503,9 +513,9 @@ class Harness:
             if wait > 0:
                 self.pump(wait)
                 continue
-            x = self.cycle[self.seq % len(self.cycle)]
-            pending[self.encode(x)] = i
-            sent_ns[i] = self._send_manual(x)
+            k = self.seq % len(self.cycle)
+            pending[self.expected[k]] = i
+            sent_ns[i] = self._send_manual(self.cycle[k])
             self.seq += 1
             i += 1
         self.pump_until(time.perf_counter() + drain_s)
