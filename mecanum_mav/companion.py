@@ -36,7 +36,7 @@ from typing import Any, BinaryIO
 
 from mecanum_mav.links import Link, mavlink, open_link
 from mecanum_mav.manual import InputError, RcStickState, stick_from_manual_control
-from mecanum_mav.mixing import ALGORITHM_NAMES, Desaturation, mix_stick
+from mecanum_mav.mixing import ALGORITHM_NAMES, Desaturation, wheels_from_stick
 from mecanum_mav.params import Params, save
 from mecanum_mav.pwm import PwmMap
 from mecanum_mav.rcout import override_fields, release_fields
@@ -168,8 +168,9 @@ class Companion:
         if now >= self._next_heartbeat_s:
             self._send_heartbeats()
             self._next_heartbeat_s = now + HEARTBEAT_PERIOD_S
-        for severity, text in self.vehicle.take_events():
-            self._say(severity, text)
+        if self.vehicle.has_events:
+            for severity, text in self.vehicle.take_events():
+                self._say(severity, text)
 
     # ================================================================== output
 
@@ -181,6 +182,10 @@ class Companion:
         self.priority = Desaturation(int(p["MIX_DESAT"]))
         self.output_period_s = 1.0 / float(p["OUT_RATE"])
         self.fc_target = (int(p["FC_SYSID"]), int(p["FC_COMPID"]))
+        # Read once here rather than per message: the input path runs at up to 1 kHz.
+        self.gcs_id = int(p["SYSID_MYGCS"])
+        self.shaping = (float(p["INP_DEADBAND"]), float(p["INP_EXPO"]), bool(p["INP_CIRCLE"]))
+        self.z_scale = bool(p["MAN_Z_SCALE"])
 
     def _neutral(self) -> tuple[int, ...]:
         return self.pwm.neutral()
@@ -188,15 +193,14 @@ class Companion:
     def _compute_output(self) -> tuple[int, ...]:
         if not self.vehicle.driving():
             return self._neutral()
-        p = self.params
-        x, y, r = shape_stick(*self.stick, deadband_width=p["INP_DEADBAND"],
-                              expo_weight=p["INP_EXPO"], circle=bool(p["INP_CIRCLE"]))
-        wheels = mix_stick(x, y, r, self.algorithm, priority=self.priority)
+        band, weight, circle = self.shaping
+        x, y, r = shape_stick(*self.stick, deadband_width=band, expo_weight=weight,
+                              circle=circle)
+        wheels = wheels_from_stick(x, y, r, self.algorithm, priority=self.priority)
         return self.pwm.pulses_us(wheels)
 
     def _send_output(self, pulses: tuple[int, ...], now: float) -> None:
-        fields = override_fields(self.pwm.channels, pulses)
-        self.fc.mav.rc_channels_override_send(*self.fc_target, *fields)
+        self.fc.send_rc_override(*self.fc_target, override_fields(self.pwm.channels, pulses))
         self.pulses_us = pulses
         self.overrides_sent += 1
         self._new_input = False
@@ -207,7 +211,7 @@ class Companion:
         neutral = override_fields(self.pwm.channels, self._neutral())
         release = release_fields(self.pwm.channels)
         for fields in (neutral, neutral, release):
-            self.fc.mav.rc_channels_override_send(*self.fc_target, *fields)
+            self.fc.send_rc_override(*self.fc_target, fields)
         self.pulses_us = self._neutral()
 
     def _send_heartbeats(self) -> None:
@@ -248,13 +252,12 @@ class Companion:
     # ================================================================== messages
 
     def _for_us(self, target_system: int, target_component: int | None = None) -> bool:
-        if target_system not in (0, self.sysid):
+        if target_system != 0 and target_system != self.sysid:
             return False
         return target_component is None or target_component in (0, COMPANION_COMPID)
 
     def _from_permitted_gcs(self, msg: Any) -> bool:
-        wanted = int(self.params["SYSID_MYGCS"])
-        return wanted == 0 or msg.get_srcSystem() == wanted
+        return self.gcs_id == 0 or msg.get_srcSystem() == self.gcs_id
 
     def _on_gcs_message(self, msg: Any, now: float) -> None:
         handler = self._handlers.get(msg.get_type())
@@ -283,8 +286,7 @@ class Companion:
         if not (self._for_us(msg.target) and self._from_permitted_gcs(msg)):
             return
         try:
-            stick = stick_from_manual_control(msg.x, msg.y, msg.r, msg.z,
-                                              z_scale=bool(self.params["MAN_Z_SCALE"]))
+            stick = stick_from_manual_control(msg.x, msg.y, msg.r, msg.z, z_scale=self.z_scale)
         except InputError as exc:
             self._reject_input(str(exc))
             return

@@ -1,33 +1,29 @@
 """MAVLink links: pymavlink connections driven by a selector loop, MAVLink 2, never raising.
 
-Importing this module selects MAVLink 2 and the ArduPilot dialect for pymavlink (it sets
-``MAVLINK20=1`` before pymavlink is imported and re-selects the dialect, so it works even when
-pymavlink was imported first). URLs are pymavlink connection strings: ``udpin:HOST:PORT``
-(listen; replies go to every peer heard), ``udpout:HOST:PORT``, ``tcp:HOST:PORT``,
-``tcpin:HOST:PORT``, or a serial device ``/dev/ttyUSB0,57600`` (pyserial).
+MAVLink 2 and the ArduPilot dialect throughout (:mod:`mecanum_mav.dialect`). URLs are pymavlink
+connection strings: ``udpin:HOST:PORT`` (listen; replies go to every peer heard),
+``udpout:HOST:PORT``, ``tcp:HOST:PORT``, ``tcpin:HOST:PORT``, or a serial device
+``/dev/ttyUSB0,57600`` (pyserial).
 
 A :class:`Link` is read when its file descriptor is readable: :meth:`Link.read` returns every
-message that arrived, parsed from the raw bytes with ``parse_buffer`` (a datagram may carry
-several). Malformed bytes, bad CRCs and truncated packets are counted in :attr:`Link.bad`, never
-raised; a send that fails (peer gone, no route) is counted in :attr:`Link.send_errors`.
+message that arrived, parsed from the raw bytes (a datagram may carry several). On datagram
+links a lone MANUAL_CONTROL takes the fast codec of :mod:`mecanum_mav.wire`, and
+:meth:`Link.send_rc_override` packs with it too: the control path never waits on pymavlink's
+pure-Python parser and packer. Malformed bytes, bad CRCs and truncated packets are counted in
+:attr:`Link.bad`, never raised; a send that fails (peer gone, no route) is counted in
+:attr:`Link.send_errors`.
 """
 
 from __future__ import annotations
 
 import contextlib
 import logging
-import os
 import struct
 import time
 from typing import Any, BinaryIO
 
-os.environ["MAVLINK20"] = "1"
-
-from pymavlink import mavutil
-
-mavutil.set_dialect("ardupilotmega")
-mavlink: Any = mavutil.mavlink
-"""The pymavlink dialect module (MAVLink 2, ardupilotmega): constants and message classes."""
+from mecanum_mav.dialect import mavlink, mavutil
+from mecanum_mav.wire import decode_manual_control, encode_rc_override
 
 log = logging.getLogger(__name__)
 
@@ -102,10 +98,16 @@ class Link:
                 break
             if not data:
                 break
+            if self._datagrams:
+                fast = decode_manual_control(data)
+                if fast is not None:
+                    messages.append(fast)
+                    self._record(fast)
+                    continue
             if self.conn.first_byte:
                 self.conn.auto_mavlink_version(data)
             try:
-                parsed = self.conn.mav.parse_buffer(data) or []
+                parsed = self._parse(data)
             except Exception as exc:  # pymavlink raises MAVError (and worse) on some garbage
                 self.bad += 1
                 log.debug("%s: unparseable bytes: %s", self.name, exc)
@@ -125,6 +127,19 @@ class Link:
         self.received += len(messages)
         return messages
 
+    def _parse(self, data: bytes) -> list[Any]:
+        """``parse_buffer`` without its extra empty pass when the buffer is already empty
+        (one message per datagram is the common case on the hot path)."""
+        mav = self.conn.mav
+        msg = mav.parse_char(data)
+        parsed = []
+        while msg is not None:
+            parsed.append(msg)
+            if mav.buf_len() == 0:
+                break
+            msg = mav.parse_char(b"")
+        return parsed
+
     def _reset_parser(self) -> None:
         mav = self.conn.mav
         mav.buf = bytearray()
@@ -142,6 +157,26 @@ class Link:
             return False
         self.sent += 1
         return True
+
+    def send_rc_override(self, target_system: int, target_component: int,
+                         channels: list[int]) -> None:
+        """RC_CHANNELS_OVERRIDE with the 18 ``chanN_raw`` fields, packed by the fast codec
+        (pymavlink when the link signs); never raises."""
+        packet = encode_rc_override(self.conn.mav, target_system, target_component, channels)
+        if packet is None:
+            self.send(self.conn.mav.rc_channels_override_encode(
+                target_system, target_component, *channels))
+            return
+        try:
+            self.conn.write(packet)
+        except Exception as exc:  # a send must never take the control loop down
+            self.send_errors += 1
+            log.debug("%s: send failed: %s", self.name, exc)
+            return
+        self.sent += 1
+        if self._tlog is not None:
+            with contextlib.suppress(OSError, ValueError):
+                self._tlog.write(_TLOG_STAMP.pack(int(time.time() * 1e6)) + packet)
 
     def close(self) -> None:
         """Close the connection; idempotent."""

@@ -52,10 +52,13 @@ __all__ = [
     "polar_2011",
     "shape_stick",
     "square_to_circle",
+    "wheels_from_stick",
 ]
 
 Wheels = NDArray[np.float64]
 """Wheel commands, shape ``[..., 4]`` in the order FL, FR, RL, RR."""
+WheelTuple = tuple[float, float, float, float]
+"""One set of wheel commands FL, FR, RL, RR as plain floats (the control loop's path)."""
 
 LATERAL_SIGNS = np.array([1.0, -1.0, -1.0, 1.0])
 """Sign of the y (right) command in each wheel, FL, FR, RL, RR."""
@@ -193,7 +196,7 @@ def _clamp1(v: float) -> float:
     return -1.0 if v < -1.0 else (1.0 if v > 1.0 else v)
 
 
-def _mix_scalar(a: float, b: float, r: float, priority: int) -> NDArray[np.float64]:
+def _mix_scalar(a: float, b: float, r: float, priority: int) -> WheelTuple:
     """Wheels from pair translations ``a`` (FL/RR), ``b`` (FR/RL) and rotation ``r``, limit 1.
 
     Closed forms of :func:`desaturate` and :func:`desaturate_prioritized` for the mecanum
@@ -212,18 +215,64 @@ def _mix_scalar(a: float, b: float, r: float, priority: int) -> NDArray[np.float
             if t > 1.0:
                 a, b, t = a / t, b / t, 1.0
             r = math.copysign(1.0 - t, r) if ar > 0.0 else 0.0
-    return np.array((a + r, b - r, b + r, a - r))
+    return (a + r, b - r, b + r, a - r)
 
 
 def _is_scalar(*values: object) -> bool:
     return all(type(v) in _SCALAR_TYPES for v in values)
 
 
-def _finite(*values: float) -> bool:
-    return all(math.isfinite(v) for v in values)
+def _finite(a: float, b: float, c: float, d: float = 0.0) -> bool:
+    isfinite = math.isfinite
+    return isfinite(a) and isfinite(b) and isfinite(c) and isfinite(d)
 
 
-_STOP = np.zeros(4)
+_STOP: WheelTuple = (0.0, 0.0, 0.0, 0.0)
+
+
+# --------------------------------------------------------------------------- scalar algorithms
+# Plain floats in, a tuple out, no numpy: one command costs a few microseconds even with cold
+# caches, which is what the 50 Hz control loop sees (numpy's per-call overhead is ~80 us cold).
+
+
+def _cartesian_scalar(x: float, y: float, r: float, heading_deg: float, priority: int
+                      ) -> WheelTuple:
+    if not _finite(x, y, r, heading_deg):
+        return _STOP
+    xs, ys = _clamp1(x), _clamp1(y)
+    if heading_deg:
+        c, s = math.cos(math.radians(heading_deg)), math.sin(math.radians(heading_deg))
+        xs, ys = xs * c + ys * s, ys * c - xs * s
+    return _mix_scalar(xs + ys, xs - ys, _clamp1(r), priority)
+
+
+def _polar_2011_scalar(magnitude: float, direction_deg: float, r: float, priority: int
+                       ) -> WheelTuple:
+    if not _finite(magnitude, direction_deg, r):
+        return _STOP
+    m, d = _clamp1(magnitude), math.radians(direction_deg)
+    x, y = m * math.cos(d), m * math.sin(d)
+    return _mix_scalar(x + y, x - y, _clamp1(r), priority)
+
+
+def _max_speed_scaled_scalar(magnitude: float, direction_deg: float, r: float, priority: int
+                             ) -> WheelTuple:
+    if not _finite(magnitude, direction_deg, r):
+        return _STOP
+    d = math.radians(direction_deg)
+    c, s = math.cos(d), math.sin(d)
+    a, b = c + s, c - s  # max(|a|, |b|) >= 1 since a^2 + b^2 = 2
+    k = _clamp1(magnitude) / max(abs(a), abs(b))
+    return _mix_scalar(a * k, b * k, _clamp1(r), priority)
+
+
+def _holonomic_2010_scalar(magnitude: float, direction_deg: float, r: float) -> WheelTuple:
+    if not _finite(magnitude, direction_deg, r):
+        return _STOP
+    m, d, r = _clamp1(magnitude) * _INV_SQRT2, math.radians(direction_deg), _clamp1(r)
+    c, s = math.cos(d), math.sin(d)
+    a, b = m * (c + s), m * (c - s)
+    return (_clamp1(a + r), _clamp1(b - r), _clamp1(b + r), _clamp1(a - r))
 
 
 # --------------------------------------------------------------------------- vector core
@@ -289,13 +338,8 @@ def cartesian(
         :func:`chassis_from_wheels` inverts it exactly where nothing saturated.
     """
     if _is_scalar(x, y, rotation, heading_deg):
-        if not _finite(x, y, rotation, heading_deg):
-            return _STOP.copy()
-        xs, ys = _clamp1(x), _clamp1(y)
-        if heading_deg:
-            c, s = math.cos(math.radians(heading_deg)), math.sin(math.radians(heading_deg))
-            xs, ys = xs * c + ys * s, ys * c - xs * s
-        return _mix_scalar(xs + ys, xs - ys, _clamp1(rotation), priority)
+        return np.array(_cartesian_scalar(
+            float(x), float(y), float(rotation), float(heading_deg), priority))  # type: ignore[arg-type]
     xa, ya, ra, ha = _as_float(x, y, rotation, heading_deg)
     ok = _finite_mask(xa, ya, ra, ha)
     xa, ya = _clip1(xa), _clip1(ya)
@@ -330,11 +374,8 @@ def polar_2011(
         ``[..., 4]`` wheel commands FL, FR, RL, RR in [-1, 1].
     """
     if _is_scalar(magnitude, direction_deg, rotation):
-        if not _finite(magnitude, direction_deg, rotation):
-            return _STOP.copy()
-        m, d = _clamp1(magnitude), math.radians(direction_deg)
-        x, y = m * math.cos(d), m * math.sin(d)
-        return _mix_scalar(x + y, x - y, _clamp1(rotation), priority)
+        m, d, r = float(magnitude), float(direction_deg), float(rotation)  # type: ignore[arg-type]
+        return np.array(_polar_2011_scalar(m, d, r, priority))
     ma, da, ra = _as_float(magnitude, direction_deg, rotation)
     ok = _finite_mask(ma, da, ra)
     ma, d = _clip1(ma), np.radians(np.where(ok, da, 0.0))
@@ -367,13 +408,8 @@ def max_speed_scaled(
         ``[..., 4]`` wheel commands FL, FR, RL, RR in [-1, 1].
     """
     if _is_scalar(magnitude, direction_deg, rotation):
-        if not _finite(magnitude, direction_deg, rotation):
-            return _STOP.copy()
-        d = math.radians(direction_deg)
-        c, s = math.cos(d), math.sin(d)
-        a, b = c + s, c - s  # max(|a|, |b|) >= 1 since a^2 + b^2 = 2
-        k = _clamp1(magnitude) / max(abs(a), abs(b))
-        return _mix_scalar(a * k, b * k, _clamp1(rotation), priority)
+        m, d, r = float(magnitude), float(direction_deg), float(rotation)  # type: ignore[arg-type]
+        return np.array(_max_speed_scaled_scalar(m, d, r, priority))
     ma, da, ra = _as_float(magnitude, direction_deg, rotation)
     ok = _finite_mask(ma, da, ra)
     d = np.radians(np.where(ok, da, 0.0))
@@ -401,12 +437,8 @@ def holonomic_2010(magnitude: ArrayLike, direction_deg: ArrayLike, rotation: Arr
         ``[..., 4]`` wheel commands FL, FR, RL, RR, each clipped to [-1, 1].
     """
     if _is_scalar(magnitude, direction_deg, rotation):
-        if not _finite(magnitude, direction_deg, rotation):
-            return _STOP.copy()
-        m, d, r = _clamp1(magnitude) * _INV_SQRT2, math.radians(direction_deg), _clamp1(rotation)
-        c, s = math.cos(d), math.sin(d)
-        a, b = m * (c + s), m * (c - s)
-        return np.array((_clamp1(a + r), _clamp1(b - r), _clamp1(b + r), _clamp1(a - r)))
+        m, d, r = float(magnitude), float(direction_deg), float(rotation)  # type: ignore[arg-type]
+        return np.array(_holonomic_2010_scalar(m, d, r))
     ma, da, ra = _as_float(magnitude, direction_deg, rotation)
     ok = _finite_mask(ma, da, ra)
     m = np.where(ok, _clip1(ma), 0.0) * _INV_SQRT2
@@ -462,6 +494,42 @@ ALGORITHM_NAMES: tuple[str, ...] = tuple(ALGORITHMS)
 """Algorithm names indexed by the ``MIX_ALGO`` parameter value."""
 
 
+def wheels_from_stick(
+    x: float,
+    y: float,
+    rotation: float,
+    algorithm: str = "cartesian",
+    *,
+    heading_deg: float = 0.0,
+    priority: Desaturation | int = Desaturation.PROPORTIONAL,
+) -> WheelTuple:
+    """The control loop's path: plain-float stick -> wheel commands as a tuple, no numpy.
+
+    Same numbers as :func:`mix_stick` (which wraps it in an ndarray); see there for the
+    arguments. Returns ``(FL, FR, RL, RR)`` in [-1, 1]; a stop for non-finite input.
+
+    Raises:
+        KeyError: unknown algorithm name.
+    """
+    if algorithm == "cartesian":
+        return _cartesian_scalar(x, y, rotation, heading_deg, priority)
+    scalar = _POLAR_SCALAR[algorithm]
+    if not _finite(x, y, rotation, heading_deg):
+        return _STOP
+    magnitude = math.hypot(x, y)
+    direction_deg = math.degrees(math.atan2(y, x)) - heading_deg
+    if scalar is _holonomic_2010_scalar:
+        return _holonomic_2010_scalar(magnitude, direction_deg, rotation)
+    return scalar(magnitude, direction_deg, rotation, priority)  # type: ignore[call-arg]
+
+
+_POLAR_SCALAR: dict[str, Callable[..., WheelTuple]] = {
+    "polar_2011": _polar_2011_scalar,
+    "max_speed_scaled": _max_speed_scaled_scalar,
+    "holonomic_2010": _holonomic_2010_scalar,
+}
+
+
 def mix_stick(
     x: float,
     y: float,
@@ -471,7 +539,7 @@ def mix_stick(
     heading_deg: float = 0.0,
     priority: Desaturation | int = Desaturation.PROPORTIONAL,
 ) -> Wheels:
-    """The drive path's entry point: stick axes -> wheel commands with a named algorithm.
+    """Stick axes -> wheel commands with a named algorithm (the drive path's entry point).
 
     Args:
         x: forward stick, normalized [-1, 1].
@@ -487,17 +555,10 @@ def mix_stick(
 
     Returns:
         ``[4]`` wheel commands FL, FR, RL, RR in [-1, 1]; a stop for non-finite input.
+        :func:`wheels_from_stick` gives the same as a tuple without numpy.
 
     Raises:
         KeyError: unknown algorithm name.
     """
-    if algorithm == "cartesian":
-        return cartesian(x, y, rotation, heading_deg, priority=priority)
-    mixer = ALGORITHMS[algorithm]
-    if not _finite(x, y, rotation, heading_deg):
-        return _STOP.copy()
-    magnitude = math.hypot(x, y)
-    direction_deg = math.degrees(math.atan2(y, x)) - heading_deg
-    if mixer is holonomic_2010:
-        return holonomic_2010(magnitude, direction_deg, float(rotation))
-    return mixer(magnitude, direction_deg, float(rotation), priority=priority)
+    return np.array(wheels_from_stick(x, y, rotation, algorithm, heading_deg=heading_deg,
+                                      priority=priority))

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -88,21 +88,23 @@ class PwmMap:
         ]
         return cls((outs[0], outs[1], outs[2], outs[3]))
 
-    @property
-    def channels(self) -> tuple[int, ...]:
-        """RC channel numbers (1..18) of FL, FR, RL, RR."""
-        return tuple(w.channel for w in self.wheels)
+    def __post_init__(self) -> None:
+        # Precomputed once: the control loop asks for these on every output.
+        object.__setattr__(self, "channels", tuple(w.channel for w in self.wheels))
+        object.__setattr__(self, "_neutral", tuple(w.trim for w in self.wheels))
+
+    channels: tuple[int, ...] = field(init=False)
+    """RC channel numbers (1..18) of FL, FR, RL, RR."""
 
     def neutral(self) -> tuple[int, int, int, int]:
         """Trim on every wheel, microseconds: the safe output."""
-        t = tuple(w.trim for w in self.wheels)
-        return (t[0], t[1], t[2], t[3])
+        return self._neutral  # type: ignore[attr-defined,no-any-return]
 
     def pulses_us(self, wheels: Sequence[float] | NDArray[np.float64]) -> tuple[int, int, int, int]:
         """Pulse widths (us) for one set of four normalized wheel commands FL, FR, RL, RR."""
-        fl, fr, rl, rr = (float(v) for v in wheels)
         w = self.wheels
-        return (w[0].pulse_us(fl), w[1].pulse_us(fr), w[2].pulse_us(rl), w[3].pulse_us(rr))
+        return (w[0].pulse_us(float(wheels[0])), w[1].pulse_us(float(wheels[1])),
+                w[2].pulse_us(float(wheels[2])), w[3].pulse_us(float(wheels[3])))
 
     def pulses_us_array(self, wheels: ArrayLike) -> NDArray[np.int64]:
         """Vectorized :meth:`pulses_us` for ``[..., 4]`` commands; returns ``[..., 4]`` ints."""

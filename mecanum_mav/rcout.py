@@ -20,8 +20,11 @@ LEAVE_LOW, LEAVE_HIGH = 65535, 0
 RELEASE_LOW, RELEASE_HIGH = 0, 65534
 
 
+_UNTOUCHED = [LEAVE_LOW] * 8 + [LEAVE_HIGH] * (CHANNELS - 8)
+
+
 def _untouched() -> list[int]:
-    return [LEAVE_LOW] * 8 + [LEAVE_HIGH] * (CHANNELS - 8)
+    return _UNTOUCHED.copy()
 
 
 def override_fields(channels: Sequence[int], pulses_us: Sequence[int]) -> list[int]:

@@ -100,20 +100,44 @@ def shape_stick(
 ) -> tuple[float, float, float]:
     """The drive path's stick shaping: per-axis deadband and expo, then the circle clamp.
 
+    Plain floats only (it runs once per stick message, so it avoids numpy and per-axis
+    re-validation); same numbers as :func:`deadband`, :func:`expo` and
+    :func:`square_to_circle` applied in that order.
+
     Args:
         x, y, r: stick axes, normalized, x forward, y right, r clockwise (limited to [-1, 1]).
-        deadband_width: per-axis dead zone (parameter ``INP_DEADBAND``).
-        expo_weight: cubic expo weight (parameter ``INP_EXPO``).
+        deadband_width: per-axis dead zone in [0, 1) (parameter ``INP_DEADBAND``).
+        expo_weight: cubic expo weight in [0, 1] (parameter ``INP_EXPO``).
         circle: clamp the (x, y) magnitude to 1 (parameter ``INP_CIRCLE``).
 
     Returns:
         ``(x, y, r)`` normalized. Any non-finite input gives ``(0.0, 0.0, 0.0)``: a stop.
+
+    Raises:
+        ValueError: ``deadband_width`` or ``expo_weight`` out of range.
     """
-    if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(r)):
+    isfinite = math.isfinite
+    if not (isfinite(x) and isfinite(y) and isfinite(r)):
         return 0.0, 0.0, 0.0
-    out = []
-    for v in (x, y, r):
-        v = -1.0 if v < -1.0 else (1.0 if v > 1.0 else float(v))
-        out.append(expo(deadband(v, deadband_width), expo_weight))
-    sx, sy = square_to_circle(out[0], out[1]) if circle else (out[0], out[1])
-    return float(sx), float(sy), float(out[2])
+    if not (0.0 <= deadband_width < 1.0 and 0.0 <= expo_weight <= 1.0):
+        raise ValueError(f"deadband {deadband_width!r} or expo {expo_weight!r} out of range")
+    gain = 1.0 / (1.0 - deadband_width)
+    sx = _shape_axis(x, deadband_width, gain, expo_weight)
+    sy = _shape_axis(y, deadband_width, gain, expo_weight)
+    sr = _shape_axis(r, deadband_width, gain, expo_weight)
+    if circle:
+        length_sq = sx * sx + sy * sy
+        if length_sq > 1.0:
+            length = math.sqrt(length_sq)
+            sx, sy = sx / length, sy / length
+    return sx, sy, sr
+
+
+def _shape_axis(v: float, band: float, gain: float, weight: float) -> float:
+    """One axis: limit to [-1, 1], rescaled deadband, cubic expo."""
+    magnitude = -v if v < 0.0 else v
+    if magnitude <= band:
+        return 0.0
+    magnitude = ((1.0 if magnitude > 1.0 else magnitude) - band) * gain
+    magnitude = (1.0 - weight) * magnitude + weight * magnitude * magnitude * magnitude
+    return -magnitude if v < 0.0 else magnitude

@@ -183,6 +183,11 @@ class Vehicle:
         """Any link failsafe is active (the heartbeat then reports CRITICAL)."""
         return self.fc_lost or self.gcs_failsafe
 
+    @property
+    def has_events(self) -> bool:
+        """Whether :meth:`take_events` has anything."""
+        return bool(self._events)
+
     def take_events(self) -> list[Event]:
         """The state changes since the last call, oldest first (for STATUSTEXT)."""
         events, self._events = self._events, []

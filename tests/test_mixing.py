@@ -21,6 +21,7 @@ from mecanum_mav.mixing import (
     mix_stick,
     normalize,
     polar_2011,
+    wheels_from_stick,
 )
 
 R2 = math.sqrt(0.5)
@@ -310,3 +311,11 @@ def test_mix_stick_polar_algorithms_see_the_stick_direction(x, y, r):
     np.testing.assert_allclose(mix_stick(x, y, r, "polar_2011"),
                                polar_2011(math.hypot(x, y), math.degrees(math.atan2(y, x)), r),
                                atol=1e-12)
+
+
+@given(anything, anything, anything, angle, priorities, st.sampled_from(ALGORITHM_NAMES))
+def test_the_control_loops_tuple_path_matches_mix_stick_with_plain_floats(x, y, r, h, p, algo):
+    fast = wheels_from_stick(x, y, r, algo, heading_deg=h, priority=p)
+    assert all(type(w) is float for w in fast)
+    np.testing.assert_array_equal(np.array(fast), mix_stick(x, y, r, algo, heading_deg=h,
+                                                            priority=p))

@@ -137,3 +137,14 @@ def test_command_from_pulse_limits_the_pulse_and_reads_non_finite_as_stopped():
     assert wheel.command_from_pulse(math.nan) == 0.0
     mirrored = WheelOutput(channel=2, minimum=1000, trim=1500, maximum=2000, reversed=True)
     assert mirrored.command_from_pulse(1250) == 0.5
+
+
+@given(st.floats(-2, 2), st.floats(-2, 2), st.floats(-2, 2), st.floats(0.0, 0.5),
+       st.floats(0.0, 1.0), st.booleans())
+def test_shape_stick_equals_deadband_then_expo_then_circle(x, y, r, band, weight, circle):
+    clip = lambda v: max(-1.0, min(1.0, v))  # noqa: E731
+    ref = [expo(deadband(clip(v), band), weight) for v in (x, y, r)]
+    if circle:
+        ref[0], ref[1] = square_to_circle(ref[0], ref[1])
+    got = shape_stick(x, y, r, deadband_width=band, expo_weight=weight, circle=circle)
+    assert got == pytest.approx(tuple(ref), abs=1e-12)

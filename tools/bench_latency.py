@@ -29,10 +29,13 @@ Method
     millisecond at 1 kHz the older commands of that batch get no override of their own. The
     baseline answers every message, so it shows the same hold-ups as delay instead.
 
-    Phases per SUT: a short warm-up, 50 Hz input (~5 s), 1 kHz input (~3 s), then idle (~3 s,
-    no input, after the companion's stale-input timeout; it still refreshes at 20 Hz and sends
-    heartbeats). Sends follow an absolute schedule; between sends the harness waits in
-    ``select`` on both sockets, reading while it waits (no busy loop).
+    Both SUTs run side by side and are driven in alternating rounds, so machine drift lands
+    on both alike: after a short warm-up, 50 Hz input (~5 s per SUT in 10 rounds of 25
+    commands), 1 kHz input (~3 s per SUT in 3 continuous rounds of 1 s; delay growth is judged
+    within each round), then idle for both at once (~3 s, no input, after the companion's
+    stale-input timeout; it still refreshes at 20 Hz and sends heartbeats). Sends follow an
+    absolute schedule; between sends the harness waits in ``select`` on both sockets,
+    reading while it waits (no busy loop).
 
 Goals (issue text)
     - The companion adds at most ~20 % to the baseline's median delay (ratio <= 1.20).
@@ -111,6 +114,9 @@ class PhasePlan:
     idle_s: float
     drain_s: float = 0.25  # after the last command, overrides still count
 
+
+SLOW_ROUNDS = 10  # 50 Hz input alternates between the SUTs in this many rounds
+FAST_ROUNDS = 3  # 1 kHz input: continuous rounds, long enough to show delay growth
 
 FULL = PhasePlan(warmup_commands=20, slow_commands=250, fast_commands=3000, idle_s=3.0)
 QUICK = PhasePlan(warmup_commands=10, slow_commands=50, fast_commands=1000, idle_s=1.0)
@@ -302,6 +308,7 @@ class PhaseResult:
     delays_us: list[float | None]  # per command, None = no matching override
     cpu_s: float
     overrides: int  # every override received, refreshes included
+    round_growths: list[float] = field(default_factory=list)  # growth within each round
 
     @property
     def matched(self) -> list[float]:
@@ -316,7 +323,10 @@ class PhaseResult:
         return float(np.percentile(m, q)) if m else float("nan")
 
     def growth(self) -> float:
-        """p50 delay of the last quarter of commands / p50 of the first quarter."""
+        """p50 delay of the last quarter of commands / p50 of the first quarter (the median
+        of that ratio over continuous rounds, when the phase was run in rounds)."""
+        if self.round_growths:
+            return float(np.nanmedian(self.round_growths))
         quarter = max(1, self.sent // 4)
         first = [d for d in self.delays_us[:quarter] if d is not None]
         last = [d for d in self.delays_us[-quarter:] if d is not None]
@@ -525,43 +535,68 @@ class Harness:
 
 # ---------------------------------------------------------------------------- one SUT
 
-def measure(kind: str, plan: PhasePlan, cycle: list[int], profile: bool) -> SutResult:
-    """Start one SUT, drive it through the phases, stop it."""
-    if kind == BASELINE:
-        channel, encode = 1, relay_pulse
-    else:
-        channel, encode = companion_pulse_fn(Params())
-    harness = Harness(channel, encode, cycle)
-    result = SutResult(kind)
-    sut: SutProcess | None = None
+def measure_all(plan: PhasePlan, cycle: list[int], profile: bool) -> dict[str, SutResult]:
+    """Run both SUTs side by side and drive them in alternating rounds.
+
+    Interleaving puts machine drift (other processes, frequency changes) on both systems
+    alike, so the ratio of their medians measures the companion, not the minute it ran in.
+    50 Hz input goes in ``SLOW_ROUNDS`` short rounds per SUT; 1 kHz input in ``FAST_ROUNDS``
+    continuous rounds (delay growth is judged within each round).
+    """
+    harnesses: dict[str, Harness] = {}
+    suts: dict[str, SutProcess] = {}
+    results = {kind: SutResult(kind) for kind in (BASELINE, COMPANION)}
     try:
-        sut = SutProcess(kind, *harness.urls, profile=profile and kind == COMPANION)
-        harness.connect()
-        if kind == COMPANION:
-            harness.arm()
-        harness.run_input(200.0, plan.warmup_commands, drain_s=0.05)
-        for name, rate, count in (("50 Hz", 50.0, plan.slow_commands),
-                                  ("1 kHz", 1000.0, plan.fast_commands)):
-            cpu0 = sut.cpu_s()
-            delays, overrides = harness.run_input(rate, count, plan.drain_s)
-            cpu = sut.cpu_s() - cpu0
-            result.phases[name] = PhaseResult(rate, count, delays, cpu, overrides)
-        # Idle: past the stale-input timeout (0.5 s by default), then no input at all.
-        harness.pump_until(time.perf_counter() + float(Params()["FS_INPUT_TMO"]) + 0.2)
-        overrides0, cpu0, t0 = harness.overrides, sut.cpu_s(), time.perf_counter()
-        harness.pump_until(t0 + plan.idle_s)
-        cpu, wall = sut.cpu_s() - cpu0, time.perf_counter() - t0
-        result.idle_cpu_pct = 100.0 * cpu / wall
-        result.idle_overrides_per_s = (harness.overrides - overrides0) / wall
-        final = sut.stop()
-        if not final["alive"]:
-            raise SutError(f"{kind}: its loop thread had died")
-        result.profile = final["profile"]
-        return result
+        for kind in (BASELINE, COMPANION):
+            channel, encode = (1, relay_pulse) if kind == BASELINE else companion_pulse_fn(Params())
+            harnesses[kind] = Harness(channel, encode, cycle)
+            suts[kind] = SutProcess(kind, *harnesses[kind].urls,
+                                    profile=profile and kind == COMPANION)
+            harnesses[kind].connect()
+            if kind == COMPANION:
+                harnesses[kind].arm()
+            harnesses[kind].run_input(200.0, plan.warmup_commands, drain_s=0.05)
+        for name, rate, count, rounds in (("50 Hz", 50.0, plan.slow_commands, SLOW_ROUNDS),
+                                          ("1 kHz", 1000.0, plan.fast_commands, FAST_ROUNDS)):
+            pooled: dict[str, PhaseResult] = {
+                kind: PhaseResult(rate, 0, [], 0.0, 0, []) for kind in results}
+            for _ in range(rounds):
+                for kind, harness in harnesses.items():
+                    cpu0 = suts[kind].cpu_s()
+                    delays, overrides = harness.run_input(rate, count // rounds, plan.drain_s)
+                    pool = pooled[kind]
+                    pool.cpu_s += suts[kind].cpu_s() - cpu0
+                    pool.sent += len(delays)
+                    pool.delays_us.extend(delays)
+                    pool.overrides += overrides
+                    pool.round_growths.append(PhaseResult(rate, len(delays), delays, 0.0,
+                                                          0, []).growth())
+            for kind in results:
+                results[kind].phases[name] = pooled[kind]
+        # Idle, both at once: past the stale-input timeout, then no input at all.
+        first = next(iter(harnesses.values()))
+        first.pump_until(time.perf_counter() + float(Params()["FS_INPUT_TMO"]) + 0.2)
+        start = {k: (h.overrides, suts[k].cpu_s()) for k, h in harnesses.items()}
+        t0 = time.perf_counter()
+        while time.perf_counter() < t0 + plan.idle_s:
+            for harness in harnesses.values():
+                harness.pump(0.02)
+        wall = time.perf_counter() - t0
+        for kind, harness in harnesses.items():
+            overrides0, cpu0 = start[kind]
+            results[kind].idle_cpu_pct = 100.0 * (suts[kind].cpu_s() - cpu0) / wall
+            results[kind].idle_overrides_per_s = (harness.overrides - overrides0) / wall
+        for kind, sut in suts.items():
+            final = sut.stop()
+            if not final["alive"]:
+                raise SutError(f"{kind}: its loop thread had died")
+            results[kind].profile = final["profile"]
+        return results
     finally:
-        if sut is not None:
+        for sut in suts.values():
             sut.kill()
-        harness.close()
+        for harness in harnesses.values():
+            harness.close()
 
 
 # ---------------------------------------------------------------------------- report
@@ -636,13 +671,11 @@ def main() -> int:
     cycle = stick_cycle([companion_pulse, relay_pulse], neutral)
     print(f"# stick cycle: {len(cycle)} distinct x values (matched on companion channel "
           f"{channel}, baseline channel 1); delay = kernel rx stamp - send time")
-    results: dict[str, SutResult] = {}
-    for kind in (BASELINE, COMPANION):
-        try:
-            results[kind] = measure(kind, plan, cycle, args.profile)
-        except SutError as exc:
-            print(f"ERROR: {exc}", file=sys.stderr)
-            return 1
+    try:
+        results = measure_all(plan, cycle, args.profile)
+    except SutError as exc:
+        print(f"ERROR: {exc}", file=sys.stderr)
+        return 1
     print()
     report(results, plan, args.profile)
     return 0
