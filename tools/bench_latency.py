@@ -535,6 +535,13 @@ class Harness:
 
 # ---------------------------------------------------------------------------- one SUT
 
+def pump_all(harnesses: dict[str, Harness], deadline: float) -> None:
+    """Read both harnesses' sockets until ``deadline`` (perf_counter seconds)."""
+    while time.perf_counter() < deadline:
+        for harness in harnesses.values():
+            harness.pump(0.01)
+
+
 def measure_all(plan: PhasePlan, cycle: list[int], profile: bool) -> dict[str, SutResult]:
     """Run both SUTs side by side and drive them in alternating rounds.
 
@@ -574,13 +581,10 @@ def measure_all(plan: PhasePlan, cycle: list[int], profile: bool) -> dict[str, S
             for kind in results:
                 results[kind].phases[name] = pooled[kind]
         # Idle, both at once: past the stale-input timeout, then no input at all.
-        first = next(iter(harnesses.values()))
-        first.pump_until(time.perf_counter() + float(Params()["FS_INPUT_TMO"]) + 0.2)
+        pump_all(harnesses, time.perf_counter() + float(Params()["FS_INPUT_TMO"]) + 0.2)
         start = {k: (h.overrides, suts[k].cpu_s()) for k, h in harnesses.items()}
         t0 = time.perf_counter()
-        while time.perf_counter() < t0 + plan.idle_s:
-            for harness in harnesses.values():
-                harness.pump(0.02)
+        pump_all(harnesses, t0 + plan.idle_s)
         wall = time.perf_counter() - t0
         for kind, harness in harnesses.items():
             overrides0, cpu0 = start[kind]
