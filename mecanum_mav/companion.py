@@ -31,13 +31,12 @@ import selectors
 import threading
 import time
 from collections.abc import Callable
-from pathlib import Path
 from typing import Any, BinaryIO
 
 from mecanum_mav.links import Link, mavlink, open_link
 from mecanum_mav.manual import InputError, RcStickState, stick_from_manual_control
 from mecanum_mav.mixing import ALGORITHM_NAMES, Desaturation, wheels_from_stick
-from mecanum_mav.params import Params, save
+from mecanum_mav.params import Params
 from mecanum_mav.pwm import PwmMap
 from mecanum_mav.rcout import override_fields, release_fields
 from mecanum_mav.shaping import shape_stick
@@ -64,7 +63,6 @@ class Companion:
         params: the parameter store (read live; :meth:`reconfigure` after changing it).
         gcs_url: pymavlink URL of the ground-station link.
         fc_url: pymavlink URL of the flight-controller link.
-        param_path: the parameter file the companion was started with (saved on change).
         tlog: an open binary file to record both links' traffic to, or None.
         clock: monotonic time source in seconds (tests may inject one).
     """
@@ -75,12 +73,10 @@ class Companion:
         gcs_url: str,
         fc_url: str,
         *,
-        param_path: Path | None = None,
         tlog: BinaryIO | None = None,
         clock: Callable[[], float] = time.monotonic,
     ) -> None:
         self.params = params
-        self.param_path = param_path
         self.clock = clock
         self.vehicle = Vehicle(params)
         self.sysid = int(params["SYSID_THISMAV"])
@@ -374,8 +370,3 @@ class Companion:
         for fd in (self._wake_r, self._wake_w):
             with contextlib.suppress(OSError):
                 os.close(fd)
-
-    def save_params(self) -> None:
-        """Save the parameters to the file the companion was started with (atomic)."""
-        if self.param_path is not None:
-            save(self.params, self.param_path)
