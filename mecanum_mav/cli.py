@@ -267,7 +267,8 @@ DEFAULT_GCS_URL = "udpout:127.0.0.1:14550"
 """Where QGroundControl and MAVProxy listen by default."""
 
 
-def serve(params: Params, gcs_url: str, fc_url: str, tlog_path: Path | None) -> int:
+def serve(params: Params, gcs_url: str, fc_url: str, param_path: Path | None,
+          tlog_path: Path | None) -> int:
     """Run the companion in the foreground until SIGINT/SIGTERM; ``fc_url`` may be ``sim``."""
     from mecanum_mav.companion import Companion
     from mecanum_mav.shutdown import on_termination
@@ -282,7 +283,7 @@ def serve(params: Params, gcs_url: str, fc_url: str, tlog_path: Path | None) -> 
                 stack.callback(sim.stop)
                 fc_url = f"udpout:127.0.0.1:{sim.local_port}"
             tlog = stack.enter_context(tlog_path.open("ab")) if tlog_path else None
-            companion = Companion(params, gcs_url, fc_url, tlog=tlog)
+            companion = Companion(params, gcs_url, fc_url, param_path=param_path, tlog=tlog)
         except (OSError, ValueError) as exc:
             print(f"mecanum-mav: {exc}", file=sys.stderr)
             return 2
@@ -296,7 +297,7 @@ def serve(params: Params, gcs_url: str, fc_url: str, tlog_path: Path | None) -> 
 
 
 def cmd_run(args: argparse.Namespace, params: Params) -> int:
-    return serve(params, args.gcs, args.fc, args.tlog)
+    return serve(params, args.gcs, args.fc, args.params, args.tlog)
 
 
 def cmd_sim(args: argparse.Namespace, params: Params) -> int:
@@ -304,7 +305,7 @@ def cmd_sim(args: argparse.Namespace, params: Params) -> int:
     print(f"mecanum-mav sim: point a ground station at UDP {host_port} "
           f"(QGroundControl and Mission Planner listen on 14550; "
           f"MAVProxy: mavproxy.py --master=udpin:{host_port})", flush=True)
-    return serve(params, args.gcs, "sim", args.tlog)
+    return serve(params, args.gcs, "sim", args.params, args.tlog)
 
 
 def cmd_simfc(args: argparse.Namespace, params: Params) -> int:

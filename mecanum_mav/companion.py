@@ -31,12 +31,14 @@ import selectors
 import threading
 import time
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any, BinaryIO
 
 from mecanum_mav.links import Link, mavlink, open_link
 from mecanum_mav.manual import InputError, RcStickState, stick_from_manual_control
 from mecanum_mav.mixing import ALGORITHM_NAMES, Desaturation, wheels_from_stick
-from mecanum_mav.params import Params
+from mecanum_mav.paramproto import RESTART_REQUIRED, ParamService, ParamValue
+from mecanum_mav.params import Params, save
 from mecanum_mav.pwm import PwmMap
 from mecanum_mav.rcout import override_fields, release_fields
 from mecanum_mav.shaping import shape_stick
@@ -63,6 +65,8 @@ class Companion:
         params: the parameter store (read live; :meth:`reconfigure` after changing it).
         gcs_url: pymavlink URL of the ground-station link.
         fc_url: pymavlink URL of the flight-controller link.
+        param_path: the parameter file the companion was started with; accepted PARAM_SETs
+            are saved to it (atomically).
         tlog: an open binary file to record both links' traffic to, or None.
         clock: monotonic time source in seconds (tests may inject one).
     """
@@ -73,10 +77,13 @@ class Companion:
         gcs_url: str,
         fc_url: str,
         *,
+        param_path: Path | None = None,
         tlog: BinaryIO | None = None,
         clock: Callable[[], float] = time.monotonic,
     ) -> None:
         self.params = params
+        self.param_path = param_path
+        self.param_service = ParamService(params)
         self.clock = clock
         self.vehicle = Vehicle(params)
         self.sysid = int(params["SYSID_THISMAV"])
@@ -102,6 +109,9 @@ class Companion:
             "COMMAND_LONG": self._on_command,
             "COMMAND_INT": self._on_command,
             "SET_MODE": self._on_set_mode,
+            "PARAM_REQUEST_LIST": self._on_param_request_list,
+            "PARAM_REQUEST_READ": self._on_param_request_read,
+            "PARAM_SET": self._on_param_set,
         }
         self._stop = threading.Event()
         self._wake_r, self._wake_w = os.pipe()
@@ -178,6 +188,7 @@ class Companion:
         self.priority = Desaturation(int(p["MIX_DESAT"]))
         self.output_period_s = 1.0 / float(p["OUT_RATE"])
         self.fc_target = (int(p["FC_SYSID"]), int(p["FC_COMPID"]))
+        self.fc.mav.srcSystem = int(p["FC_GCS_SYSID"])  # may change live
         # Read once here rather than per message: the input path runs at up to 1 kHz.
         self.gcs_id = int(p["SYSID_MYGCS"])
         self.shaping = (float(p["INP_DEADBAND"]), float(p["INP_EXPO"]), bool(p["INP_CIRCLE"]))
@@ -341,6 +352,44 @@ class Companion:
         # ArduPilot acknowledges SET_MODE with COMMAND_ACK whose command is SET_MODE's id (11).
         self.gcs.mav.command_ack_send(mavlink.MAVLINK_MSG_ID_SET_MODE, result, 0, 0,
                                       msg.get_srcSystem(), msg.get_srcComponent())
+
+    # ------------------------------------------------------------------ parameters
+
+    def _send_param(self, value: ParamValue) -> None:
+        self.gcs.mav.param_value_send(value.param_id, value.param_value, value.param_type,
+                                      value.param_count, value.param_index)
+
+    def _on_param_request_list(self, msg: Any, now: float) -> None:
+        if self._for_us(msg.target_system, msg.target_component):
+            for value in self.param_service.all_values():
+                self._send_param(value)
+
+    def _on_param_request_read(self, msg: Any, now: float) -> None:
+        if self._for_us(msg.target_system, msg.target_component):
+            value = self.param_service.read(msg.param_id, msg.param_index)
+            if value is not None:
+                self._send_param(value)
+
+    def _on_param_set(self, msg: Any, now: float) -> None:
+        if not (self._for_us(msg.target_system, msg.target_component)
+                and self._from_permitted_gcs(msg)):
+            return
+        value, problem = self.param_service.set(msg.param_id, msg.param_value)
+        if value is None:
+            return  # unknown name: no answer, as the protocol specifies
+        self._send_param(value)
+        name = value.param_id.decode()
+        if problem:
+            self._say(Severity.WARNING, f"Param refused: {problem}")
+            return
+        self.reconfigure()
+        if name in RESTART_REQUIRED:
+            self._say(Severity.NOTICE, f"{name} takes effect after a restart")
+        if self.param_path is not None:
+            try:
+                save(self.params, self.param_path)
+            except OSError as exc:
+                self._say(Severity.ERROR, f"Param save failed: {exc.strerror}")
 
     @staticmethod
     def _result(decision: Decision) -> int:

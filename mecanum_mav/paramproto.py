@@ -1,0 +1,81 @@
+"""The MAVLink parameter protocol, served from the one parameter schema.
+
+- ``PARAM_REQUEST_LIST``: every parameter as ``PARAM_VALUE``; the index is the parameter's
+  position in :data:`mecanum_mav.params.SCHEMA`, the count the schema's length.
+- ``PARAM_REQUEST_READ``: by index, or by name when ``param_index`` is -1. An unknown name or
+  index gets no answer (the protocol's way: the ground station times out).
+- ``PARAM_SET``: validated by the schema (range, integer, finite, cross-parameter rules). If
+  accepted the new value is stored and announced with ``PARAM_VALUE``; if refused the
+  unchanged value is sent back and the reason goes out as STATUSTEXT. Unknown names: silence.
+
+Values travel as floats cast from the stored value, ArduPilot's encoding (which MAVProxy,
+MAVSDK and QGroundControl all expect from an ArduPilot autopilot), with ``param_type``
+``MAV_PARAM_TYPE_INT32`` for int parameters and ``MAV_PARAM_TYPE_REAL32`` for float ones.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from mecanum_mav.dialect import mavlink
+from mecanum_mav.params import SCHEMA, SPECS, ParamError, Params
+
+__all__ = ["RESTART_REQUIRED", "ParamService", "ParamValue"]
+
+RESTART_REQUIRED: frozenset[str] = frozenset(
+    {"SYSID_THISMAV"} | {spec.name for spec in SCHEMA if spec.name.startswith("SIM_")}
+)
+"""Parameters stored at once but used only after a restart (identity, simulator)."""
+
+_INDEX = {spec.name: index for index, spec in enumerate(SCHEMA)}
+
+
+@dataclass(frozen=True)
+class ParamValue:
+    """The fields of one PARAM_VALUE message."""
+
+    param_id: bytes
+    param_value: float
+    param_type: int
+    param_count: int
+    param_index: int
+
+
+class ParamService:
+    """Answers the parameter protocol for a :class:`~mecanum_mav.params.Params` store."""
+
+    def __init__(self, params: Params) -> None:
+        self.params = params
+
+    def value(self, name: str) -> ParamValue:
+        """PARAM_VALUE fields for the parameter ``name`` (which must exist)."""
+        spec = SPECS[name]
+        kind = mavlink.MAV_PARAM_TYPE_INT32 if spec.kind is int else mavlink.MAV_PARAM_TYPE_REAL32
+        return ParamValue(name.encode("ascii"), float(self.params[name]), kind, len(SCHEMA),
+                          _INDEX[name])
+
+    def all_values(self) -> list[ParamValue]:
+        """PARAM_VALUE fields for every parameter, in index order (PARAM_REQUEST_LIST)."""
+        return [self.value(spec.name) for spec in SCHEMA]
+
+    def read(self, param_id: str, param_index: int) -> ParamValue | None:
+        """PARAM_REQUEST_READ: by index, or by name when ``param_index`` is -1; else None."""
+        if param_index >= 0:
+            return self.value(SCHEMA[param_index].name) if param_index < len(SCHEMA) else None
+        name = param_id.rstrip("\x00")
+        return self.value(name) if name in SPECS else None
+
+    def set(self, param_id: str, param_value: float) -> tuple[ParamValue | None, str]:
+        """PARAM_SET: ``(reply, problem)``.
+
+        ``reply`` is None for an unknown name (no answer is sent); ``problem`` is "" when the
+        value was stored, else the reason it was refused (the reply then holds the old value).
+        """
+        name = param_id.rstrip("\x00")
+        if name not in SPECS:
+            return None, ""
+        try:
+            self.params.set(name, param_value)
+        except ParamError as exc:
+            return self.value(name), str(exc)
+        return self.value(name), ""
