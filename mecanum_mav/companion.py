@@ -34,6 +34,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any, BinaryIO
 
+from mecanum_mav.estimator import WheelOdometryEstimator
 from mecanum_mav.links import Link, mavlink, open_link
 from mecanum_mav.manual import InputError, RcStickState, stick_from_manual_control
 from mecanum_mav.mixing import ALGORITHM_NAMES, Desaturation, wheels_from_stick
@@ -94,9 +95,14 @@ class Companion:
         if tlog is not None:
             self.gcs.record_to(tlog)
             self.fc.record_to(tlog)
+        self.estimator = WheelOdometryEstimator(params)
         self.rc_sticks = RcStickState()
         self.stick: Stick = (0.0, 0.0, 0.0)
         self.pulses_us: tuple[int, ...] = ()
+        self.wheels: tuple[float, ...] = (0.0, 0.0, 0.0, 0.0)  # commanded, normalized
+        self._wheels_s: float | None = None
+        self._next_telemetry_s = 0.0
+        self._boot_s = clock()
         self.overrides_sent = 0
         self._new_input = False
         self._next_output_s = 0.0
@@ -130,7 +136,8 @@ class Companion:
         try:
             while not self._stop.is_set():
                 now = self.clock()
-                timeout = max(0.0, min(self._next_output_s, self._next_heartbeat_s) - now)
+                due = min(self._next_output_s, self._next_heartbeat_s, self._next_telemetry_s)
+                timeout = max(0.0, due - now)
                 ready = selector.select(timeout)
                 for key, _ in ready:
                     if key.data is None:
@@ -164,13 +171,20 @@ class Companion:
         """Steps 3-5 of the loop: failsafes, output, heartbeats, status texts."""
         self.vehicle.update(now)
         try:
-            pulses = self._compute_output()
+            wheels, pulses = self._compute_output()
         except Exception:
             log.exception("error computing the output")
             self._say(Severity.ERROR, "Error computing output: neutral")
-            pulses = self._neutral()
+            wheels, pulses = (0.0, 0.0, 0.0, 0.0), self._neutral()
         if self._new_input or pulses != self.pulses_us or now >= self._next_output_s:
             self._send_output(pulses, now)
+        # Off the latency-critical path: everything below runs after the output went out.
+        if self._wheels_s is not None:
+            self.estimator.on_commanded(self.wheels, now - self._wheels_s, now)
+        self.wheels, self._wheels_s = wheels, now
+        # Telemetry rides the output refresh's wake-ups when it is due within half a period.
+        if now + self.output_period_s / 2 >= self._next_telemetry_s:
+            self._send_position_telemetry(now)
         if now >= self._next_heartbeat_s:
             self._send_heartbeats()
             self._next_heartbeat_s = now + HEARTBEAT_PERIOD_S
@@ -197,14 +211,15 @@ class Companion:
     def _neutral(self) -> tuple[int, ...]:
         return self.pwm.neutral()
 
-    def _compute_output(self) -> tuple[int, ...]:
+    def _compute_output(self) -> tuple[tuple[float, ...], tuple[int, ...]]:
+        """(normalized wheel commands, pulse widths in us) for the current state."""
         if not self.vehicle.driving():
-            return self._neutral()
+            return (0.0, 0.0, 0.0, 0.0), self._neutral()
         band, weight, circle = self.shaping
         x, y, r = shape_stick(*self.stick, deadband_width=band, expo_weight=weight,
                               circle=circle)
         wheels = wheels_from_stick(x, y, r, self.algorithm, priority=self.priority)
-        return self.pwm.pulses_us(wheels)
+        return wheels, self.pwm.pulses_us(wheels)
 
     def _send_output(self, pulses: tuple[int, ...], now: float) -> None:
         self.fc.send_rc_override(*self.fc_target, override_fields(self.pwm.channels, pulses))
@@ -220,6 +235,30 @@ class Companion:
         for fields in (neutral, neutral, release):
             self.fc.send_rc_override(*self.fc_target, fields)
         self.pulses_us = self._neutral()
+
+    def _send_position_telemetry(self, now: float) -> None:
+        """ODOMETRY, LOCAL_POSITION_NED and ATTITUDE from the dead reckoning (``TLM_POS_RATE``)."""
+        rate = float(self.params["TLM_POS_RATE"])
+        period = 1.0 / rate if rate > 0.0 else 1.0
+        self._next_telemetry_s += period  # on a fixed grid, so it keeps riding the refresh
+        if self._next_telemetry_s <= now:  # fell behind (or first time): skip ahead
+            self._next_telemetry_s = now + period
+        if rate <= 0.0:
+            return
+        est = self.estimator
+        pose, (vx, vy), yaw_rate = est.pose, est.velocity_body, est.yaw_rate
+        c, s = math.cos(pose.yaw_rad), math.sin(pose.yaw_rad)
+        boot_ms = int((now - self._boot_s) * 1000) & 0xFFFFFFFF
+        unknown = [math.nan] + [0.0] * 20  # covariance not estimated: first element NaN
+        quaternion = [math.cos(pose.yaw_rad / 2), 0.0, 0.0, math.sin(pose.yaw_rad / 2)]
+        self.gcs.mav.odometry_send(
+            int((now - self._boot_s) * 1e6), mavlink.MAV_FRAME_LOCAL_NED,
+            mavlink.MAV_FRAME_BODY_FRD, pose.x_m, pose.y_m, 0.0, quaternion, vx, vy, 0.0,
+            0.0, 0.0, yaw_rate, unknown, unknown, est.reset_counter % 256,
+            mavlink.MAV_ESTIMATOR_TYPE_NAIVE, 0)
+        self.gcs.mav.local_position_ned_send(boot_ms, pose.x_m, pose.y_m, 0.0,
+                                             vx * c - vy * s, vx * s + vy * c, 0.0)
+        self.gcs.mav.attitude_send(boot_ms, 0.0, 0.0, pose.yaw_rad, 0.0, 0.0, yaw_rate)
 
     def _send_heartbeats(self) -> None:
         v = self.vehicle
@@ -274,8 +313,13 @@ class Companion:
     def _on_fc_message(self, msg: Any, now: float) -> None:
         if msg.get_srcSystem() != self.fc_target[0]:
             return
-        if msg.get_type() == "HEARTBEAT":
+        kind = msg.get_type()
+        if kind == "HEARTBEAT":
             self.vehicle.on_fc_heartbeat(now)
+        elif kind == "ATTITUDE":
+            self.estimator.on_attitude(msg.yaw, msg.yawspeed, now)
+        elif kind == "WHEEL_DISTANCE" and msg.count >= 4:
+            self.estimator.on_wheel_distance(msg.distance[:4], now)
 
     def _on_gcs_heartbeat(self, msg: Any, now: float) -> None:
         if self._from_permitted_gcs(msg):

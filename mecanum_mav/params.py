@@ -299,6 +299,8 @@ GROUP_TITLES: dict[str, str] = {
     "RCMAP": "Ground-station stick channels (RC_CHANNELS_OVERRIDE input)",
     "RCIN": "Ground-station stick pulse range",
     "MAN": "Manual driving",
+    "ODOM": "Odometry",
+    "TLM": "Telemetry to the ground station",
     "SIM": "Built-in simulator (flight controller and chassis)",
 }
 """Title of each parameter group, in file order."""
@@ -438,6 +440,24 @@ SCHEMA: tuple[ParamSpec, ...] = (
         values={0: "off", 1: "on"},
         description="Use MANUAL_CONTROL z (0..1000) as a speed scale on the translation and "
         "rotation sticks; off ignores z.",
+    ),
+    ParamSpec(
+        "ODOM_SRC", int, default=0, minimum=0, maximum=2, units="",
+        values={0: "auto", 1: "wheel_distance", 2: "commanded"},
+        description="Odometry source: auto uses the flight controller's WHEEL_DISTANCE while "
+        "it keeps coming and the commanded wheel speeds otherwise; or only one of them.",
+    ),
+    ParamSpec(
+        "ODOM_YAW_SRC", int, default=0, minimum=0, maximum=1, units="",
+        values={0: "auto", 1: "wheels"},
+        description="Odometry heading: auto uses the flight controller's ATTITUDE yaw while "
+        "fresh (a gyro beats wheel-derived yaw on a slipping mecanum base), wheels uses the "
+        "wheels' own turn.",
+    ),
+    ParamSpec(
+        "TLM_POS_RATE", float, default=10.0, minimum=0.0, maximum=50.0, units="Hz",
+        description="Rate of ODOMETRY, LOCAL_POSITION_NED and ATTITUDE to the ground station "
+        "(0 = off).",
     ),
     ParamSpec(
         "SIM_MOTOR_TAU", float, default=0.08, minimum=0.001, maximum=5.0, units="s",

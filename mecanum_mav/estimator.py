@@ -1,0 +1,132 @@
+"""Dead reckoning for the companion: where the rover is, from its wheels and its gyro.
+
+Sources (parameter ``ODOM_SRC``):
+
+- 0 auto (default): ``WHEEL_DISTANCE`` from the flight controller while it keeps coming
+  (encoders measure what the wheels really did); when none has arrived for
+  :data:`FRESH_S`, the commanded wheel speeds (wheel command x ``WHL_MAX_SPD``) stand in.
+- 1 wheel distances only; 2 commanded wheel speeds only.
+
+Heading (parameter ``ODOM_YAW_SRC``): 0 auto (default) takes the flight controller's
+``ATTITUDE`` yaw while it is fresh, because a gyro beats wheel-derived yaw on a slipping
+mecanum base; 1 uses the wheels' own turn. Translation always comes from the wheels by least
+squares (:class:`~mecanum_mav.kinematics.MecanumKinematics`) and the SE(2) exponential.
+
+Everything is in the local NED frame (x north, y east, yaw clockwise from north) with the
+origin where the companion started or was last reset; velocities are body FRD. Time is passed
+in (monotonic seconds).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+from mecanum_mav.geometry import Pose2d
+from mecanum_mav.kinematics import MecanumKinematics
+from mecanum_mav.odometry import MecanumOdometry
+from mecanum_mav.params import Params
+
+__all__ = ["FRESH_S", "WheelOdometryEstimator"]
+
+FRESH_S = 0.5
+"""A WHEEL_DISTANCE or ATTITUDE older than this no longer counts as a live source (s)."""
+COMMANDED_UPDATE_S = 0.02
+"""Commanded speeds are integrated every tick but fed to the odometry at most this often."""
+
+
+class WheelOdometryEstimator:
+    """Pose and velocity of the rover from wheel distances, commanded speeds and gyro yaw."""
+
+    def __init__(self, params: Params) -> None:
+        self.params = params
+        kinematics = MecanumKinematics.from_half_extents(float(params["GEO_HALF_LEN"]),
+                                                         float(params["GEO_HALF_WID"]))
+        self.odometry = MecanumOdometry(kinematics)
+        self._virtual = [0.0, 0.0, 0.0, 0.0]  # cumulative metres fed to the odometry
+        self._measured: list[float] | None = None  # last WHEEL_DISTANCE
+        self._measured_s = -math.inf
+        self._attitude_s = -math.inf
+        self._yaw: float | None = None
+        self._yaw_rate_gyro = 0.0
+        self._last_update_s: float | None = None
+        self._moved = False  # commanded distance added since the last odometry update
+        self.velocity_body = (0.0, 0.0)
+        """Body velocity (forward, right) in m/s, from the last update."""
+        self.yaw_rate = 0.0
+        """Yaw rate in rad/s, clockwise positive."""
+
+    @property
+    def pose(self) -> Pose2d:
+        """Pose in the local NED frame (m, m, rad clockwise from north)."""
+        return self.odometry.pose
+
+    @property
+    def reset_counter(self) -> int:
+        """Incremented by every :meth:`reset` (MAVLink ODOMETRY ``reset_counter``)."""
+        return self.odometry.reset_counter
+
+    def _yaw_if_used(self, now_s: float) -> float | None:
+        if int(self.params["ODOM_YAW_SRC"]) != 0 or now_s - self._attitude_s > FRESH_S:
+            return None
+        return self._yaw
+
+    def on_attitude(self, yaw_rad: float, yaw_rate: float, now_s: float) -> None:
+        """ATTITUDE from the flight controller: yaw (rad, clockwise from north) and rate."""
+        if math.isfinite(yaw_rad) and math.isfinite(yaw_rate):
+            self._yaw, self._yaw_rate_gyro, self._attitude_s = yaw_rad, yaw_rate, now_s
+
+    def on_wheel_distance(self, distances_m: Sequence[float], now_s: float) -> None:
+        """WHEEL_DISTANCE: cumulative metres FL, FR, RL, RR from the flight controller."""
+        if int(self.params["ODOM_SRC"]) == 2 or not all(math.isfinite(d) for d in distances_m):
+            return
+        fresh = now_s - self._measured_s <= FRESH_S
+        if self._measured is not None and fresh:
+            for i in range(4):
+                self._virtual[i] += distances_m[i] - self._measured[i]
+        # After a gap the commanded speeds covered it: re-anchor without a jump.
+        self._measured = list(distances_m)
+        self._measured_s = now_s
+        self._update(now_s)
+
+    def on_commanded(self, wheel_commands: Sequence[float], dt_s: float, now_s: float) -> None:
+        """Commanded wheels (normalized, FL, FR, RL, RR) held for ``dt_s`` seconds.
+
+        Used when the source is "commanded", or "auto" with no fresh WHEEL_DISTANCE.
+        """
+        source = int(self.params["ODOM_SRC"])
+        if source == 1 or (source == 0 and now_s - self._measured_s <= FRESH_S):
+            return
+        speed = float(self.params["WHL_MAX_SPD"])
+        for i in range(4):
+            if wheel_commands[i]:
+                self._virtual[i] += wheel_commands[i] * speed * dt_s
+                self._moved = True
+        last = self._last_update_s
+        if last is not None and now_s - last < COMMANDED_UPDATE_S:
+            return
+        if self._moved:
+            self._update(now_s)
+        else:  # standing still: nothing to integrate
+            self.velocity_body, self.yaw_rate, self._last_update_s = (0.0, 0.0), 0.0, now_s
+
+    def _update(self, now_s: float) -> None:
+        self._moved = False
+        before = self.odometry.pose
+        after = self.odometry.update(self._virtual, self._yaw_if_used(now_s))
+        dt = None if self._last_update_s is None else now_s - self._last_update_s
+        self._last_update_s = now_s
+        if dt is None or dt <= 1e-4:
+            return
+        # Body velocity: the displacement in the frame of the start heading, over dt.
+        c, s = math.cos(before.yaw_rad), math.sin(before.yaw_rad)
+        dn, de = after.x_m - before.x_m, after.y_m - before.y_m
+        self.velocity_body = ((dn * c + de * s) / dt, (-dn * s + de * c) / dt)
+        turn = (after.yaw_rad - before.yaw_rad + math.pi) % (2 * math.pi) - math.pi
+        self.yaw_rate = turn / dt
+
+    def reset(self, pose: Pose2d | None = None, now_s: float = 0.0) -> None:
+        """Move the origin: the pose becomes ``pose`` (default the origin, heading kept)."""
+        heading = self.odometry.pose.yaw_rad
+        self.odometry.reset(pose or Pose2d(0.0, 0.0, heading), self._virtual,
+                            self._yaw_if_used(now_s))
