@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 
 import pytest
@@ -11,6 +12,7 @@ from mavpeers import Peer, flight_controller, ground_station
 from mecanum_mav.companion import Companion
 from mecanum_mav.links import mavlink
 from mecanum_mav.params import Params
+from mecanum_mav.simfc import SimFlightController
 
 
 @dataclass
@@ -80,3 +82,22 @@ def rig_factory() -> Iterator:
         r.companion.close()
         r.gcs.close()
         r.fc.close()
+
+
+@contextmanager
+def simulated_rover(params: Params | None = None) -> Iterator[tuple]:
+    """Companion and simulator in this process with a real UDP link between them, and a
+    ground-station peer: yields (simulator, gcs peer, companion)."""
+    params = params or Params()
+    sim = SimFlightController("udpin:127.0.0.1:0", params)
+    sim.start()
+    gcs = ground_station()
+    companion = Companion(params, gcs.url, f"udpout:127.0.0.1:{sim.local_port}")
+    companion.start()
+    try:
+        assert gcs.wait("HEARTBEAT", timeout_s=3.0)
+        yield sim, gcs, companion
+    finally:
+        companion.close()
+        sim.stop()
+        gcs.close()

@@ -16,12 +16,12 @@ import time
 from pathlib import Path
 
 import pytest
+from conftest import simulated_rover
 from mavpeers import channels, ground_station
 
 from mecanum_mav.companion import Companion
 from mecanum_mav.links import mavlink, mavutil
 from mecanum_mav.params import Params
-from mecanum_mav.simfc import SimFlightController
 
 ARM = mavlink.MAV_CMD_COMPONENT_ARM_DISARM
 
@@ -54,17 +54,8 @@ def stream_sticks(gcs, until, x: int = 0, y: int = 0, r: int = 0, timeout_s: flo
 @pytest.fixture
 def in_process():
     """Companion and simulator in this process, on a real UDP link between them."""
-    params = Params()
-    sim = SimFlightController("udpin:127.0.0.1:0", params)
-    sim.start()
-    gcs = ground_station()
-    companion = Companion(params, gcs.url, f"udpout:127.0.0.1:{sim.local_port}")
-    companion.start()
-    assert gcs.wait("HEARTBEAT", timeout_s=3.0)
-    yield sim, gcs, companion
-    companion.close()
-    sim.stop()
-    gcs.close()
+    with simulated_rover() as rover:
+        yield rover
 
 
 @pytest.mark.parametrize(

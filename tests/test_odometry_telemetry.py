@@ -6,34 +6,19 @@ import math
 import time
 
 import pytest
-from mavpeers import ground_station
+from conftest import simulated_rover
 from test_end_to_end import arm, stream_sticks
 
-from mecanum_mav.companion import Companion
 from mecanum_mav.links import mavlink
 from mecanum_mav.params import Params
-from mecanum_mav.simfc import SimFlightController
-
-
-def start(**values: float):
-    params = Params()
-    params.update(values)
-    sim = SimFlightController("udpin:127.0.0.1:0", params)
-    sim.start()
-    gcs = ground_station()
-    companion = Companion(params, gcs.url, f"udpout:127.0.0.1:{sim.local_port}")
-    companion.start()
-    assert gcs.wait("HEARTBEAT", timeout_s=3.0)
-    return sim, gcs, companion
 
 
 @pytest.fixture
 def rover(request):
-    sim, gcs, companion = start(**getattr(request, "param", {}))
-    yield sim, gcs, companion
-    companion.close()
-    sim.stop()
-    gcs.close()
+    params = Params()
+    params.update(getattr(request, "param", {}))
+    with simulated_rover(params) as parts:
+        yield parts
 
 
 def settle(sim, gcs, companion, timeout_s: float = 3.0):
