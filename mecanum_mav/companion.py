@@ -43,6 +43,7 @@ from mecanum_mav.params import Params, save
 from mecanum_mav.pwm import PwmMap
 from mecanum_mav.rcout import override_fields, release_fields
 from mecanum_mav.shaping import shape_stick
+from mecanum_mav.telemetry import REQUESTABLE, StreamSchedule, TelemetryState, build, ftp_nak
 from mecanum_mav.vehicle import Decision, Mode, Severity, Vehicle
 
 log = logging.getLogger(__name__)
@@ -101,7 +102,7 @@ class Companion:
         self.pulses_us: tuple[int, ...] = ()
         self.wheels: tuple[float, ...] = (0.0, 0.0, 0.0, 0.0)  # commanded, normalized
         self._wheels_s: float | None = None
-        self._next_telemetry_s = 0.0
+        self.streams = StreamSchedule(params)
         self._boot_s = clock()
         self.overrides_sent = 0
         self._new_input = False
@@ -118,6 +119,8 @@ class Companion:
             "PARAM_REQUEST_LIST": self._on_param_request_list,
             "PARAM_REQUEST_READ": self._on_param_request_read,
             "PARAM_SET": self._on_param_set,
+            "PING": self._on_ping,
+            "FILE_TRANSFER_PROTOCOL": self._on_ftp,
         }
         self._stop = threading.Event()
         self._wake_r, self._wake_w = os.pipe()
@@ -136,7 +139,8 @@ class Companion:
         try:
             while not self._stop.is_set():
                 now = self.clock()
-                due = min(self._next_output_s, self._next_heartbeat_s, self._next_telemetry_s)
+                due = min(self._next_output_s, self._next_heartbeat_s,
+                          self.streams.next_due_s())
                 timeout = max(0.0, due - now)
                 ready = selector.select(timeout)
                 for key, _ in ready:
@@ -183,8 +187,11 @@ class Companion:
             self.estimator.on_commanded(self.wheels, now - self._wheels_s, now)
         self.wheels, self._wheels_s = wheels, now
         # Telemetry rides the output refresh's wake-ups when it is due within half a period.
-        if now + self.output_period_s / 2 >= self._next_telemetry_s:
-            self._send_position_telemetry(now)
+        due = self.streams.due(now, self.output_period_s / 2)
+        if due:
+            state = self._telemetry_state(now)
+            for name in due:
+                build(name, self.gcs.mav, state)
         if now >= self._next_heartbeat_s:
             self._send_heartbeats()
             self._next_heartbeat_s = now + HEARTBEAT_PERIOD_S
@@ -236,29 +243,11 @@ class Companion:
             self.fc.send_rc_override(*self.fc_target, fields)
         self.pulses_us = self._neutral()
 
-    def _send_position_telemetry(self, now: float) -> None:
-        """ODOMETRY, LOCAL_POSITION_NED and ATTITUDE from the dead reckoning (``TLM_POS_RATE``)."""
-        rate = float(self.params["TLM_POS_RATE"])
-        period = 1.0 / rate if rate > 0.0 else 1.0
-        self._next_telemetry_s += period  # on a fixed grid, so it keeps riding the refresh
-        if self._next_telemetry_s <= now:  # fell behind (or first time): skip ahead
-            self._next_telemetry_s = now + period
-        if rate <= 0.0:
-            return
+    def _telemetry_state(self, now: float) -> TelemetryState:
         est = self.estimator
-        pose, (vx, vy), yaw_rate = est.pose, est.velocity_body, est.yaw_rate
-        c, s = math.cos(pose.yaw_rad), math.sin(pose.yaw_rad)
-        boot_ms = int((now - self._boot_s) * 1000) & 0xFFFFFFFF
-        unknown = [math.nan] + [0.0] * 20  # covariance not estimated: first element NaN
-        quaternion = [math.cos(pose.yaw_rad / 2), 0.0, 0.0, math.sin(pose.yaw_rad / 2)]
-        self.gcs.mav.odometry_send(
-            int((now - self._boot_s) * 1e6), mavlink.MAV_FRAME_LOCAL_NED,
-            mavlink.MAV_FRAME_BODY_FRD, pose.x_m, pose.y_m, 0.0, quaternion, vx, vy, 0.0,
-            0.0, 0.0, yaw_rate, unknown, unknown, est.reset_counter % 256,
-            mavlink.MAV_ESTIMATOR_TYPE_NAIVE, 0)
-        self.gcs.mav.local_position_ned_send(boot_ms, pose.x_m, pose.y_m, 0.0,
-                                             vx * c - vy * s, vx * s + vy * c, 0.0)
-        self.gcs.mav.attitude_send(boot_ms, 0.0, 0.0, pose.yaw_rad, 0.0, 0.0, yaw_rate)
+        return TelemetryState(now, self._boot_s, est.pose, est.velocity_body, est.yaw_rate,
+                              est.reset_counter, est.wheel_distances_m, self.pwm.channels,
+                              self.pulses_us, self.gcs.bad + self.fc.bad, self.vehicle.armed)
 
     def _send_heartbeats(self) -> None:
         v = self.vehicle
@@ -378,6 +367,28 @@ class Companion:
             return mavlink.MAV_RESULT_DENIED
         if command == mavlink.MAV_CMD_DO_SET_MODE:
             return self._set_mode(p[0], p[1], now)
+        if command == mavlink.MAV_CMD_SET_MESSAGE_INTERVAL:
+            ok = math.isfinite(p[0]) and self.streams.set_interval(int(p[0]), p[1])
+            return mavlink.MAV_RESULT_ACCEPTED if ok else mavlink.MAV_RESULT_DENIED
+        if command == mavlink.MAV_CMD_GET_MESSAGE_INTERVAL:
+            interval = self.streams.get_interval_us(int(p[0])) if math.isfinite(p[0]) else None
+            if interval is None:
+                return mavlink.MAV_RESULT_DENIED
+            self.gcs.mav.message_interval_send(int(p[0]), interval)
+            return mavlink.MAV_RESULT_ACCEPTED
+        if command == mavlink.MAV_CMD_REQUEST_MESSAGE:
+            name = REQUESTABLE.get(int(p[0])) if math.isfinite(p[0]) else None
+            if name is None:
+                return mavlink.MAV_RESULT_DENIED
+            build(name, self.gcs.mav, self._telemetry_state(now))
+            return mavlink.MAV_RESULT_ACCEPTED
+        if command == mavlink.MAV_CMD_DO_SET_HOME:
+            if p[0] != 1.0:
+                self._say(Severity.WARNING, "Set home: only 'use current position' (param1=1)")
+                return mavlink.MAV_RESULT_DENIED
+            self.estimator.reset(now_s=now)
+            self._say(Severity.INFO, "Home and odometry origin set here")
+            return mavlink.MAV_RESULT_ACCEPTED
         return mavlink.MAV_RESULT_UNSUPPORTED
 
     def _set_mode(self, base_mode: float, custom_mode: float, now: float) -> int:
@@ -396,6 +407,17 @@ class Companion:
         # ArduPilot acknowledges SET_MODE with COMMAND_ACK whose command is SET_MODE's id (11).
         self.gcs.mav.command_ack_send(mavlink.MAVLINK_MSG_ID_SET_MODE, result, 0, 0,
                                       msg.get_srcSystem(), msg.get_srcComponent())
+
+    def _on_ping(self, msg: Any, now: float) -> None:
+        if msg.target_system == 0:  # a request (an answer names its target)
+            self.gcs.mav.ping_send(msg.time_usec, msg.seq, msg.get_srcSystem(),
+                                   msg.get_srcComponent())
+
+    def _on_ftp(self, msg: Any, now: float) -> None:
+        if self._for_us(msg.target_system, msg.target_component):
+            self.gcs.mav.file_transfer_protocol_send(0, msg.get_srcSystem(),
+                                                     msg.get_srcComponent(),
+                                                     ftp_nak(msg.payload))
 
     # ------------------------------------------------------------------ parameters
 

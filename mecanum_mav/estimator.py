@@ -62,6 +62,11 @@ class WheelOdometryEstimator:
         return self.odometry.pose
 
     @property
+    def wheel_distances_m(self) -> tuple[float, ...]:
+        """Cumulative distance each wheel rolled, FL, FR, RL, RR (m), as the odometry used."""
+        return tuple(self._virtual)
+
+    @property
     def reset_counter(self) -> int:
         """Incremented by every :meth:`reset` (MAVLink ODOMETRY ``reset_counter``)."""
         return self.odometry.reset_counter

@@ -460,6 +460,11 @@ SCHEMA: tuple[ParamSpec, ...] = (
         "(0 = off).",
     ),
     ParamSpec(
+        "TLM_EXT_RATE", float, default=2.0, minimum=0.0, maximum=50.0, units="Hz",
+        description="Rate of SYS_STATUS, SERVO_OUTPUT_RAW and WHEEL_DISTANCE to the ground "
+        "station (0 = off).",
+    ),
+    ParamSpec(
         "SIM_MOTOR_TAU", float, default=0.08, minimum=0.001, maximum=5.0, units="s",
         description="Simulator: first-order time constant of each motor's speed response.",
     ),

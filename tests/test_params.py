@@ -75,6 +75,7 @@ def test_the_schema_has_exactly_the_parameters_the_rest_of_the_code_reads():
         "FS_INPUT_TMO", "FS_GCS_TMO", "FS_GCS_ACTION", "FS_FC_TMO",
         "RCMAP_STEER", "RCMAP_THROTTLE", "RCMAP_LATERAL", "RCIN_MIN", "RCIN_TRIM", "RCIN_MAX",
         "MAN_Z_SCALE", "ODOM_SRC", "ODOM_YAW_SRC", "TLM_POS_RATE",
+        "TLM_EXT_RATE",
         "SIM_MOTOR_TAU", "SIM_SLIP", "SIM_RC_TMO", "SIM_GCS_SYSID", "SIM_RATE", "SIM_SEED",
     ]
     assert [s.name for s in SCHEMA] == list(SPECS)
