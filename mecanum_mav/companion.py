@@ -35,9 +35,16 @@ from pathlib import Path
 from typing import Any, BinaryIO
 
 from mecanum_mav.estimator import WheelOdometryEstimator
+from mecanum_mav.guided import GuidedController, SetpointError, decode_setpoint
+from mecanum_mav.kinematics import MecanumKinematics
 from mecanum_mav.links import Link, mavlink, open_link
 from mecanum_mav.manual import InputError, RcStickState, stick_from_manual_control
-from mecanum_mav.mixing import ALGORITHM_NAMES, Desaturation, wheels_from_stick
+from mecanum_mav.mixing import (
+    ALGORITHM_NAMES,
+    Desaturation,
+    desaturate_prioritized,
+    wheels_from_stick,
+)
 from mecanum_mav.paramproto import RESTART_REQUIRED, ParamService, ParamValue
 from mecanum_mav.params import Params, save
 from mecanum_mav.pwm import PwmMap
@@ -97,6 +104,10 @@ class Companion:
             self.gcs.record_to(tlog)
             self.fc.record_to(tlog)
         self.estimator = WheelOdometryEstimator(params)
+        self.guided = GuidedController(params)
+        self.kinematics = MecanumKinematics.from_half_extents(float(params["GEO_HALF_LEN"]),
+                                                              float(params["GEO_HALF_WID"]))
+        self._next_control_s = math.inf
         self.rc_sticks = RcStickState()
         self.stick: Stick = (0.0, 0.0, 0.0)
         self.pulses_us: tuple[int, ...] = ()
@@ -119,6 +130,7 @@ class Companion:
             "PARAM_REQUEST_LIST": self._on_param_request_list,
             "PARAM_REQUEST_READ": self._on_param_request_read,
             "PARAM_SET": self._on_param_set,
+            "SET_POSITION_TARGET_LOCAL_NED": self._on_position_target,
             "PING": self._on_ping,
             "FILE_TRANSFER_PROTOCOL": self._on_ftp,
         }
@@ -140,7 +152,7 @@ class Companion:
             while not self._stop.is_set():
                 now = self.clock()
                 due = min(self._next_output_s, self._next_heartbeat_s,
-                          self.streams.next_due_s())
+                          self.streams.next_due_s(), self._next_control_s)
                 timeout = max(0.0, due - now)
                 ready = selector.select(timeout)
                 for key, _ in ready:
@@ -220,6 +232,9 @@ class Companion:
 
     def _compute_output(self) -> tuple[tuple[float, ...], tuple[int, ...]]:
         """(normalized wheel commands, pulse widths in us) for the current state."""
+        if self.vehicle.guided():
+            return self._guided_output()
+        self._next_control_s = math.inf
         if not self.vehicle.driving():
             return (0.0, 0.0, 0.0, 0.0), self._neutral()
         band, weight, circle = self.shaping
@@ -227,6 +242,39 @@ class Companion:
                               circle=circle)
         wheels = wheels_from_stick(x, y, r, self.algorithm, priority=self.priority)
         return wheels, self.pwm.pulses_us(wheels)
+
+    def _guided_output(self) -> tuple[tuple[float, ...], tuple[int, ...]]:
+        """GUIDED: setpoint -> body velocity and yaw rate -> wheel speeds (m/s) -> commands.
+
+        The translation and rotation parts are desaturated with ``MIX_DESAT`` (proportional
+        and rotation priority both keep the commanded direction of travel).
+        """
+        now = self.clock()
+        vx, vy, yaw_rate = self.guided.update(self.estimator.pose, now)
+        self._next_control_s = now + 1.0 / float(self.params["CTL_RATE"])
+        speed = float(self.params["WHL_MAX_SPD"])
+        translation = self.kinematics.to_wheel_speeds(vx, vy, 0.0) / speed
+        rotation = self.kinematics.to_wheel_speeds(0.0, 0.0, yaw_rate) / speed
+        wheels = tuple(float(w) for w in desaturate_prioritized(translation, rotation,
+                                                               self.priority))
+        return wheels, self.pwm.pulses_us(wheels)
+
+    def _on_position_target(self, msg: Any, now: float) -> None:
+        if not (self._for_us(msg.target_system, msg.target_component)
+                and self._from_permitted_gcs(msg)):
+            return
+        if self.vehicle.mode is not Mode.GUIDED:
+            self._reject_input("setpoint: not in GUIDED")
+            return
+        try:
+            setpoint = decode_setpoint(msg.coordinate_frame, msg.type_mask, msg.x, msg.y,
+                                       msg.vx, msg.vy, msg.yaw, msg.yaw_rate,
+                                       self.estimator.pose, now)
+        except SetpointError as exc:
+            self._reject_input(f"setpoint: {exc}")
+            return
+        self.guided.accept(setpoint, self.estimator.pose)
+        self._new_input = True
 
     def _send_output(self, pulses: tuple[int, ...], now: float) -> None:
         self.fc.send_rc_override(*self.fc_target, override_fields(self.pwm.channels, pulses))
@@ -391,6 +439,13 @@ class Companion:
             return mavlink.MAV_RESULT_ACCEPTED
         return mavlink.MAV_RESULT_UNSUPPORTED
 
+    def _request_mode(self, mode_number: int, now: float) -> Decision:
+        before = self.vehicle.mode
+        decision = self.vehicle.request_mode(mode_number, now)
+        if decision.accepted and self.vehicle.mode is Mode.GUIDED and before is not Mode.GUIDED:
+            self.guided.start(self.estimator.pose, now)
+        return decision
+
     def _set_mode(self, base_mode: float, custom_mode: float, now: float) -> int:
         if not (math.isfinite(base_mode) and math.isfinite(custom_mode)):
             self._say(Severity.WARNING, "Set mode: base and custom mode must be numbers")
@@ -398,7 +453,7 @@ class Companion:
         if not int(base_mode) & mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED:
             self._say(Severity.WARNING, "Set mode: only custom (Rover) modes are supported")
             return mavlink.MAV_RESULT_UNSUPPORTED
-        return self._result(self.vehicle.request_mode(int(custom_mode), now))
+        return self._result(self._request_mode(int(custom_mode), now))
 
     def _on_set_mode(self, msg: Any, now: float) -> None:
         if not (self._for_us(msg.target_system) and self._from_permitted_gcs(msg)):

@@ -299,6 +299,8 @@ GROUP_TITLES: dict[str, str] = {
     "RCMAP": "Ground-station stick channels (RC_CHANNELS_OVERRIDE input)",
     "RCIN": "Ground-station stick pulse range",
     "MAN": "Manual driving",
+    "CTL": "Control loop",
+    "GUID": "GUIDED driving",
     "ODOM": "Odometry",
     "TLM": "Telemetry to the ground station",
     "SIM": "Built-in simulator (flight controller and chassis)",
@@ -440,6 +442,43 @@ SCHEMA: tuple[ParamSpec, ...] = (
         values={0: "off", 1: "on"},
         description="Use MANUAL_CONTROL z (0..1000) as a speed scale on the translation and "
         "rotation sticks; off ignores z.",
+    ),
+    ParamSpec(
+        "CTL_RATE", float, default=50.0, minimum=10.0, maximum=200.0, units="Hz",
+        description="Rate of the GUIDED control loop (position, velocity and heading "
+        "controllers and the wheel output).",
+    ),
+    ParamSpec(
+        "GUID_SPD_MAX", float, default=0.7, minimum=0.05, maximum=10.0, units="m/s",
+        description="GUIDED: largest translation speed, whatever the setpoint asks.",
+    ),
+    ParamSpec(
+        "GUID_ACC_MAX", float, default=1.0, minimum=0.05, maximum=10.0, units="m/s/s",
+        description="GUIDED: largest change of the commanded velocity per second; also sets "
+        "the braking distance before a position target.",
+    ),
+    ParamSpec(
+        "GUID_YAW_RATE", float, default=90.0, minimum=1.0, maximum=720.0, units="deg/s",
+        description="GUIDED: largest yaw rate, whatever the setpoint asks.",
+    ),
+    ParamSpec(
+        "GUID_POS_P", float, default=1.5, minimum=0.1, maximum=10.0, units="1/s",
+        description="GUIDED: position gain, commanded speed per metre of position error.",
+    ),
+    ParamSpec(
+        "GUID_YAW_P", float, default=2.5, minimum=0.1, maximum=20.0, units="1/s",
+        description="GUIDED: heading gain, commanded yaw rate per radian of heading error.",
+    ),
+    ParamSpec(
+        "GUID_YAW_LEAD", float, default=0.12, minimum=0.0, maximum=1.0, units="s",
+        description="GUIDED: the body-frame velocity is computed for the heading the rover "
+        "will have this long from now (motor lag plus pose age), so turning does not bend "
+        "the path.",
+    ),
+    ParamSpec(
+        "GUID_TIMEOUT", float, default=3.0, minimum=0.1, maximum=60.0, units="s",
+        description="GUIDED: velocity and yaw-rate setpoints older than this lapse and the "
+        "rover stops (position and yaw targets persist).",
     ),
     ParamSpec(
         "ODOM_SRC", int, default=0, minimum=0, maximum=2, units="",

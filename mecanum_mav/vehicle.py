@@ -49,7 +49,7 @@ class Severity(IntEnum):
     INFO = 6
 
 
-AVAILABLE_MODES: frozenset[Mode] = frozenset({Mode.MANUAL, Mode.HOLD})
+AVAILABLE_MODES: frozenset[Mode] = frozenset({Mode.MANUAL, Mode.HOLD, Mode.GUIDED})
 """Modes this build can enter; asking for another is DENIED with a reason."""
 
 
@@ -177,6 +177,10 @@ class Vehicle:
             self.armed and self.mode is Mode.MANUAL and not self.input_stale
             and not self.fc_lost and not self.gcs_failsafe
         )
+
+    def guided(self) -> bool:
+        """True when GUIDED setpoints may move the wheels: armed, GUIDED, no failsafe."""
+        return self.armed and self.mode is Mode.GUIDED and not self.failsafe
 
     @property
     def failsafe(self) -> bool:

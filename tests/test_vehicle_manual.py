@@ -99,8 +99,8 @@ def test_fc_loss_disarms_and_reports_once():
     assert "Flight controller link up" in texts(v)
 
 
-@pytest.mark.parametrize("mode", [Mode.GUIDED, Mode.AUTO])
-def test_guided_and_auto_are_not_available_yet(mode):
+@pytest.mark.parametrize("mode", [Mode.AUTO])
+def test_auto_is_not_available_yet(mode):
     decision = vehicle().request_mode(int(mode), 0.0)
     assert not decision.accepted and mode.name in decision.reason
 
