@@ -105,6 +105,7 @@ class Companion:
             self.fc.record_to(tlog)
         self.estimator = WheelOdometryEstimator(params)
         self.guided = GuidedController(params)
+        self._guided_last: tuple[tuple[float, ...], tuple[int, ...]] | None = None
         self.kinematics = MecanumKinematics.from_half_extents(float(params["GEO_HALF_LEN"]),
                                                               float(params["GEO_HALF_WID"]))
         self._next_control_s = math.inf
@@ -235,6 +236,7 @@ class Companion:
         if self.vehicle.guided():
             return self._guided_output()
         self._next_control_s = math.inf
+        self._guided_last = None
         if not self.vehicle.driving():
             return (0.0, 0.0, 0.0, 0.0), self._neutral()
         band, weight, circle = self.shaping
@@ -250,14 +252,22 @@ class Companion:
         and rotation priority both keep the commanded direction of travel).
         """
         now = self.clock()
+        if now < self._next_control_s and self._guided_last is not None:
+            return self._guided_last  # between control ticks (fixed CTL_RATE grid): hold
+        period = 1.0 / float(self.params["CTL_RATE"])
+        if self._guided_last is None:  # entering GUIDED: the grid starts now
+            self._next_control_s = now
+        self._next_control_s += period  # a fixed grid, so the rate does not drift
+        if self._next_control_s <= now:  # fell behind: skip ahead
+            self._next_control_s = now + period
         vx, vy, yaw_rate = self.guided.update(self.estimator.pose, now)
-        self._next_control_s = now + 1.0 / float(self.params["CTL_RATE"])
         speed = float(self.params["WHL_MAX_SPD"])
         translation = self.kinematics.to_wheel_speeds(vx, vy, 0.0) / speed
         rotation = self.kinematics.to_wheel_speeds(0.0, 0.0, yaw_rate) / speed
         wheels = tuple(float(w) for w in desaturate_prioritized(translation, rotation,
                                                                self.priority))
-        return wheels, self.pwm.pulses_us(wheels)
+        self._guided_last = (wheels, self.pwm.pulses_us(wheels))
+        return self._guided_last
 
     def _on_position_target(self, msg: Any, now: float) -> None:
         if not (self._for_us(msg.target_system, msg.target_component)
