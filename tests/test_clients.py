@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import asyncio
 import shutil
 import socket
 import subprocess
@@ -108,3 +109,88 @@ def test_mavproxy_fetches_params_sets_one_arms_and_drives_by_rc_and_velocity(tmp
             assert abs(sim.snapshot().pose.yaw_rad) < 0.02  # holonomic: it did not turn
         finally:
             mavproxy.close()
+
+
+def free_tcp_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as sock:
+        sock.bind(("127.0.0.1", 0))
+        return int(sock.getsockname()[1])
+
+
+async def _first(stream, timeout_s: float = 10.0):
+    async def first():
+        async for item in stream:
+            return item
+        return None
+
+    return await asyncio.wait_for(first(), timeout_s)
+
+
+async def _until(condition: Callable[[], object], timeout_s: float) -> object:
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        result = condition()
+        if result:
+            return result
+        await asyncio.sleep(0.05)
+    return None
+
+
+async def _mavsdk_scenario(port: int, grpc_port: int, sim: SimFlightController,
+                           params: Params) -> None:
+    from mavsdk import System
+    from mavsdk.offboard import PositionNedYaw, VelocityBodyYawspeed, VelocityNedYaw
+
+    drone = System(port=grpc_port)
+    await drone.connect(system_address=f"udpin://127.0.0.1:{port}")
+    state = await _first(drone.core.connection_state())
+    while not state.is_connected:
+        state = await _first(drone.core.connection_state())
+    # Parameters (ArduPilot's float encoding).
+    assert await drone.param.get_param_float("INP_EXPO") == 0.0
+    await drone.param.set_param_float("INP_EXPO", 0.25)
+    assert params["INP_EXPO"] == 0.25
+    assert await drone.param.get_param_int("MIX_ALGO") == 0
+    # Arm, then drive by manual control input in MANUAL.
+    await drone.action.arm()
+    start = sim.snapshot().pose.x_m
+    async def forward() -> bool:
+        for _ in range(40):
+            await drone.manual_control.set_manual_control_input(0.6, 0.0, 0.5, 0.0)
+            await asyncio.sleep(0.05)
+            if sim.snapshot().pose.x_m > start + 0.3:
+                return True
+        return False
+    assert await forward()
+    # Offboard (GUIDED): body velocity right, then NED velocity north, then a position.
+    await drone.offboard.set_velocity_body(VelocityBodyYawspeed(0.0, 0.5, 0.0, 0.0))
+    await drone.offboard.start()
+    y0 = sim.snapshot().pose.y_m
+    assert await _until(lambda: sim.snapshot().pose.y_m > y0 + 0.3, 5.0)
+    await drone.offboard.set_velocity_ned(VelocityNedYaw(0.5, 0.0, 0.0, 0.0))
+    x0 = sim.snapshot().pose.x_m
+    assert await _until(lambda: sim.snapshot().pose.x_m > x0 + 0.3, 5.0)
+    goal = (sim.snapshot().pose.x_m + 0.5, sim.snapshot().pose.y_m - 0.5)
+    await drone.offboard.set_position_ned(PositionNedYaw(goal[0], goal[1], 0.0, 30.0))
+    reached = await _until(
+        lambda: abs(sim.snapshot().pose.x_m - goal[0]) < 0.05
+        and abs(sim.snapshot().pose.y_m - goal[1]) < 0.05
+        and abs(sim.snapshot().pose.yaw_rad - 0.5236) < 0.035, 8.0)
+    assert reached, sim.snapshot().pose
+    # Telemetry: odometry and local position agree with the true pose.
+    truth = sim.snapshot().pose
+    odometry = await _first(drone.telemetry.odometry())
+    assert abs(odometry.position_body.x_m - truth.x_m) < 0.05
+    assert abs(odometry.position_body.y_m - truth.y_m) < 0.05
+    pv = await _first(drone.telemetry.position_velocity_ned())
+    assert abs(pv.position.north_m - truth.x_m) < 0.05
+    assert abs(pv.position.east_m - truth.y_m) < 0.05
+    await drone.offboard.stop()
+    await drone.action.disarm()
+
+
+def test_mavsdk_connects_sets_params_arms_and_drives_manual_and_offboard():
+    pytest.importorskip("mavsdk")
+    port, grpc_port = free_udp_port(), free_tcp_port()
+    with rover_for_client(port) as (sim, _, params):
+        asyncio.run(asyncio.wait_for(_mavsdk_scenario(port, grpc_port, sim, params), 90.0))
