@@ -36,7 +36,6 @@ from typing import Any, BinaryIO
 
 from mecanum_mav.estimator import WheelOdometryEstimator
 from mecanum_mav.guided import GuidedController, SetpointError, decode_setpoint
-from mecanum_mav.kinematics import MecanumKinematics
 from mecanum_mav.links import Link, mavlink, open_link
 from mecanum_mav.manual import InputError, RcStickState, stick_from_manual_control
 from mecanum_mav.mixing import (
@@ -61,7 +60,6 @@ COMPANION_COMPID = 1  # MAVSDK only talks to component 1 (the autopilot)
 FC_LINK_COMPID = 190  # MAV_COMP_ID_MISSIONPLANNER: a ground station on the FC link
 HEARTBEAT_PERIOD_S = 1.0
 STATUSTEXT_REPEAT_S = 1.0  # the same rejection is reported at most once a second
-ARM_FORCE_MAGIC = 21196  # ArduPilot's "force" value of MAV_CMD_COMPONENT_ARM_DISARM param2
 MAX_STATUSTEXT = 50
 
 Stick = tuple[float, float, float]
@@ -106,8 +104,7 @@ class Companion:
         self.estimator = WheelOdometryEstimator(params)
         self.guided = GuidedController(params)
         self._guided_last: tuple[tuple[float, ...], tuple[int, ...]] | None = None
-        self.kinematics = MecanumKinematics.from_half_extents(float(params["GEO_HALF_LEN"]),
-                                                              float(params["GEO_HALF_WID"]))
+        self.kinematics = self.estimator.odometry.kinematics  # one geometry for both
         self._next_control_s = math.inf
         self.rc_sticks = RcStickState()
         self.stick: Stick = (0.0, 0.0, 0.0)
@@ -116,7 +113,6 @@ class Companion:
         self._wheels_s: float | None = None
         self.streams = StreamSchedule(params)
         self._boot_s = clock()
-        self.overrides_sent = 0
         self._new_input = False
         self._next_output_s = 0.0
         self._next_heartbeat_s = 0.0
@@ -188,7 +184,7 @@ class Companion:
         """Steps 3-5 of the loop: failsafes, output, heartbeats, status texts."""
         self.vehicle.update(now)
         try:
-            wheels, pulses = self._compute_output()
+            wheels, pulses = self._compute_output(now)
         except Exception:
             log.exception("error computing the output")
             self._say(Severity.ERROR, "Error computing output: neutral")
@@ -231,10 +227,10 @@ class Companion:
     def _neutral(self) -> tuple[int, ...]:
         return self.pwm.neutral()
 
-    def _compute_output(self) -> tuple[tuple[float, ...], tuple[int, ...]]:
+    def _compute_output(self, now: float) -> tuple[tuple[float, ...], tuple[int, ...]]:
         """(normalized wheel commands, pulse widths in us) for the current state."""
         if self.vehicle.guided():
-            return self._guided_output()
+            return self._guided_output(now)
         self._next_control_s = math.inf
         self._guided_last = None
         if not self.vehicle.driving():
@@ -245,13 +241,12 @@ class Companion:
         wheels = wheels_from_stick(x, y, r, self.algorithm, priority=self.priority)
         return wheels, self.pwm.pulses_us(wheels)
 
-    def _guided_output(self) -> tuple[tuple[float, ...], tuple[int, ...]]:
+    def _guided_output(self, now: float) -> tuple[tuple[float, ...], tuple[int, ...]]:
         """GUIDED: setpoint -> body velocity and yaw rate -> wheel speeds (m/s) -> commands.
 
         The translation and rotation parts are desaturated with ``MIX_DESAT`` (proportional
         and rotation priority both keep the commanded direction of travel).
         """
-        now = self.clock()
         if now < self._next_control_s and self._guided_last is not None:
             return self._guided_last  # between control ticks (fixed CTL_RATE grid): hold
         period = 1.0 / float(self.params["CTL_RATE"])
@@ -289,7 +284,6 @@ class Companion:
     def _send_output(self, pulses: tuple[int, ...], now: float) -> None:
         self.fc.send_rc_override(*self.fc_target, override_fields(self.pwm.channels, pulses))
         self.pulses_us = pulses
-        self.overrides_sent += 1
         self._new_input = False
         self._next_output_s = now + self.output_period_s
 
@@ -305,7 +299,7 @@ class Companion:
         est = self.estimator
         return TelemetryState(now, self._boot_s, est.pose, est.velocity_body, est.yaw_rate,
                               est.reset_counter, est.wheel_distances_m, self.pwm.channels,
-                              self.pulses_us, self.gcs.bad + self.fc.bad, self.vehicle.armed)
+                              self.pulses_us, self.gcs.bad + self.fc.bad)
 
     def _send_heartbeats(self) -> None:
         v = self.vehicle

@@ -22,7 +22,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
-from mecanum_mav.geometry import Pose2d
+from mecanum_mav.geometry import Pose2d, ned_to_body, wrap_pi
 from mecanum_mav.kinematics import MecanumKinematics
 from mecanum_mav.odometry import MecanumOdometry
 from mecanum_mav.params import Params
@@ -118,17 +118,19 @@ class WheelOdometryEstimator:
     def _update(self, now_s: float) -> None:
         self._moved = False
         before = self.odometry.pose
-        after = self.odometry.update(self._virtual, self._yaw_if_used(now_s))
+        gyro_yaw = self._yaw_if_used(now_s)
+        after = self.odometry.update(self._virtual, gyro_yaw)
         dt = None if self._last_update_s is None else now_s - self._last_update_s
         self._last_update_s = now_s
         if dt is None or dt <= 1e-4:
             return
         # Body velocity: the displacement in the frame of the start heading, over dt.
-        c, s = math.cos(before.yaw_rad), math.sin(before.yaw_rad)
-        dn, de = after.x_m - before.x_m, after.y_m - before.y_m
-        self.velocity_body = ((dn * c + de * s) / dt, (-dn * s + de * c) / dt)
-        turn = (after.yaw_rad - before.yaw_rad + math.pi) % (2 * math.pi) - math.pi
-        self.yaw_rate = turn / dt
+        forward, right = ned_to_body(after.x_m - before.x_m, after.y_m - before.y_m,
+                                     before.yaw_rad)
+        self.velocity_body = (forward / dt, right / dt)
+        # The gyro's own rate when its yaw is in use; else the wheels' turn over dt.
+        turn_rate = wrap_pi(after.yaw_rad - before.yaw_rad) / dt
+        self.yaw_rate = self._yaw_rate_gyro if gyro_yaw is not None else turn_rate
 
     def reset(self, pose: Pose2d | None = None, now_s: float = 0.0) -> None:
         """Move the origin: the pose becomes ``pose`` (default the origin, heading kept)."""

@@ -102,6 +102,20 @@ def _arc_coefficients(dyaw: float) -> tuple[float, float]:
     return math.sin(dyaw) / dyaw, 2.0 * half_sin * half_sin / dyaw
 
 
+def body_to_ned(forward: float, right: float, yaw_rad: float) -> tuple[float, float]:
+    """A body FRD vector (forward, right) as (north, east) for a heading ``yaw_rad``
+    (radians clockwise from north). Any unit; the length is kept."""
+    c, s = math.cos(yaw_rad), math.sin(yaw_rad)
+    return c * forward - s * right, s * forward + c * right
+
+
+def ned_to_body(north: float, east: float, yaw_rad: float) -> tuple[float, float]:
+    """A (north, east) vector as body FRD (forward, right) for a heading ``yaw_rad``
+    (radians clockwise from north); the inverse of :func:`body_to_ned`."""
+    c, s = math.cos(yaw_rad), math.sin(yaw_rad)
+    return c * north + s * east, -s * north + c * east
+
+
 def pose_exp(pose: Pose2d, twist: Twist2d) -> Pose2d:
     """Move ``pose`` by the body-frame ``twist`` along its exact constant-curvature arc.
 
@@ -117,8 +131,8 @@ def pose_exp(pose: Pose2d, twist: Twist2d) -> Pose2d:
     # Displacement in the start pose's body frame: V(dyaw) @ (dx, dy).
     fwd = a * dx - b * dy
     right = b * dx + a * dy
-    c, s = math.cos(yaw), math.sin(yaw)
-    return Pose2d(x + c * fwd - s * right, y + s * fwd + c * right, wrap_pi(yaw + dyaw))
+    north, east = body_to_ned(fwd, right, yaw)
+    return Pose2d(x + north, y + east, wrap_pi(yaw + dyaw))
 
 
 def pose_exp_array(poses: npt.ArrayLike, twists: npt.ArrayLike) -> FloatArray:
@@ -162,9 +176,7 @@ def pose_log(start: Pose2d, end: Pose2d) -> Twist2d:
     """
     dyaw = wrap_pi(end.yaw_rad - start.yaw_rad)
     north, east = end.x_m - start.x_m, end.y_m - start.y_m
-    c, s = math.cos(start.yaw_rad), math.sin(start.yaw_rad)
-    fwd = c * north + s * east
-    right = -s * north + c * east
+    fwd, right = ned_to_body(north, east, start.yaw_rad)
     # Inverse of V(t) = [[a, -b], [b, a]] is [[h cot h, h], [-h, h cot h]] with h = t/2.
     half = 0.5 * dyaw
     if abs(dyaw) < _SMALL_ANGLE_RAD:

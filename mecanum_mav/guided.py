@@ -29,7 +29,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from mecanum_mav.geometry import Pose2d, wrap_pi
+from mecanum_mav.geometry import Pose2d, body_to_ned, ned_to_body, wrap_pi
 from mecanum_mav.params import Params
 
 __all__ = ["FRAMES", "GuidedController", "Setpoint", "SetpointError", "decode_setpoint"]
@@ -80,11 +80,6 @@ def _pair(a: float, b: float, ignore_a: bool, ignore_b: bool, what: str, limit: 
     return a, b
 
 
-def _to_ned(vector: tuple[float, float], yaw: float) -> tuple[float, float]:
-    c, s = math.cos(yaw), math.sin(yaw)
-    return vector[0] * c - vector[1] * s, vector[0] * s + vector[1] * c
-
-
 def decode_setpoint(frame: int, type_mask: int, x: float, y: float, vx: float, vy: float,
                     yaw: float, yaw_rate: float, pose: Pose2d, now_s: float) -> Setpoint:
     """Decode SET_POSITION_TARGET_LOCAL_NED fields into a :class:`Setpoint` in local NED.
@@ -118,11 +113,11 @@ def decode_setpoint(frame: int, type_mask: int, x: float, y: float, vx: float, v
     offset = frame in (7, 9, 12)
     if position is not None:
         if frame in (9, 12):
-            position = _to_ned(position, pose.yaw_rad)
+            position = body_to_ned(*position, pose.yaw_rad)
         if offset:
             position = (pose.x_m + position[0], pose.y_m + position[1])
     if velocity is not None and body:
-        velocity = _to_ned(velocity, pose.yaw_rad)
+        velocity = body_to_ned(*velocity, pose.yaw_rad)
     if yaw_target is not None:
         yaw_target = wrap_pi(yaw_target + (pose.yaw_rad if frame in (9, 12) else 0.0))
     return Setpoint(position, velocity, yaw_target, rate, now_s)
@@ -179,8 +174,7 @@ class GuidedController:
         # Rotate into the body as it will be one delay from now (motor lag, pose age), so a
         # turn does not bend the path.
         heading = pose.yaw_rad + yaw_rate * float(p["GUID_YAW_LEAD"])
-        c, s = math.cos(heading), math.sin(heading)
-        vx, vy = want[0] * c + want[1] * s, -want[0] * s + want[1] * c
+        vx, vy = ned_to_body(*want, heading)
         return vx, vy, yaw_rate
 
     def _translation(self, sp: Setpoint | None, pose: Pose2d, lapsed: bool, speed_max: float,

@@ -20,6 +20,7 @@ from typing import Any
 
 from mecanum_mav import __version__
 from mecanum_mav.dialect import mavlink
+from mecanum_mav.geometry import body_to_ned
 from mecanum_mav.params import Params
 
 __all__ = ["STREAMS", "StreamSchedule", "TelemetryState", "build", "ftp_nak"]
@@ -108,7 +109,6 @@ class TelemetryState:
     channels: tuple[int, ...]
     pulses_us: tuple[int, ...]
     bad_packets: int
-    armed: bool
 
     @property
     def boot_ms(self) -> int:
@@ -133,10 +133,8 @@ def _odometry(mav: Any, t: TelemetryState) -> None:
 
 
 def _local_position_ned(mav: Any, t: TelemetryState) -> None:
-    c, s = math.cos(t.pose.yaw_rad), math.sin(t.pose.yaw_rad)
-    vx, vy = t.velocity_body
-    mav.local_position_ned_send(t.boot_ms, t.pose.x_m, t.pose.y_m, 0.0,
-                                vx * c - vy * s, vx * s + vy * c, 0.0)
+    v_north, v_east = body_to_ned(*t.velocity_body, t.pose.yaw_rad)
+    mav.local_position_ned_send(t.boot_ms, t.pose.x_m, t.pose.y_m, 0.0, v_north, v_east, 0.0)
 
 
 def _attitude(mav: Any, t: TelemetryState) -> None:

@@ -326,3 +326,12 @@ def test_wrap_pi_always_lands_in_the_half_open_interval(angle_in):
 def test_wrap_pi_turns_non_finite_angles_into_nan():
     assert math.isnan(wrap_pi(math.inf))
     assert np.isnan(wrap_pi(np.array([math.nan, -math.inf]))).all()
+
+
+def test_body_to_ned_and_back_are_inverse_rotations_clockwise_from_north():
+    from mecanum_mav.geometry import body_to_ned, ned_to_body
+
+    assert body_to_ned(1.0, 0.0, math.pi / 2) == pytest.approx((0.0, 1.0))  # facing east
+    assert body_to_ned(0.0, 1.0, math.pi / 2) == pytest.approx((-1.0, 0.0))  # right = south
+    for yaw in (-2.0, 0.3, 3.0):
+        assert ned_to_body(*body_to_ned(0.7, -0.2, yaw), yaw) == pytest.approx((0.7, -0.2))

@@ -5,6 +5,7 @@ from __future__ import annotations
 import time
 
 import numpy as np
+import pytest
 from mavpeers import flight_controller, ground_station
 
 from mecanum_mav.companion import Companion
@@ -125,3 +126,10 @@ def test_parameter_messages_for_another_system_are_ignored(rig):
     rig.gcs.mav.param_set_send(9, 1, b"INP_EXPO", 0.5, REAL32)
     assert rig.gcs.wait("PARAM_VALUE", timeout_s=0.5, since=since) is None
     assert rig.companion.params["INP_EXPO"] == 0.0
+
+
+def test_a_geometry_change_is_stored_and_flagged_for_a_restart(rig):
+    since = rig.gcs.mark()
+    assert set_param(rig, "GEO_HALF_LEN", 0.2).param_value == pytest.approx(0.2)
+    assert rig.gcs.wait("STATUSTEXT", lambda m: "GEO_HALF_LEN takes effect after a restart"
+                        in m.text, 1.0, since)
