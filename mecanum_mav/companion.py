@@ -34,10 +34,21 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any, BinaryIO
 
+from mecanum_mav.auto import MissionExecutor
 from mecanum_mav.estimator import WheelOdometryEstimator
+from mecanum_mav.geo import GlobalOrigin
 from mecanum_mav.guided import GuidedController, SetpointError, decode_setpoint
 from mecanum_mav.links import Link, mavlink, open_link
 from mecanum_mav.manual import InputError, RcStickState, stick_from_manual_control
+from mecanum_mav.mission import (
+    MissionFileError,
+    MissionItem,
+    load_mission,
+    mission_path_for,
+    save_mission,
+)
+from mecanum_mav.missionlink import MISSION_MESSAGES, MissionLink
+from mecanum_mav.missionproto import MissionService
 from mecanum_mav.mixing import (
     ALGORITHM_NAMES,
     Desaturation,
@@ -131,6 +142,17 @@ class Companion:
             "PING": self._on_ping,
             "FILE_TRANSFER_PROTOCOL": self._on_ftp,
         }
+        self.mission_path = None if param_path is None else mission_path_for(param_path)
+        items = self._read_mission_file()
+        self.mission = MissionService(items)
+        self.mission_link = MissionLink(self.mission, self.gcs.mav, self._for_us)
+        self.executor = MissionExecutor(params)
+        self.executor.load(items)
+        self._origin_set: GlobalOrigin | None = None  # from SET_GPS_GLOBAL_ORIGIN
+        for name in MISSION_MESSAGES:
+            self._handlers[name] = self._on_mission_message
+        self._handlers["MISSION_SET_CURRENT"] = self._on_mission_set_current
+        self._handlers["SET_GPS_GLOBAL_ORIGIN"] = self._on_set_origin
         self._stop = threading.Event()
         self._wake_r, self._wake_w = os.pipe()
         self._thread: threading.Thread | None = None
@@ -149,7 +171,8 @@ class Companion:
             while not self._stop.is_set():
                 now = self.clock()
                 due = min(self._next_output_s, self._next_heartbeat_s,
-                          self.streams.next_due_s(), self._next_control_s)
+                          self.streams.next_due_s(), self._next_control_s,
+                          self.mission.next_due_s())
                 timeout = max(0.0, due - now)
                 ready = selector.select(timeout)
                 for key, _ in ready:
@@ -183,6 +206,8 @@ class Companion:
     def _tick(self, now: float) -> None:
         """Steps 3-5 of the loop: failsafes, output, heartbeats, status texts."""
         self.vehicle.update(now)
+        if self.executor.running or self.vehicle.mode is Mode.AUTO:
+            self._sync_executor(now)
         try:
             wheels, pulses = self._compute_output(now)
         except Exception:
@@ -203,7 +228,13 @@ class Companion:
                 build(name, self.gcs.mav, state)
         if now >= self._next_heartbeat_s:
             self._send_heartbeats()
+            self._send_mission_current()  # MISSION_CURRENT at 1 Hz, as ArduPilot
             self._next_heartbeat_s = now + HEARTBEAT_PERIOD_S
+        if now >= self.mission.next_due_s():
+            self.mission_link.tick(now)
+            self._take_mission_events(now)
+        if self.executor.has_events:
+            self._take_executor_events(now)
         if self.vehicle.has_events:
             for severity, text in self.vehicle.take_events():
                 self._say(severity, text)
@@ -229,7 +260,7 @@ class Companion:
 
     def _compute_output(self, now: float) -> tuple[tuple[float, ...], tuple[int, ...]]:
         """(normalized wheel commands, pulse widths in us) for the current state."""
-        if self.vehicle.guided():
+        if self.vehicle.guided() or self.vehicle.auto():
             return self._guided_output(now)
         self._next_control_s = math.inf
         self._guided_last = None
@@ -255,7 +286,10 @@ class Companion:
         self._next_control_s += period  # a fixed grid, so the rate does not drift
         if self._next_control_s <= now:  # fell behind: skip ahead
             self._next_control_s = now + period
-        vx, vy, yaw_rate = self.guided.update(self.estimator.pose, now)
+        pose = self.estimator.pose
+        if self.vehicle.mode is Mode.AUTO:
+            self.guided.setpoint = self.executor.update(pose, self.guided.velocity_ned, now)
+        vx, vy, yaw_rate = self.guided.update(pose, now)
         speed = float(self.params["WHL_MAX_SPD"])
         translation = self.kinematics.to_wheel_speeds(vx, vy, 0.0) / speed
         rotation = self.kinematics.to_wheel_speeds(0.0, 0.0, yaw_rate) / speed
@@ -434,6 +468,18 @@ class Companion:
                 return mavlink.MAV_RESULT_DENIED
             build(name, self.gcs.mav, self._telemetry_state(now))
             return mavlink.MAV_RESULT_ACCEPTED
+        if command == mavlink.MAV_CMD_DO_SET_MISSION_CURRENT:
+            if p[1] == 1.0:  # param2 = 1: reset the mission (DO_JUMP counters, start over)
+                self.executor.restart()
+            if not (math.isfinite(p[0]) and p[0] >= -1):
+                return mavlink.MAV_RESULT_DENIED
+            seq = self.executor.current if p[0] == -1 else int(p[0])
+            return self._set_mission_current(seq, now)
+        if command == mavlink.MAV_CMD_MISSION_START:
+            if math.isfinite(p[0]) and p[0] >= 1 and self._set_mission_current(
+                    int(p[0]), now) != mavlink.MAV_RESULT_ACCEPTED:
+                return mavlink.MAV_RESULT_DENIED
+            return self._result(self._request_mode(Mode.AUTO, now))
         if command == mavlink.MAV_CMD_DO_SET_HOME:
             if p[0] != 1.0:
                 self._say(Severity.WARNING, "Set home: only 'use current position' (param1=1)")
@@ -445,8 +491,16 @@ class Companion:
 
     def _request_mode(self, mode_number: int, now: float) -> Decision:
         before = self.vehicle.mode
+        if mode_number == Mode.AUTO and before is not Mode.AUTO:
+            reason = self.executor.prepare(self.origin)
+            if reason is not None:
+                self._say(Severity.WARNING, f"AUTO refused: {reason}")
+                return Decision(False, reason)
+            if self.executor.complete:
+                self.executor.restart()
         decision = self.vehicle.request_mode(mode_number, now)
-        if decision.accepted and self.vehicle.mode is Mode.GUIDED and before is not Mode.GUIDED:
+        mode = self.vehicle.mode
+        if decision.accepted and mode in (Mode.GUIDED, Mode.AUTO) and before is not mode:
             self.guided.start(self.estimator.pose, now)
         return decision
 
@@ -477,6 +531,121 @@ class Companion:
             self.gcs.mav.file_transfer_protocol_send(0, msg.get_srcSystem(),
                                                      msg.get_srcComponent(),
                                                      ftp_nak(msg.payload))
+
+    # ------------------------------------------------------------------ missions
+
+    @property
+    def origin(self) -> GlobalOrigin | None:
+        """Where local (0, 0) is on the earth: SET_GPS_GLOBAL_ORIGIN, else ORIGIN_LAT/LON."""
+        if self._origin_set is not None:
+            return self._origin_set
+        lat, lon = float(self.params["ORIGIN_LAT"]), float(self.params["ORIGIN_LON"])
+        if lat == 0.0 and lon == 0.0:
+            return None
+        return GlobalOrigin.from_degrees(lat, lon)
+
+    def _read_mission_file(self) -> list[MissionItem]:
+        path = self.mission_path
+        if path is None or not path.exists():
+            return []
+        try:
+            items = load_mission(path)
+        except (MissionFileError, OSError) as exc:
+            # The file is left as it is (nothing lost); the companion starts without a mission.
+            log.error("mission not loaded: %s", exc)
+            self._say(Severity.ERROR, f"Mission file unreadable: {path.name}")
+            return []
+        log.info("mission of %d items loaded from %s", len(items), path)
+        return items
+
+    def _on_mission_message(self, msg: Any, now: float) -> None:
+        if self._from_permitted_gcs(msg):
+            self.mission_link.handle(msg, now)
+            self._take_mission_events(now)
+
+    def _take_mission_events(self, now: float) -> None:
+        for kind, text in self.mission.take_events():
+            if kind == "error":
+                self._say(Severity.WARNING, text)
+                continue
+            self._mission_replaced(now)
+
+    def _mission_replaced(self, now: float) -> None:
+        """A new mission was accepted (or the mission was cleared): run it, keep it."""
+        items = self.mission.items
+        was_running = self.executor.running
+        self.executor.pause()
+        self.executor.load(items)
+        self._send_mission_current()
+        if self.vehicle.mode is Mode.AUTO and not self.executor.has_mission:
+            self._say(Severity.WARNING, "Mission cleared: HOLD")
+            self._request_mode(Mode.HOLD, now)
+        elif was_running:
+            self._say(Severity.NOTICE, f"New mission: continuing at item {self.executor.current}")
+        if self.mission_path is not None:
+            try:
+                save_mission(items, self.mission_path)
+            except OSError as exc:
+                self._say(Severity.ERROR, f"Mission save failed: {exc.strerror}")
+
+    def _set_mission_current(self, seq: int, now: float) -> int:
+        reason = self.executor.set_current(seq, self.estimator.pose, now)
+        if reason is not None:
+            self._say(Severity.WARNING, f"Set current item refused: {reason}")
+            return mavlink.MAV_RESULT_DENIED
+        self._take_executor_events(now)
+        return mavlink.MAV_RESULT_ACCEPTED
+
+    def _on_mission_set_current(self, msg: Any, now: float) -> None:
+        if self._for_us(msg.target_system, msg.target_component) and self._from_permitted_gcs(
+                msg):
+            self._set_mission_current(msg.seq, now)  # answered by MISSION_CURRENT
+
+    def _on_set_origin(self, msg: Any, now: float) -> None:
+        if not (self._for_us(msg.target_system) and self._from_permitted_gcs(msg)):
+            return
+        try:
+            origin = GlobalOrigin(msg.latitude, msg.longitude, msg.altitude)
+        except ValueError as exc:
+            self._reject_input(f"origin: {exc}")
+            return
+        self._origin_set = origin
+        self.gcs.mav.gps_global_origin_send(origin.lat_e7, origin.lon_e7, origin.alt_mm,
+                                            int((now - self._boot_s) * 1e6))
+        self._say(Severity.INFO, f"Origin {origin.lat_e7 / 1e7:.7f} {origin.lon_e7 / 1e7:.7f}")
+
+    def _sync_executor(self, now: float) -> None:
+        """The mission runs while AUTO may drive (armed, no failsafe); otherwise it pauses."""
+        ex = self.executor
+        if ex.running and not self.vehicle.auto():
+            ex.pause()
+        elif self.vehicle.auto() and not ex.running and not ex.complete:
+            pose = self.estimator.pose
+            reason = ex.start(pose, now, self.origin)
+            if reason is not None:
+                self._say(Severity.WARNING, f"AUTO: {reason}: HOLD")
+                self._request_mode(Mode.HOLD, now)
+                return
+            self.guided.start(pose, now)
+            self._guided_last = None
+            self._take_executor_events(now)
+
+    def _take_executor_events(self, now: float) -> None:
+        for event in self.executor.take_events():
+            if event.kind == "current":
+                self._send_mission_current()
+            elif event.kind == "reached":
+                self.mission_link.reached_send(event.seq)
+            elif event.kind == "say":
+                self._say(event.severity, event.text)
+            elif event.kind == "finished":
+                self._request_mode(Mode.HOLD, now)
+
+    def _send_mission_current(self) -> None:
+        ex = self.executor
+        total = len(ex.items) - 1 if ex.has_mission else 0xFFFF
+        self.mission_link.current_send(ex.current, total, ex.state,
+                                       self.vehicle.mode is Mode.AUTO)
 
     # ------------------------------------------------------------------ parameters
 

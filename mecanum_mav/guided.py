@@ -58,6 +58,7 @@ class Setpoint:
         yaw: target heading (rad clockwise from north), or None.
         yaw_rate: commanded yaw rate (rad/s clockwise), or None.
         time_s: when it arrived (monotonic seconds).
+        yaw_rate_max: a lower yaw-rate limit than ``GUID_YAW_RATE`` (rad/s), or None.
     """
 
     position_ned: tuple[float, float] | None
@@ -65,6 +66,7 @@ class Setpoint:
     yaw: float | None
     yaw_rate: float | None
     time_s: float
+    yaw_rate_max: float | None = None
 
 
 def _pair(a: float, b: float, ignore_a: bool, ignore_b: bool, what: str, limit: float
@@ -203,6 +205,8 @@ class GuidedController:
     def _yaw_rate(self, sp: Setpoint | None, pose: Pose2d, lapsed: bool) -> float:
         p = self.params
         rate_max = math.radians(float(p["GUID_YAW_RATE"]))
+        if sp is not None and sp.yaw_rate_max is not None:
+            rate_max = min(rate_max, sp.yaw_rate_max)
         if sp is not None and sp.yaw is not None:
             target = sp.yaw
         elif sp is not None and sp.yaw_rate is not None and not lapsed:

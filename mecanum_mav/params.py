@@ -301,6 +301,8 @@ GROUP_TITLES: dict[str, str] = {
     "MAN": "Manual driving",
     "CTL": "Control loop",
     "GUID": "GUIDED driving",
+    "WP": "AUTO missions",
+    "ORIGIN": "Global origin of the local frame",
     "ODOM": "Odometry",
     "TLM": "Telemetry to the ground station",
     "SIM": "Built-in simulator (flight controller and chassis)",
@@ -479,6 +481,42 @@ SCHEMA: tuple[ParamSpec, ...] = (
         "GUID_TIMEOUT", float, default=3.0, minimum=0.1, maximum=60.0, units="s",
         description="GUIDED: velocity and yaw-rate setpoints older than this lapse and the "
         "rover stops (position and yaw targets persist).",
+    ),
+    ParamSpec(
+        "WP_SPEED", float, default=0.5, minimum=0.05, maximum=10.0, units="m/s",
+        description="AUTO: speed along the mission's legs until a DO_CHANGE_SPEED (limited "
+        "to GUID_SPD_MAX).",
+    ),
+    ParamSpec(
+        "WP_ACCEL", float, default=0.5, minimum=0.05, maximum=10.0, units="m/s/s",
+        description="AUTO: acceleration and braking along a leg (at most GUID_ACC_MAX is "
+        "used).",
+    ),
+    ParamSpec(
+        "WP_RADIUS", float, default=0.03, minimum=0.01, maximum=100.0, units="m",
+        description="AUTO: a waypoint is reached within this distance unless its item gives "
+        "an acceptance radius.",
+    ),
+    ParamSpec(
+        "WP_OVERSHOOT", float, default=0.02, minimum=0.0, maximum=10.0, units="m",
+        description="AUTO: how far the rover may swing past the next leg's line when it "
+        "passes a waypoint without stopping; sets the speed through shallow corners.",
+    ),
+    ParamSpec(
+        "WP_YAW_BEHAVIOR", int, default=0, minimum=0, maximum=1, units="",
+        values={0: "hold heading", 1: "face along each leg"},
+        description="AUTO: heading between CONDITION_YAW or waypoint yaw commands; a mecanum "
+        "rover follows the same path either way.",
+    ),
+    ParamSpec(
+        "ORIGIN_LAT", float, default=0.0, minimum=-90.0, maximum=90.0, units="deg",
+        description="Latitude of the local origin for missions in global frames (0 with "
+        "ORIGIN_LON 0 = none; SET_GPS_GLOBAL_ORIGIN overrides it).",
+    ),
+    ParamSpec(
+        "ORIGIN_LON", float, default=0.0, minimum=-180.0, maximum=180.0, units="deg",
+        description="Longitude of the local origin (float32 carries it to about 1 m; send "
+        "SET_GPS_GLOBAL_ORIGIN for 1 cm).",
     ),
     ParamSpec(
         "ODOM_SRC", int, default=0, minimum=0, maximum=2, units="",

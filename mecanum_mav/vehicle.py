@@ -49,7 +49,7 @@ class Severity(IntEnum):
     INFO = 6
 
 
-AVAILABLE_MODES: frozenset[Mode] = frozenset({Mode.MANUAL, Mode.HOLD, Mode.GUIDED})
+AVAILABLE_MODES: frozenset[Mode] = frozenset(Mode)
 """Modes this build can enter; asking for another is DENIED with a reason."""
 
 
@@ -181,6 +181,10 @@ class Vehicle:
     def guided(self) -> bool:
         """True when GUIDED setpoints may move the wheels: armed, GUIDED, no failsafe."""
         return self.armed and self.mode is Mode.GUIDED and not self.failsafe
+
+    def auto(self) -> bool:
+        """True when the mission may move the wheels: armed, AUTO, no failsafe."""
+        return self.armed and self.mode is Mode.AUTO and not self.failsafe
 
     @property
     def failsafe(self) -> bool:

@@ -85,14 +85,16 @@ def rig_factory() -> Iterator:
 
 
 @contextmanager
-def simulated_rover(params: Params | None = None) -> Iterator[tuple]:
+def simulated_rover(params: Params | None = None, **companion_options) -> Iterator[tuple]:
     """Companion and simulator in this process with a real UDP link between them, and a
-    ground-station peer: yields (simulator, gcs peer, companion)."""
+    ground-station peer: yields (simulator, gcs peer, companion). ``companion_options`` go to
+    :class:`Companion` (``param_path=`` ...)."""
     params = params or Params()
     sim = SimFlightController("udpin:127.0.0.1:0", params)
     sim.start()
     gcs = ground_station()
-    companion = Companion(params, gcs.url, f"udpout:127.0.0.1:{sim.local_port}")
+    companion = Companion(params, gcs.url, f"udpout:127.0.0.1:{sim.local_port}",
+                          **companion_options)
     companion.start()
     try:
         assert gcs.wait("HEARTBEAT", timeout_s=3.0)

@@ -120,7 +120,7 @@ def test_set_mode_hold_by_command_and_by_message(rig):
 
 
 @pytest.mark.parametrize(("mode", "name"), [(10, "AUTO"), (3, "3")])
-def test_unavailable_modes_are_denied_with_a_reason(rig, mode, name):
+def test_auto_without_a_mission_and_unknown_modes_are_denied_with_a_reason(rig, mode, name):
     since = rig.gcs.mark()
     assert rig.command(SET_MODE, CUSTOM, mode).result == mavlink.MAV_RESULT_DENIED
     assert statustext(rig, name, since)

@@ -75,7 +75,9 @@ def test_the_schema_has_exactly_the_parameters_the_rest_of_the_code_reads():
         "FS_INPUT_TMO", "FS_GCS_TMO", "FS_GCS_ACTION", "FS_FC_TMO",
         "RCMAP_STEER", "RCMAP_THROTTLE", "RCMAP_LATERAL", "RCIN_MIN", "RCIN_TRIM", "RCIN_MAX",
         "MAN_Z_SCALE", "CTL_RATE", "GUID_SPD_MAX", "GUID_ACC_MAX", "GUID_YAW_RATE",
-        "GUID_POS_P", "GUID_YAW_P", "GUID_YAW_LEAD", "GUID_TIMEOUT", "ODOM_SRC", "ODOM_YAW_SRC",
+        "GUID_POS_P", "GUID_YAW_P", "GUID_YAW_LEAD", "GUID_TIMEOUT", "WP_SPEED", "WP_ACCEL",
+        "WP_RADIUS", "WP_OVERSHOOT", "WP_YAW_BEHAVIOR", "ORIGIN_LAT", "ORIGIN_LON", "ODOM_SRC",
+        "ODOM_YAW_SRC",
         "TLM_POS_RATE",
         "TLM_EXT_RATE",
         "SIM_MOTOR_TAU", "SIM_SLIP", "SIM_RC_TMO", "SIM_GCS_SYSID", "SIM_RATE", "SIM_SEED",
@@ -107,7 +109,7 @@ def test_every_default_lies_in_its_range_and_has_its_kind(spec):
     for number in (spec.default, spec.minimum, spec.maximum):
         assert type(number) is spec.kind
     assert spec.description.endswith(".")
-    assert spec.units in ("", "m", "m/s", "us", "s", "Hz", "m/s/s", "deg/s", "1/s")
+    assert spec.units in ("", "m", "m/s", "us", "s", "Hz", "m/s/s", "deg/s", "1/s", "deg")
 
 
 @pytest.mark.parametrize("spec", [s for s in SCHEMA if s.values], ids=lambda s: s.name)

@@ -99,10 +99,15 @@ def test_fc_loss_disarms_and_reports_once():
     assert "Flight controller link up" in texts(v)
 
 
-@pytest.mark.parametrize("mode", [Mode.AUTO])
-def test_auto_is_not_available_yet(mode):
-    decision = vehicle().request_mode(int(mode), 0.0)
-    assert not decision.accepted and mode.name in decision.reason
+def test_auto_drives_only_when_armed_and_without_failsafe():
+    v = vehicle()
+    assert v.request_mode(int(Mode.AUTO), 0.0).accepted
+    assert not v.auto()  # disarmed
+    v.on_fc_heartbeat(0.0)
+    v.request_arm(0.0)
+    assert v.auto() and not v.guided() and not v.driving()
+    v.update(10.0)  # flight controller silent: failsafe disarms
+    assert not v.auto()
 
 
 def test_unknown_mode_numbers_are_refused():

@@ -1,0 +1,447 @@
+"""AUTO: the mission executor. Pure logic; the pose and the time are passed in.
+
+The executor walks the mission from item 1 (item 0 is home) and turns the current item into a
+:class:`~mecanum_mav.guided.Setpoint` for the same velocity and heading layer GUIDED uses
+(``GUID_SPD_MAX``, ``GUID_ACC_MAX``, ``GUID_YAW_P``, ``GUID_YAW_RATE``, ``GUID_YAW_LEAD``).
+
+Items:
+
+- ``NAV_WAYPOINT``: drive the leg from the previous waypoint (or from where the rover is when
+  the mission starts, resumes or jumps) to this one, following the line
+  (:mod:`mecanum_mav.pathfollow`) at the mission speed. Reached within param2 metres
+  (0 or NaN: ``WP_RADIUS``), or once past it when passing through at speed; then it holds
+  the point for param1 seconds. param4, if a number, is a heading (degrees clockwise from
+  north) to take on this leg and keep. Between two legs the rover passes the waypoint at the
+  speed :func:`~mecanum_mav.pathfollow.corner_speed` allows for ``WP_OVERSHOOT`` (it stops for
+  turns of 90 degrees or more, and where it holds).
+- ``NAV_LOITER_TIME``: drive there, hold the point for param1 seconds. In a global frame a
+  latitude and longitude of 0 mean "here".
+- ``NAV_RETURN_TO_LAUNCH``: drive to home (the local origin, as HOME_POSITION reports).
+- ``CONDITION_YAW``: param1 degrees, absolute (param4 = 0) or relative to the current target
+  (1); param2 the turn rate in deg/s (0: ``GUID_YAW_RATE``); param3 the direction (1
+  clockwise, -1 counter-clockwise, 0 the shorter way). The heading is kept until changed. If
+  the next navigation item leads somewhere, the mission moves on at once and the rover turns
+  while it drives; otherwise (the next point is where the rover is, or the mission ends) it
+  turns in place and the item completes when the heading is within 2 degrees.
+- ``DO_CHANGE_SPEED``: param2 m/s becomes the mission speed (-2: back to ``WP_SPEED``; -1 or
+  0: no change); more than ``GUID_SPD_MAX`` is limited to it, with a STATUSTEXT.
+- ``DO_JUMP``: to item param1, param2 times (-1: for ever). Counters reset when the mission
+  restarts.
+- anything else is skipped with a STATUSTEXT naming it.
+
+Heading between commands follows ``WP_YAW_BEHAVIOR``: 0 hold the heading the mission started
+with, 1 face along each leg. A mecanum base drives the path the same either way.
+
+Each item emits MISSION_ITEM_REACHED when done (navigation items on arrival); the current item
+is announced whenever it changes. At the end the executor reports "finished" (the companion
+switches to HOLD). Leaving AUTO pauses; AUTO again resumes the current item from where the
+rover is. After the end, AUTO restarts from item 1.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import NamedTuple
+
+from mecanum_mav.dialect import mavlink
+from mecanum_mav.geo import GlobalOrigin
+from mecanum_mav.geometry import Pose2d, wrap_pi
+from mecanum_mav.guided import Setpoint
+from mecanum_mav.mission import GLOBAL_FRAMES, MissionItem, command_name, position_ned
+from mecanum_mav.params import Params
+from mecanum_mav.pathfollow import Leg, LegFollower, corner_speed
+from mecanum_mav.vehicle import Severity
+
+__all__ = ["ExecutorEvent", "MissionExecutor", "MissionState"]
+
+YAW_ACCEPT_RAD = math.radians(2.0)
+MAX_STEPS_PER_UPDATE = 1000  # DO items chained without a navigation item in between
+Vec = tuple[float, float]
+
+_NAV = (mavlink.MAV_CMD_NAV_WAYPOINT, mavlink.MAV_CMD_NAV_LOITER_TIME,
+        mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH)
+
+
+class MissionState:
+    """MAVLink MISSION_STATE values (for MISSION_CURRENT)."""
+
+    NO_MISSION = 1
+    NOT_STARTED = 2
+    ACTIVE = 3
+    PAUSED = 4
+    COMPLETE = 5
+
+
+class ExecutorEvent(NamedTuple):
+    """Something the companion reports: ``kind`` is "current", "reached", "say" or
+    "finished"; ``seq`` the item; ``text``/``severity`` for "say"."""
+
+    kind: str
+    seq: int = 0
+    text: str = ""
+    severity: Severity = Severity.INFO
+
+
+@dataclass
+class _Step:
+    """The navigation item being driven (or the final turn in place)."""
+
+    seq: int
+    target: Vec
+    leg: Leg
+    exit_speed: float
+    radius: float
+    hold_s: float
+    reached_s: float | None = None
+    turn_only: bool = False
+
+
+class MissionExecutor:
+    """Runs a mission (see the module docstring).
+
+    Args:
+        params: the parameter store (``WP_*`` and ``GUID_*`` are read live).
+    """
+
+    def __init__(self, params: Params) -> None:
+        self.params = params
+        self.items: tuple[MissionItem, ...] = ()
+        self.current = 0
+        self.started = False
+        self.running = False
+        self.complete = False
+        self.arrival_errors: dict[int, float] = {}
+        self._positions: dict[int, Vec] = {}
+        self._jumps: dict[int, int] = {}
+        self._events: list[ExecutorEvent] = []
+        self._follower = LegFollower()
+        self._step: _Step | None = None
+        self._speed: float | None = None
+        self._yaw: float | None = None
+        self._yaw_dir = 0
+        self._yaw_rate_max: float | None = None
+        self._last_s: float | None = None
+        self._hold: Vec = (0.0, 0.0)
+
+    # ------------------------------------------------------------------ mission and state
+
+    def load(self, items: Sequence[MissionItem]) -> None:
+        """A new mission (upload, clear, or the file at start-up). The current item stays if
+        it still exists; a running mission goes on from it (the caller resumes it)."""
+        self.items = tuple(items)
+        self._jumps.clear()
+        self.complete = False
+        if len(self.items) <= 1:
+            self.current, self.started = 0, False
+        elif not 1 <= self.current < len(self.items):
+            self.current = 1
+
+    @property
+    def has_mission(self) -> bool:
+        """Whether there is anything to run beyond home."""
+        return len(self.items) > 1
+
+    @property
+    def state(self) -> int:
+        """The MISSION_STATE to report."""
+        if not self.has_mission:
+            return MissionState.NO_MISSION
+        if self.complete:
+            return MissionState.COMPLETE
+        if self.running:
+            return MissionState.ACTIVE
+        return MissionState.PAUSED if self.started else MissionState.NOT_STARTED
+
+    def set_current(self, seq: int, pose: Pose2d, now_s: float) -> str | None:
+        """MISSION_SET_CURRENT / DO_SET_MISSION_CURRENT; the reason if refused.
+
+        Item 0 (home) means item 1. While running, the rover goes to the new item from where
+        it is.
+        """
+        if not self.has_mission:
+            return "no mission"
+        if not 0 <= seq < len(self.items):
+            return f"no item {seq} (mission has {len(self.items) - 1})"
+        self.current = max(seq, 1)
+        self.complete = False
+        if self.running:
+            self._begin(self.current, pose, now_s, from_point=None)
+        else:
+            self._emit("current", self.current)
+        return None
+
+    def restart(self) -> None:
+        """Next start runs from item 1 with fresh DO_JUMP counters."""
+        self.current = 1 if self.has_mission else 0
+        self.complete = False
+        self.started = False
+        self._jumps.clear()
+
+    def prepare(self, origin: GlobalOrigin | None) -> str | None:
+        """Resolve every position to local NED; the reason AUTO cannot run, or None.
+
+        Refused: no mission; a global item and no origin.
+        """
+        if not self.has_mission:
+            return "no mission"
+        positions: dict[int, Vec] = {}
+        for item in self.items[1:]:
+            if item.command not in (mavlink.MAV_CMD_NAV_WAYPOINT, mavlink.MAV_CMD_NAV_LOITER_TIME):
+                continue
+            if (item.frame in GLOBAL_FRAMES and item.command == mavlink.MAV_CMD_NAV_LOITER_TIME
+                    and item.x == 0 and item.y == 0):
+                continue  # "here", resolved when it starts
+            try:
+                positions[item.seq] = position_ned(item, origin)
+            except ValueError as exc:
+                return str(exc)
+        self._positions = positions
+        return None
+
+    def start(self, pose: Pose2d, now_s: float, origin: GlobalOrigin | None) -> str | None:
+        """AUTO may drive: resume the current item (or restart after the end).
+
+        Returns the reason the mission cannot run (see :meth:`prepare`), or None.
+        """
+        reason = self.prepare(origin)
+        if reason is not None:
+            return reason
+        if self.complete:
+            self.restart()
+        if not self.started:
+            self._jumps.clear()
+            self._speed = None
+            self._yaw = pose.yaw_rad
+            self._yaw_dir, self._yaw_rate_max = 0, None
+        resumed = self.started
+        self.started, self.running = True, True
+        self._last_s = now_s
+        self._hold = (pose.x_m, pose.y_m)
+        self._emit("say", 0, f"Mission {'resumed' if resumed else 'started'} at item "
+                   f"{self.current}")
+        self._begin(self.current, pose, now_s, from_point=None)
+        return None
+
+    def pause(self) -> None:
+        """Leaving AUTO: stop executing; the current item is kept for a resume."""
+        self.running = False
+        self._step = None
+
+    @property
+    def has_events(self) -> bool:
+        """Whether :meth:`take_events` has anything."""
+        return bool(self._events)
+
+    def take_events(self) -> list[ExecutorEvent]:
+        """Events since the last call, oldest first."""
+        events, self._events = self._events, []
+        return events
+
+    # ------------------------------------------------------------------ the loop
+
+    def update(self, pose: Pose2d, velocity_ned: Vec, now_s: float) -> Setpoint:
+        """The setpoint for the velocity and heading layer now (local NED).
+
+        At most one item completes per call, so a mission that loops over points the rover
+        already stands on advances one item per control tick instead of spinning.
+        """
+        dt = 0.0 if self._last_s is None else max(0.0, now_s - self._last_s)
+        self._last_s = now_s
+        here = (pose.x_m, pose.y_m)
+        step = self._step
+        if self.running and step is not None and self._done(step, pose, here, now_s):
+            self._finish_item(step, pose, now_s, velocity_ned)
+            step = self._step
+        if not self.running or step is None:
+            return self._setpoint(None, self._hold, pose, now_s)
+        if step.turn_only or step.reached_s is not None:
+            return self._setpoint(None, step.target, pose, now_s)
+        velocity = self._follower.velocity_ned(
+            step.leg, here, dt, cruise=self._cruise(), accel=self._accel(),
+            exit_speed=step.exit_speed, gain=float(self.params["GUID_POS_P"]))
+        return self._setpoint(velocity, None, pose, now_s)
+
+    def _done(self, step: _Step, pose: Pose2d, here: Vec, now_s: float) -> bool:
+        """Whether the step is complete (arrival is recorded the first time it happens)."""
+        if step.turn_only:
+            return abs(wrap_pi(self._yaw_target(pose) - pose.yaw_rad)) <= YAW_ACCEPT_RAD
+        if step.reached_s is None:
+            distance = math.hypot(step.target[0] - here[0], step.target[1] - here[1])
+            passed = step.exit_speed > 0.0 and step.leg.errors(here)[0] >= step.leg.length_m
+            if distance > step.radius and not passed:
+                return False
+            step.reached_s = now_s
+            self.arrival_errors[step.seq] = distance
+        return now_s - step.reached_s >= step.hold_s
+
+    # ------------------------------------------------------------------ items
+
+    def _finish_item(self, step: _Step, pose: Pose2d, now_s: float,
+                     velocity_ned: Vec = (0.0, 0.0)) -> None:
+        self._emit("reached", step.seq)
+        self._hold = step.target
+        self._begin(step.seq + 1, pose, now_s, from_point=step.target,
+                    velocity_ned=velocity_ned)
+
+    def _begin(self, seq: int, pose: Pose2d, now_s: float, *, from_point: Vec | None,
+               velocity_ned: Vec = (0.0, 0.0)) -> None:
+        """Make item ``seq`` current, carrying out DO items on the way to a navigation item."""
+        here = (pose.x_m, pose.y_m)
+        start = here if from_point is None else from_point
+        self._step = None
+        for _ in range(MAX_STEPS_PER_UPDATE):
+            if seq >= len(self.items):
+                self._end(pose, start)
+                return
+            self.current = seq
+            self._emit("current", seq)
+            item = self.items[seq]
+            cmd = item.command
+            if cmd in _NAV:
+                self._start_nav(item, start, here, velocity_ned)
+                return
+            if cmd == mavlink.MAV_CMD_DO_JUMP:
+                target = self._jump(item)
+                self._emit("reached", seq)
+                seq = seq + 1 if target is None else target
+                continue
+            if cmd == mavlink.MAV_CMD_DO_CHANGE_SPEED:
+                self._change_speed(item)
+            elif cmd == mavlink.MAV_CMD_CONDITION_YAW:
+                self._condition_yaw(item, pose)
+                if not self._leads_somewhere(seq + 1, start):
+                    self._step = _Step(seq, start, Leg(start, start), 0.0, 0.0, 0.0,
+                                       turn_only=True)
+                    return
+            else:
+                self._emit("say", seq, f"Skipped item {seq}: {command_name(cmd)} unsupported",
+                           Severity.WARNING)
+                seq += 1
+                continue
+            self._emit("reached", seq)
+            seq += 1
+        self._emit("say", seq, "Mission stopped: DO_JUMP loop without a waypoint",
+                   Severity.ERROR)
+        self.running = False
+        self.complete = True
+        self._emit("finished", seq)
+
+    def _target(self, item: MissionItem, here: Vec) -> Vec:
+        if item.command == mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH:
+            return 0.0, 0.0
+        return self._positions.get(item.seq, here)
+
+    def _start_nav(self, item: MissionItem, start: Vec, here: Vec, velocity_ned: Vec) -> None:
+        target = self._target(item, here)
+        leg = Leg(start, target)
+        waypoint = item.command == mavlink.MAV_CMD_NAV_WAYPOINT
+        hold = 0.0 if item.command == mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH else item.param1
+        hold = 0.0 if math.isnan(hold) else hold
+        radius = item.param2 if waypoint and item.param2 > 0.0 else float(
+            self.params["WP_RADIUS"])
+        exit_speed = 0.0
+        following = self._next_nav(item.seq + 1)
+        if waypoint and hold <= 0.0 and following is not None:
+            after = Leg(target, self._target(following, target))
+            exit_speed = corner_speed(leg, after, self._cruise(), self._accel(),
+                                      float(self.params["WP_OVERSHOOT"]))
+        if waypoint and math.isfinite(item.param4):
+            self._yaw, self._yaw_dir = math.radians(item.param4), 0
+        elif int(self.params["WP_YAW_BEHAVIOR"]) == 1 and leg.length_m > 2 * radius:
+            self._yaw, self._yaw_dir = math.atan2(*reversed(leg.direction)), 0
+        un, ue = leg.direction
+        self._follower.reset(velocity_ned[0] * un + velocity_ned[1] * ue)
+        self._step = _Step(item.seq, target, leg, exit_speed, radius, hold)
+
+    def _next_nav(self, seq: int) -> MissionItem | None:
+        """The next navigation item from ``seq`` in list order (DO_JUMP not followed)."""
+        for item in self.items[seq:]:
+            if item.command in _NAV:
+                return item
+            if item.command == mavlink.MAV_CMD_DO_JUMP:
+                return None
+        return None
+
+    def _leads_somewhere(self, seq: int, here: Vec) -> bool:
+        following = self._next_nav(seq)
+        if following is None:
+            return False
+        target = self._target(following, here)
+        return math.hypot(target[0] - here[0], target[1] - here[1]) > float(
+            self.params["WP_RADIUS"])
+
+    def _end(self, pose: Pose2d, here: Vec) -> None:
+        if abs(wrap_pi(self._yaw_target(pose) - pose.yaw_rad)) > YAW_ACCEPT_RAD and (
+                self._step is None or not self._step.turn_only):
+            # finish the heading in place before reporting the end
+            self._step = _Step(len(self.items), here, Leg(here, here), 0.0, 0.0, 0.0,
+                               turn_only=True)
+            return
+        self.running = False
+        self.complete = True
+        self._hold = here
+        self._emit("say", 0, "Mission complete")
+        self._emit("finished", self.current)
+
+    def _jump(self, item: MissionItem) -> int | None:
+        repeat = self._jumps.setdefault(item.seq, int(item.param2))
+        if repeat == 0:
+            return None
+        if repeat > 0:
+            self._jumps[item.seq] = repeat - 1
+        return int(item.param1)
+
+    def _change_speed(self, item: MissionItem) -> None:
+        speed = item.param2
+        if speed == -2.0:
+            self._speed = None
+        elif speed > 0.0:
+            limit = float(self.params["GUID_SPD_MAX"])
+            if speed > limit:
+                self._emit("say", item.seq, f"Speed {speed:g} limited to GUID_SPD_MAX {limit:g}",
+                           Severity.WARNING)
+            self._speed = min(speed, limit)
+
+    def _condition_yaw(self, item: MissionItem, pose: Pose2d) -> None:
+        angle, rate, direction, relative = item.params
+        direction = 0 if math.isnan(direction) else int(direction)
+        base = self._yaw if self._yaw is not None else pose.yaw_rad
+        if relative == 1.0:
+            step = math.radians(abs(angle)) * (direction or (1 if angle >= 0 else -1))
+            self._yaw = wrap_pi(base + step)
+            self._yaw_dir = 1 if step > 0 else -1 if step < 0 else 0
+            if abs(step) < math.pi:
+                self._yaw_dir = 0  # the shorter way is the asked way
+        else:
+            self._yaw = wrap_pi(math.radians(angle))
+            self._yaw_dir = direction
+        self._yaw_rate_max = math.radians(rate) if rate > 0.0 else None
+
+    # ------------------------------------------------------------------ outputs
+
+    def _cruise(self) -> float:
+        return float(self.params["WP_SPEED"]) if self._speed is None else self._speed
+
+    def _accel(self) -> float:
+        return min(float(self.params["WP_ACCEL"]), float(self.params["GUID_ACC_MAX"]))
+
+    def _yaw_target(self, pose: Pose2d) -> float:
+        """The heading to command; a forced turn direction leads by a quarter turn."""
+        target = pose.yaw_rad if self._yaw is None else self._yaw
+        if self._yaw_dir:
+            delta = wrap_pi(target - pose.yaw_rad)
+            if delta * self._yaw_dir < 0.0 and abs(delta) > YAW_ACCEPT_RAD:
+                return wrap_pi(pose.yaw_rad + self._yaw_dir * math.pi / 2)
+            self._yaw_dir = 0
+        return target
+
+    def _setpoint(self, velocity: Vec | None, position: Vec | None, pose: Pose2d,
+                  now_s: float) -> Setpoint:
+        return Setpoint(position, velocity, self._yaw_target(pose), None, now_s,
+                        self._yaw_rate_max)
+
+    def _emit(self, kind: str, seq: int, text: str = "",
+              severity: Severity = Severity.INFO) -> None:
+        self._events.append(ExecutorEvent(kind, seq, text, severity))

@@ -1,0 +1,160 @@
+"""Following a straight leg between two points: along-track speed profile plus cross-track
+correction, for a holonomic base (it need not face where it goes).
+
+Everything is in the local NED frame: positions in metres (north, east), velocities in m/s.
+The cross-track error is signed, positive when the rover is to the right of the leg (seen
+facing along it).
+
+The commanded velocity is the sum of
+
+- along the leg: ``min(cruise, sqrt_controller(remaining))`` reached with at most ``accel``
+  (the speed ramps up at ``accel`` and brakes in time to arrive at ``exit_speed``), and
+- across the leg: ``sqrt_controller(-cross_track)``, which pulls the rover back onto the line
+  as fast as it can stop there (a P controller near the line, braking at ``accel`` further
+  out).
+
+``sqrt_controller`` is ArduPilot's (AC_PosControl): ``p * error`` within ``accel / p**2`` of
+the target, ``sqrt(2 * accel * (|error| - accel / (2 p**2)))`` beyond, so the approach is fast
+and ends without overshoot.
+
+:func:`corner_speed` picks the speed at which to pass a waypoint between two legs so that the
+velocity across the new leg can be stopped within a given overshoot.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+__all__ = ["Leg", "LegFollower", "corner_speed", "sqrt_controller"]
+
+Vec = tuple[float, float]
+
+
+def sqrt_controller(error: float, p: float, accel: float) -> float:
+    """Speed (same sign as ``error``) that closes ``error`` (m) without overshoot.
+
+    Linear (``p`` 1/s) within ``accel / p**2`` metres, braking at ``accel`` (m/s/s) beyond.
+    """
+    linear_zone = accel / (p * p)
+    size = abs(error)
+    if size <= linear_zone:
+        return p * error
+    return math.copysign(math.sqrt(2.0 * accel * (size - linear_zone / 2.0)), error)
+
+
+@dataclass(frozen=True)
+class Leg:
+    """A straight leg from ``start_ned`` to ``end_ned`` (north m, east m)."""
+
+    start_ned: Vec
+    end_ned: Vec
+
+    @property
+    def length_m(self) -> float:
+        """Length in metres."""
+        return math.hypot(self.end_ned[0] - self.start_ned[0], self.end_ned[1] - self.start_ned[1])
+
+    @property
+    def direction(self) -> Vec:
+        """Unit vector (north, east) from start to end; (0, 0) for a leg of no length."""
+        length = self.length_m
+        if length < 1e-9:
+            return 0.0, 0.0
+        return ((self.end_ned[0] - self.start_ned[0]) / length,
+                (self.end_ned[1] - self.start_ned[1]) / length)
+
+    def errors(self, position_ned: Vec) -> tuple[float, float]:
+        """(along-track distance from the start, signed cross-track error), metres.
+
+        Cross-track is positive to the right of the leg. For a leg of no length both are
+        measured as if it pointed north.
+        """
+        dn, de = position_ned[0] - self.start_ned[0], position_ned[1] - self.start_ned[1]
+        un, ue = self.direction
+        if un == 0.0 and ue == 0.0:
+            un, ue = 1.0, 0.0
+        return dn * un + de * ue, -dn * ue + de * un
+
+    def distance_m(self, position_ned: Vec) -> float:
+        """Distance from ``position_ned`` to the nearest point of the leg (a segment), m."""
+        along, cross = self.errors(position_ned)
+        length = self.length_m
+        if along < 0.0:
+            return math.hypot(along, cross)
+        if along > length:
+            return math.hypot(along - length, cross)
+        return abs(cross)
+
+
+def corner_speed(incoming: Leg, outgoing: Leg, cruise: float, accel: float,
+                 overshoot_m: float) -> float:
+    """Speed (m/s) at which to pass the waypoint joining two legs.
+
+    The velocity across the outgoing leg, ``v * sin(turn)``, must stop within
+    ``overshoot_m`` at ``accel``: ``v = sqrt(2 * accel * overshoot_m) / sin(turn)``. Turns of
+    90 degrees or more, and legs of no length, stop at the waypoint (0). Never above
+    ``cruise``.
+    """
+    a, b = incoming.direction, outgoing.direction
+    if a == (0.0, 0.0) or b == (0.0, 0.0):
+        return 0.0
+    cos_turn = a[0] * b[0] + a[1] * b[1]
+    if cos_turn <= 0.0:
+        return 0.0
+    sin_turn = abs(a[0] * b[1] - a[1] * b[0])
+    if sin_turn < 1e-9:
+        return cruise
+    return min(cruise, math.sqrt(2.0 * accel * overshoot_m) / sin_turn)
+
+
+class LegFollower:
+    """Commands a velocity that drives along a :class:`Leg` (see the module docstring).
+
+    The along-track speed is stateful (it ramps at ``accel``); call :meth:`reset` with the
+    rover's speed along the new leg when a leg starts.
+    """
+
+    def __init__(self) -> None:
+        self.speed_along = 0.0
+
+    def reset(self, speed_along: float = 0.0) -> None:
+        """Start a leg at ``speed_along`` m/s (the rover's velocity projected on it)."""
+        self.speed_along = max(0.0, speed_along)
+
+    def velocity_ned(self, leg: Leg, position_ned: Vec, dt: float, *, cruise: float,
+                     accel: float, exit_speed: float, gain: float) -> Vec:
+        """Velocity (north m/s, east m/s) to command now.
+
+        Args:
+            leg: the leg being driven.
+            position_ned: the rover's position (north m, east m).
+            dt: seconds since the last call (for the acceleration ramp).
+            cruise: the speed along the leg away from its ends, m/s.
+            accel: acceleration and braking limit, m/s/s.
+            exit_speed: the speed to have at the leg's end, m/s (0 = stop there).
+            gain: P gain (1/s) of the final approach and of the cross-track correction.
+
+        The result is not limited in magnitude beyond ``cruise`` along and the
+        cross-track controller's own speed across; the velocity layer below applies the
+        vehicle's speed and acceleration limits.
+        """
+        along, cross = leg.errors(position_ned)
+        remaining = leg.length_m - along
+        # Brake so as to arrive at exit_speed: v^2 = exit^2 + 2 a d, with the linear
+        # zone of the sqrt controller when stopping.
+        if exit_speed > 0.0:
+            target = math.sqrt(exit_speed * exit_speed + 2.0 * accel * max(remaining, 0.0))
+        else:
+            target = sqrt_controller(remaining, gain, accel)
+        target = min(cruise, target)
+        ramped = self.speed_along + accel * dt
+        speed = min(target, ramped) if target >= 0.0 else target
+        self.speed_along = max(speed, 0.0)
+        correction = sqrt_controller(-cross, gain, accel)
+        un, ue = leg.direction
+        if un == 0.0 and ue == 0.0:  # a point: hold it
+            return (sqrt_controller(leg.end_ned[0] - position_ned[0], gain, accel),
+                    sqrt_controller(leg.end_ned[1] - position_ned[1], gain, accel))
+        # right of the leg = (-ue, un)
+        return speed * un - correction * ue, speed * ue + correction * un
