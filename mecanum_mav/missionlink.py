@@ -11,7 +11,6 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
-from mecanum_mav.mission import float_xy
 from mecanum_mav.missionproto import MissionService, Outgoing
 
 __all__ = ["MISSION_MESSAGES", "MissionLink"]
@@ -85,7 +84,7 @@ class MissionLink:
                 mav.mission_count_send(system, component, m.count, m.mission_type)
             elif m.kind in ("MISSION_ITEM_INT", "MISSION_ITEM") and m.item is not None:
                 it = m.item
-                x, y = (it.x, it.y) if m.kind == "MISSION_ITEM_INT" else float_xy(it)
+                x, y = m.xy
                 send = (mav.mission_item_int_send if m.kind == "MISSION_ITEM_INT"
                         else mav.mission_item_send)
                 send(system, component, it.seq, it.frame, it.command, it.current,
