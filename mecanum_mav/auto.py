@@ -11,7 +11,9 @@ Items:
   (:mod:`mecanum_mav.pathfollow`) at the mission speed. Reached within param2 metres
   (0 or NaN: ``WP_RADIUS``), or once past it when passing through at speed; then it holds
   the point for param1 seconds. param4, if a number, is a heading (degrees clockwise from
-  north) to take on this leg and keep. Between two legs the rover passes the waypoint at the
+  north) to take on this leg and keep; NaN (what QGroundControl and MAVSDK send) leaves the
+  heading alone. Mission Planner and MAVProxy files often carry 0 there, which means north.
+  Between two legs the rover passes the waypoint at the
   speed :func:`~mecanum_mav.pathfollow.corner_speed` allows for ``WP_OVERSHOOT`` (it stops for
   turns of 90 degrees or more, and where it holds).
 - ``NAV_LOITER_TIME``: drive there, hold the point for param1 seconds. In a global frame a

@@ -308,6 +308,26 @@ def cmd_sim(args: argparse.Namespace, params: Params) -> int:
     return serve(params, args.gcs, "sim", args.params, args.tlog)
 
 
+def cmd_demo(args: argparse.Namespace, params: Params) -> int:
+    from mecanum_mav.demo import plot_demo, run_demo
+
+    logging.basicConfig(level=logging.ERROR, format="%(name)s: %(message)s")
+    print(f"mecanum-mav demo: simulator + companion + scripted ground station on loopback; "
+          f"uploading a {args.side:g} m square with a diagonal, facing north, then AUTO ...",
+          flush=True)
+    try:
+        result = run_demo(params, side_m=args.side)
+    except (RuntimeError, TimeoutError, OSError) as exc:
+        print(f"mecanum-mav demo: {exc}", file=sys.stderr)
+        return 1
+    print(result.table())
+    try:
+        print(f"wrote {plot_demo(result, Path(args.png))}")
+    except RuntimeError as exc:  # no matplotlib
+        print(f"mecanum-mav demo: no PNG: {exc}", file=sys.stderr)
+    return 0
+
+
 def cmd_simfc(args: argparse.Namespace, params: Params) -> int:
     from mecanum_mav.simfc import main as simfc_main
 
@@ -340,6 +360,19 @@ def build_parser() -> argparse.ArgumentParser:
                      help=f"ground-station link (default {DEFAULT_GCS_URL})")
     sim.add_argument("--tlog", type=Path, metavar="FILE", help="record all traffic (tlog)")
     sim.set_defaults(handler=cmd_sim)
+
+    demo = sub.add_parser("demo", parents=[common],
+                          help="the whole product in one command: an AUTO mission in the "
+                          "simulator",
+                          description="Run the simulator, the companion and a scripted ground "
+                          "station; upload a square-with-a-diagonal mission facing north, run it "
+                          "in AUTO, print time, cross-track and arrival error per leg, and draw "
+                          "planned, true and odometry paths.")
+    demo.add_argument("--side", type=float, default=2.0, metavar="M",
+                      help="side of the square in metres (default 2)")
+    demo.add_argument("--png", default="demo.png", metavar="FILE",
+                      help="where to write the figure (default demo.png)")
+    demo.set_defaults(handler=cmd_demo)
 
     run = sub.add_parser("run", parents=[common], help="the companion",
                          description="Run the companion: the rover a ground station sees, "

@@ -333,7 +333,7 @@ class Companion:
         est = self.estimator
         return TelemetryState(now, self._boot_s, est.pose, est.velocity_body, est.yaw_rate,
                               est.reset_counter, est.wheel_distances_m, self.pwm.channels,
-                              self.pulses_us, self.gcs.bad + self.fc.bad)
+                              self.pulses_us, self.gcs.bad + self.fc.bad, self.origin)
 
     def _send_heartbeats(self) -> None:
         v = self.vehicle

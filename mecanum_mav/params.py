@@ -533,8 +533,8 @@ SCHEMA: tuple[ParamSpec, ...] = (
     ),
     ParamSpec(
         "TLM_POS_RATE", float, default=10.0, minimum=0.0, maximum=50.0, units="Hz",
-        description="Rate of ODOMETRY, LOCAL_POSITION_NED and ATTITUDE to the ground station "
-        "(0 = off).",
+        description="Rate of ODOMETRY, LOCAL_POSITION_NED, ATTITUDE and, once a global origin "
+        "is known, GLOBAL_POSITION_INT to the ground station (0 = off).",
     ),
     ParamSpec(
         "TLM_EXT_RATE", float, default=2.0, minimum=0.0, maximum=50.0, units="Hz",

@@ -1,7 +1,8 @@
 """Telemetry to the ground station: which messages stream how often, and how each is built.
 
-Streams and their default rates (parameters): ODOMETRY, LOCAL_POSITION_NED and ATTITUDE at
-``TLM_POS_RATE``; SYS_STATUS, SERVO_OUTPUT_RAW and WHEEL_DISTANCE at ``TLM_EXT_RATE``.
+Streams and their default rates (parameters): ODOMETRY, LOCAL_POSITION_NED, ATTITUDE and (once
+a global origin is known) GLOBAL_POSITION_INT at ``TLM_POS_RATE``; SYS_STATUS,
+SERVO_OUTPUT_RAW and WHEEL_DISTANCE at ``TLM_EXT_RATE``.
 ``MAV_CMD_SET_MESSAGE_INTERVAL`` changes one message's interval (-1 stops it, 0 returns it to
 its parameter rate), ``MAV_CMD_GET_MESSAGE_INTERVAL`` reports it, ``MAV_CMD_REQUEST_MESSAGE``
 sends any message below once (also AUTOPILOT_VERSION and HOME_POSITION).
@@ -29,6 +30,7 @@ STREAMS: dict[str, str] = {
     "ODOMETRY": "TLM_POS_RATE",
     "LOCAL_POSITION_NED": "TLM_POS_RATE",
     "ATTITUDE": "TLM_POS_RATE",
+    "GLOBAL_POSITION_INT": "TLM_POS_RATE",
     "SYS_STATUS": "TLM_EXT_RATE",
     "SERVO_OUTPUT_RAW": "TLM_EXT_RATE",
     "WHEEL_DISTANCE": "TLM_EXT_RATE",
@@ -109,6 +111,7 @@ class TelemetryState:
     channels: tuple[int, ...]
     pulses_us: tuple[int, ...]
     bad_packets: int
+    origin: Any = None  # geo.GlobalOrigin, or None when the local frame has no global anchor
 
     @property
     def boot_ms(self) -> int:
@@ -158,16 +161,31 @@ def _wheel_distance(mav: Any, t: TelemetryState) -> None:
     mav.wheel_distance_send(t.boot_us, 4, [*t.wheel_distances_m[:4], *([0.0] * 12)])
 
 
+def _global_position_int(mav: Any, t: TelemetryState) -> None:
+    # Only with a global origin (ORIGIN_LAT/LON or SET_GPS_GLOBAL_ORIGIN): the local position
+    # placed on the earth, so a ground station's map shows the rover.
+    if t.origin is None:
+        return
+    lat, lon = t.origin.to_global(t.pose.x_m, t.pose.y_m)
+    v_north, v_east = body_to_ned(*t.velocity_body, t.pose.yaw_rad)
+    heading_cdeg = round(math.degrees(t.pose.yaw_rad) * 100) % 36000
+    mav.global_position_int_send(t.boot_ms, lat, lon, t.origin.alt_mm, 0, round(v_north * 100),
+                                 round(v_east * 100), 0, heading_cdeg)
+
+
 def _home_position(mav: Any, t: TelemetryState) -> None:
-    # Home is the local origin; there is no global position (lat/lon 0 until an origin is set).
-    mav.home_position_send(0, 0, 0, 0.0, 0.0, 0.0, [1.0, 0.0, 0.0, 0.0], 0.0, 0.0, 0.0,
+    # Home is the local origin; lat/lon are 0 until a global origin is known.
+    lat, lon, alt = (0, 0, 0) if t.origin is None else (t.origin.lat_e7, t.origin.lon_e7,
+                                                        t.origin.alt_mm)
+    mav.home_position_send(lat, lon, alt, 0.0, 0.0, 0.0, [1.0, 0.0, 0.0, 0.0], 0.0, 0.0, 0.0,
                            t.boot_us)
 
 
 def _autopilot_version(mav: Any, t: TelemetryState) -> None:
     capabilities = (mavlink.MAV_PROTOCOL_CAPABILITY_MAVLINK2
                     | mavlink.MAV_PROTOCOL_CAPABILITY_PARAM_FLOAT
-                    | mavlink.MAV_PROTOCOL_CAPABILITY_COMMAND_INT)
+                    | mavlink.MAV_PROTOCOL_CAPABILITY_COMMAND_INT
+                    | mavlink.MAV_PROTOCOL_CAPABILITY_MISSION_INT)
     major, minor, patch = (int(part) for part in __version__.split(".")[:3])
     version = major << 24 | minor << 16 | patch << 8 | 0xFF  # FIRMWARE_VERSION_TYPE_OFFICIAL
     mav.autopilot_version_send(capabilities, version, 0, 0, 0, [0] * 8, [0] * 8, [0] * 8,
@@ -178,6 +196,7 @@ BUILDERS: dict[str, Callable[[Any, TelemetryState], None]] = {
     "ODOMETRY": _odometry,
     "LOCAL_POSITION_NED": _local_position_ned,
     "ATTITUDE": _attitude,
+    "GLOBAL_POSITION_INT": _global_position_int,
     "SYS_STATUS": _sys_status,
     "SERVO_OUTPUT_RAW": _servo_output_raw,
     "WHEEL_DISTANCE": _wheel_distance,

@@ -20,7 +20,9 @@ GLOBAL_REL = mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT
 
 
 def local_wp(seq: int, north: float, east: float, **fields) -> MissionItem:
-    """A NAV_WAYPOINT in MAV_FRAME_LOCAL_NED (x/y metres * 1e4)."""
+    """A NAV_WAYPOINT in MAV_FRAME_LOCAL_NED (x/y metres * 1e4); param4 (yaw) NaN = none, as
+    QGroundControl and MAVSDK send it, unless given."""
+    fields.setdefault("param4", math.nan)
     return MissionItem(seq, LOCAL, fields.pop("command", WP), x=round(north * 1e4),
                        y=round(east * 1e4), **fields)
 

@@ -298,6 +298,9 @@ def test_a_global_mission_needs_an_origin_and_drives_to_the_converted_point(rove
     since = gcs.mark()
     gcs.mav.set_gps_global_origin_send(1, origin.lat_e7, origin.lon_e7, 0, 0)
     assert gcs.wait("GPS_GLOBAL_ORIGIN", timeout_s=1.0, since=since)
+    position = gcs.wait("GLOBAL_POSITION_INT", timeout_s=1.0, since=since)
+    assert position is not None and abs(position.lat - origin.lat_e7) < 20  # ~2 mm
+    assert abs(position.lon - origin.lon_e7) < 20
     assert set_mode(gcs, 10) == mavlink.MAV_RESULT_ACCEPTED
     assert gcs.wait("MISSION_ITEM_REACHED", lambda m: m.seq == 1, 10.0, since)
     pose = sim.snapshot().pose

@@ -1,0 +1,209 @@
+"""The mission executor and the leg follower, pure: a kinematic rover with motor lag driven
+through the same GUIDED velocity and heading layer the companion uses."""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import pytest
+from missionpeer import JUMP, LOITER, RTL, SPEED, YAW, do, local_wp, renumber
+
+from mecanum_mav.auto import MissionExecutor, MissionState
+from mecanum_mav.geometry import Pose2d, body_to_ned
+from mecanum_mav.guided import GuidedController
+from mecanum_mav.links import mavlink
+from mecanum_mav.mission import MissionItem
+from mecanum_mav.params import Params
+from mecanum_mav.pathfollow import Leg, LegFollower, corner_speed, sqrt_controller
+
+HOME = local_wp(0, 0.0, 0.0)
+DT, TAU = 0.02, 0.08
+
+
+class Run:
+    """Executor + GUIDED layer + first-order-lag rover, stepped at 50 Hz."""
+
+    def __init__(self, items, pose=None, **values):
+        pose = pose or Pose2d(0.0, 0.0, 0.0)
+        self.params = Params()
+        self.params.update(values)
+        self.ex = MissionExecutor(self.params)
+        self.guided = GuidedController(self.params)
+        self.ex.load(renumber(items))
+        self.pose, self.v, self.r, self.t = pose, (0.0, 0.0), 0.0, 0.0
+        self.events, self.track, self.speeds = [], [], []
+        self.guided.start(pose, 0.0)
+        assert self.ex.start(pose, 0.0, None) is None
+
+    def step(self):
+        self.guided.setpoint = self.ex.update(self.pose, self.guided.velocity_ned, self.t)
+        vx, vy, yaw_rate = self.guided.update(self.pose, self.t)
+        cmd, k = body_to_ned(vx, vy, self.pose.yaw_rad), DT / TAU
+        self.v = (self.v[0] + (cmd[0] - self.v[0]) * k, self.v[1] + (cmd[1] - self.v[1]) * k)
+        self.r += (yaw_rate - self.r) * k
+        p = self.pose
+        self.pose = Pose2d(p.x_m + self.v[0] * DT, p.y_m + self.v[1] * DT, p.yaw_rad + self.r * DT)
+        self.t += DT
+        self.track.append((self.t, self.pose, self.ex.current))
+        self.speeds.append(math.hypot(*self.v))
+        self.events += self.ex.take_events()
+
+    def until_done(self, limit_s=60.0):
+        while self.ex.running and self.t < limit_s:
+            self.step()
+        assert not self.ex.running, "mission did not finish"
+        return self
+
+    def reached(self):
+        return [e.seq for e in self.events if e.kind == "reached"]
+
+    def texts(self):
+        return [e.text for e in self.events if e.kind == "say"]
+
+
+def test_sqrt_controller_is_linear_near_the_target_and_brakes_at_accel_beyond():
+    assert sqrt_controller(0.01, 2.0, 1.0) == pytest.approx(0.02)
+    far = sqrt_controller(-2.0, 2.0, 1.0)
+    assert far == pytest.approx(-math.sqrt(2.0 * (2.0 - 0.125)))
+
+
+def test_corner_speed_stops_for_right_angles_and_carries_speed_through_straight_ones():
+    a = Leg((0.0, 0.0), (1.0, 0.0))
+    assert corner_speed(a, Leg((1.0, 0.0), (1.0, 1.0)), 1.0, 1.0, 0.02) == 0.0
+    assert corner_speed(a, Leg((1.0, 0.0), (2.0, 0.0)), 0.7, 1.0, 0.02) == 0.7
+    shallow = corner_speed(a, Leg((1.0, 0.0), (2.0, 0.2)), 2.0, 1.0, 0.02)
+    assert shallow == pytest.approx(math.sqrt(0.04) / math.sin(math.atan(0.2)))
+
+
+def test_leg_follower_pulls_back_to_the_line_and_never_exceeds_cruise_along_it():
+    leg, follower = Leg((0.0, 0.0), (5.0, 0.0)), LegFollower()
+    for _ in range(100):
+        vn, ve = follower.velocity_ned(leg, (1.0, 0.3), 0.02, cruise=0.5, accel=0.5,
+                                       exit_speed=0.0, gain=1.5)
+    assert vn == pytest.approx(0.5) and ve < -0.2  # full speed along, back west to the line
+
+
+def test_waypoints_are_reached_in_order_within_the_radius_and_near_the_line():
+    points = [(1.5, 0.0), (1.5, 1.5), (0.0, 0.0)]
+    run = Run([HOME, *(local_wp(0, n, e) for n, e in points)]).until_done()
+    assert run.reached() == [1, 2, 3]
+    assert max(run.ex.arrival_errors.values()) <= 0.03
+    legs = [Leg((0.0, 0.0), points[0]), Leg(points[0], points[1]), Leg(points[1], points[2])]
+    for k, leg in enumerate(legs, start=1):
+        assert max(leg.distance_m((p.x_m, p.y_m)) for _, p, c in run.track if c == k) < 0.05
+    assert run.ex.state == MissionState.COMPLETE
+    assert "Mission complete" in run.texts()
+
+
+def test_a_shallow_corner_is_passed_without_stopping():
+    run = Run([HOME, local_wp(0, 1.5, 0.0), local_wp(0, 3.0, 0.3)], WP_OVERSHOOT=0.05)
+    while run.ex.current == 1 and run.t < 20:
+        run.step()
+    assert run.speeds[-1] > 0.3  # still moving when it switched to the next leg
+    run.until_done()
+    leg = Leg((1.5, 0.0), (3.0, 0.3))
+    assert max(leg.distance_m((p.x_m, p.y_m)) for _, p, c in run.track if c == 2) < 0.06
+
+
+def test_do_change_speed_sets_the_leg_speed_and_is_limited_by_guid_spd_max():
+    run = Run([HOME, do(0, SPEED, 1, 0.25), local_wp(0, 2.0, 0.0)]).until_done()
+    assert max(run.speeds) == pytest.approx(0.25, abs=0.01)
+    run = Run([HOME, do(0, SPEED, 1, 5.0), local_wp(0, 3.0, 0.0)], GUID_SPD_MAX=0.6)
+    run.until_done()
+    assert max(run.speeds) == pytest.approx(0.6, abs=0.01)
+    assert any("limited to GUID_SPD_MAX" in t for t in run.texts())
+
+
+def test_condition_yaw_at_the_end_turns_in_place_before_the_mission_completes():
+    run = Run([HOME, local_wp(0, 0.5, 0.0), do(0, YAW, 90.0, 45.0, 0.0, 0.0)]).until_done()
+    assert math.degrees(run.pose.yaw_rad) == pytest.approx(90.0, abs=2.5)
+    assert math.hypot(run.pose.x_m - 0.5, run.pose.y_m) < 0.04  # in place
+    turning = [p for _, p, c in run.track if c == 2]
+    rates = [abs(b.yaw_rad - a.yaw_rad) / DT for a, b in itertools.pairwise(turning)]
+    assert max(rates) <= math.radians(45.0) * 1.05  # the item's rate limit
+
+
+def test_condition_yaw_before_a_leg_turns_while_driving_it():
+    run = Run([HOME, do(0, YAW, 90.0, 0.0, 0.0, 0.0), local_wp(0, 1.5, 0.0)]).until_done()
+    reached_yaw_at = next(t for t, p, _ in run.track if abs(p.yaw_rad - math.pi / 2) < 0.05)
+    arrived_at = run.track[-1][0]
+    assert reached_yaw_at < arrived_at - 1.0  # turned early, while driving
+    assert max(abs(p.y_m) for _, p, _ in run.track) < 0.05  # and the path stayed straight
+
+
+def test_condition_yaw_with_a_direction_turns_the_long_way():
+    run = Run([HOME, local_wp(0, 0.0, 0.0), do(0, YAW, 270.0, 0.0, 1.0, 0.0)]).until_done()
+    yaws = [p.yaw_rad for _, p, _ in run.track]
+    assert max(yaws) > math.radians(200)  # clockwise through south, not -90 the short way
+    assert math.degrees(math.remainder(run.pose.yaw_rad, 2 * math.pi)) == pytest.approx(
+        -90.0, abs=2.5)
+
+
+def test_face_next_waypoint_turns_along_each_leg():
+    run = Run([HOME, local_wp(0, 0.0, 1.5)], WP_YAW_BEHAVIOR=1).until_done()
+    assert math.degrees(run.pose.yaw_rad) == pytest.approx(90.0, abs=2.0)
+
+
+def test_waypoint_yaw_param4_sets_the_heading_from_that_leg_on():
+    run = Run([HOME, local_wp(0, 1.0, 0.0, param4=-45.0), local_wp(0, 1.0, 1.0)]).until_done()
+    assert math.degrees(run.pose.yaw_rad) == pytest.approx(-45.0, abs=2.0)
+
+
+def test_loiter_time_holds_the_point_for_its_time():
+    run = Run([HOME, local_wp(0, 0.5, 0.0, command=LOITER, param1=2.0), local_wp(0, 0.0, 0.0)])
+    run.until_done()
+    at_loiter = [t for t, p, c in run.track if c == 1 and math.hypot(p.x_m - 0.5, p.y_m) < 0.03]
+    assert at_loiter[-1] - at_loiter[0] >= 2.0
+
+
+def test_return_to_launch_drives_home():
+    run = Run([HOME, local_wp(0, 1.0, 0.5), MissionItem(0, 2, RTL)]).until_done()
+    assert math.hypot(run.pose.x_m, run.pose.y_m) < 0.03
+    assert run.reached() == [1, 2]
+
+
+def test_do_jump_repeats_and_the_counters_reset_when_the_mission_restarts():
+    items = [HOME, local_wp(0, 0.2, 0.0), local_wp(0, 0.0, 0.0), do(0, JUMP, 1, 1)]
+    run = Run(items).until_done()
+    assert run.reached() == [1, 2, 3, 1, 2, 3]
+    run.events.clear()
+    assert run.ex.start(run.pose, run.t, None) is None  # AUTO again after the end: restart
+    run.until_done(limit_s=run.t + 30)
+    assert run.reached() == [1, 2, 3, 1, 2, 3]
+
+
+def test_a_jump_loop_without_waypoints_advances_one_item_per_tick():
+    run = Run([HOME, local_wp(0, 0.0, 0.0), do(0, JUMP, 1, -1)])
+    for _ in range(50):
+        run.step()
+    assert run.ex.running and 10 <= run.reached().count(1) <= 50
+
+
+def test_unsupported_items_are_skipped_with_a_statustext_naming_them():
+    servo = MissionItem(0, 2, mavlink.MAV_CMD_DO_SET_SERVO, param1=9, param2=1500)
+    run = Run([HOME, servo, local_wp(0, 0.3, 0.0)]).until_done()
+    assert "Skipped item 1: DO_SET_SERVO unsupported" in run.texts()
+    assert run.reached() == [2]
+
+
+def test_pause_keeps_the_current_item_and_start_resumes_it_from_where_the_rover_is():
+    run = Run([HOME, local_wp(0, 2.0, 0.0), local_wp(0, 2.0, 1.0)])
+    while run.pose.x_m < 0.8:
+        run.step()
+    run.ex.pause()
+    assert run.ex.state == MissionState.PAUSED and run.ex.current == 1
+    run.events.clear()
+    assert run.ex.start(run.pose, run.t, None) is None
+    run.events += run.ex.take_events()
+    assert "Mission resumed at item 1" in run.texts()
+    run.until_done()
+    assert run.reached() == [1, 2]
+
+
+def test_a_global_mission_without_an_origin_cannot_start():
+    item = MissionItem(1, mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, mavlink.MAV_CMD_NAV_WAYPOINT,
+                       x=473977420, y=85455940)
+    ex = MissionExecutor(Params())
+    ex.load([HOME, item])
+    assert "origin" in ex.prepare(None)
