@@ -305,3 +305,19 @@ def test_a_global_mission_needs_an_origin_and_drives_to_the_converted_point(rove
     assert gcs.wait("MISSION_ITEM_REACHED", lambda m: m.seq == 1, 10.0, since)
     pose = sim.snapshot().pose
     assert math.dist((pose.x_m, pose.y_m), (0.8, -0.4)) < 0.05
+
+
+def test_mission_start_command_switches_to_auto_and_runs_from_the_given_item(rover):
+    sim, gcs, _ = rover
+    items = renumber([HOME, local_wp(0, 3.0, 0.0), local_wp(0, 0.0, 0.3)])
+    assert upload(gcs, items).type == ACCEPTED
+    arm(gcs)
+    since = gcs.mark()
+    gcs.mav.command_long_send(1, 1, mavlink.MAV_CMD_MISSION_START, 0, 2, 0, 0, 0, 0, 0, 0)
+    ack = gcs.wait("COMMAND_ACK", lambda m: m.command == mavlink.MAV_CMD_MISSION_START, 1.0,
+                   since)
+    assert ack is not None and ack.result == mavlink.MAV_RESULT_ACCEPTED
+    assert gcs.wait("HEARTBEAT", lambda m: m.custom_mode == 10, 1.5, since)
+    reached = gcs.wait("MISSION_ITEM_REACHED", timeout_s=8.0, since=since)
+    assert reached is not None and reached.seq == 2  # item 1 was skipped by param1 = 2
+    assert sim.snapshot().pose.x_m < 0.1
