@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import asyncio
+import contextlib
+import math
+import re
 import shutil
 import socket
 import subprocess
@@ -16,6 +19,8 @@ from pathlib import Path
 import pytest
 
 from mecanum_mav.companion import Companion
+from mecanum_mav.geo import GlobalOrigin
+from mecanum_mav.links import mavlink
 from mecanum_mav.params import SCHEMA, Params
 from mecanum_mav.simfc import SimFlightController
 
@@ -194,3 +199,205 @@ def test_mavsdk_connects_sets_params_arms_and_drives_manual_and_offboard():
     port, grpc_port = free_udp_port(), free_tcp_port()
     with rover_for_client(port) as (sim, _, params):
         asyncio.run(asyncio.wait_for(_mavsdk_scenario(port, grpc_port, sim, params), 90.0))
+
+
+# --------------------------------------------------------------------------- missions
+
+# Exact in float32 (ORIGIN_LAT/LON travel and are stored as float32).
+ORIGIN_LAT_DEG, ORIGIN_LON_DEG = 47.375, 8.5
+
+
+def set_origin(params: Params) -> GlobalOrigin:
+    """ORIGIN_LAT/LON on the running rover; the origin the companion converts with."""
+    params.update({"ORIGIN_LAT": ORIGIN_LAT_DEG, "ORIGIN_LON": ORIGIN_LON_DEG})
+    return GlobalOrigin.from_degrees(float(params["ORIGIN_LAT"]), float(params["ORIGIN_LON"]))
+
+
+def _mavsdk_waypoint(lat_deg: float, lon_deg: float, *, speed_m_s: float,
+                     fly_through: bool, radius_m: float):
+    from mavsdk.mission import MissionItem
+
+    nan = math.nan
+    return MissionItem(
+        latitude_deg=lat_deg, longitude_deg=lon_deg, relative_altitude_m=0.0,
+        speed_m_s=speed_m_s, is_fly_through=fly_through, gimbal_pitch_deg=nan,
+        gimbal_yaw_deg=nan, camera_action=MissionItem.CameraAction.NONE, loiter_time_s=nan,
+        camera_photo_interval_s=nan, acceptance_radius_m=radius_m, yaw_deg=nan,
+        camera_photo_distance_m=nan, vehicle_action=MissionItem.VehicleAction.NONE)
+
+
+MAVSDK_LEGS_NE = [(0.8, 0.0), (0.8, 0.6), (0.2, 0.6)]  # metres north, east of the origin
+
+
+async def _mavsdk_mission_scenario(port: int, grpc_port: int, sim: SimFlightController,
+                                   companion: Companion, origin: GlobalOrigin) -> None:
+    from mavsdk import System
+    from mavsdk.mission import MissionPlan
+    from mavsdk.telemetry import FlightMode
+
+    points = [origin.to_global(n, e) for n, e in MAVSDK_LEGS_NE]
+    # MAVSDK 3.x's mission plugin does not insert ArduPilot's home item 0 (it sends the plan's
+    # items from seq 0, and downloads item 0 back as the first item), so a MAVSDK user talking
+    # to an ArduPilot vehicle puts a placeholder for home first; without it the first
+    # waypoint would be taken as home and never driven to.
+    home = _mavsdk_waypoint(origin.lat_e7 / 1e7, origin.lon_e7 / 1e7, speed_m_s=math.nan,
+                            fly_through=True, radius_m=math.nan)
+    plan = MissionPlan([home, *(_mavsdk_waypoint(lat / 1e7, lon / 1e7, speed_m_s=0.5,
+                                                 fly_through=False, radius_m=0.05)
+                                for lat, lon in points)])
+    drone = System(port=grpc_port)
+    try:
+        await drone.connect(system_address=f"udpin://127.0.0.1:{port}")
+        state = await _first(drone.core.connection_state())
+        while not state.is_connected:
+            state = await _first(drone.core.connection_state())
+        await drone.mission.upload_mission(plan)
+        stored = companion.mission.items
+        # seq 0 home, then each waypoint followed by its DO_CHANGE_SPEED.
+        assert len(stored) == 1 + 2 * len(points), stored
+        assert [(it.x, it.y) for it in stored[1::2]] == points, stored
+
+        downloaded = (await drone.mission.download_mission()).mission_items
+        assert len(downloaded) == len(plan.mission_items)
+        for got, want in zip(downloaded, plan.mission_items, strict=True):
+            assert abs(got.latitude_deg - want.latitude_deg) < 1e-6, (got, want)
+            assert abs(got.longitude_deg - want.longitude_deg) < 1e-6, (got, want)
+        for got in downloaded[1:]:
+            assert got.speed_m_s == pytest.approx(0.5)
+            assert got.acceptance_radius_m == pytest.approx(0.05)
+            assert not got.is_fly_through
+
+        progress: list[tuple[int, int]] = []
+
+        async def watch_progress() -> None:
+            async for p in drone.mission.mission_progress():
+                progress.append((p.current, p.total))
+
+        watcher = asyncio.ensure_future(watch_progress())
+        await drone.action.arm()
+        await drone.mission.start_mission()
+        closest = [math.inf] * len(MAVSDK_LEGS_NE)
+        deadline = time.monotonic() + 30.0
+        finished = False
+        while time.monotonic() < deadline and not finished:
+            pose = sim.snapshot().pose
+            for k, goal in enumerate(MAVSDK_LEGS_NE):
+                closest[k] = min(closest[k], math.dist((pose.x_m, pose.y_m), goal))
+            finished = await drone.mission.is_mission_finished()
+            await asyncio.sleep(0.05)
+        assert finished, (progress, sim.snapshot().pose)
+        total = len(plan.mission_items)
+        assert await _until(lambda: progress and progress[-1] == (total, total), 5.0), progress
+        watcher.cancel()
+        assert max(closest) < 0.10, closest  # every waypoint visited, the first one too
+        mode = await _first(drone.telemetry.flight_mode())
+        deadline = time.monotonic() + 5.0
+        while mode != FlightMode.HOLD and time.monotonic() < deadline:
+            mode = await _first(drone.telemetry.flight_mode())
+        assert mode == FlightMode.HOLD
+        truth = sim.snapshot().pose
+        assert math.dist((truth.x_m, truth.y_m), MAVSDK_LEGS_NE[-1]) < 0.10, truth
+        await drone.action.disarm()
+    finally:
+        drone._stop_mavsdk_server()
+
+
+def test_mavsdk_uploads_a_mission_downloads_it_and_runs_it_to_the_end():
+    pytest.importorskip("mavsdk")
+    port, grpc_port = free_udp_port(), free_tcp_port()
+    with rover_for_client(port) as (sim, companion, params):
+        origin = set_origin(params)
+        asyncio.run(asyncio.wait_for(
+            _mavsdk_mission_scenario(port, grpc_port, sim, companion, origin), 90.0))
+
+
+def saw_since(mavproxy: MavProxy, text: str, since: int, timeout_s: float = 15.0) -> int | None:
+    """Index of the first line from ``since`` on that contains ``text``, waiting for it."""
+    def find() -> int | None:
+        for index in range(since, len(mavproxy.lines)):
+            if text in mavproxy.lines[index]:
+                return index + 1  # truthy even for line 0
+        return None
+
+    found = wait_until(find, timeout_s)
+    return None if found is None else int(found) - 1
+
+
+def stop_mavproxy(mavproxy: MavProxy) -> None:
+    """End of input first: MAVProxy's main thread sits in its stdin read and only sees SIGTERM
+    after the next line, so ``close`` alone waits out its 10 s timeout."""
+    assert mavproxy.proc.stdin is not None
+    with contextlib.suppress(OSError):
+        mavproxy.proc.stdin.close()
+    mavproxy.close()
+
+
+WP_LINE = re.compile(r"^(\d+) (\d+) (-?\d+\.\d+) (-?\d+\.\d+) ")  # MAVProxy's "wp list" rows
+
+
+def test_mavproxy_loads_a_waypoint_file_lists_it_and_clears_it(tmp_path):
+    """QGC WPL 110 in a global frame (MAVProxy scales every location command's x/y by 1e7,
+    which is right only for global frames). Between list and clear it also runs the mission."""
+    port = free_udp_port()
+    with rover_for_client(port) as (sim, companion, params):
+        origin = set_origin(params)
+        legs = [(0.0, 0.0), (0.8, 0.0), (0.8, 0.5)]  # home, then two waypoints (north, east)
+        points = [origin.to_global(n, e) for n, e in legs]
+        rows = ["QGC WPL 110"]
+        for seq, (lat, lon) in enumerate(points):
+            fields = (seq, int(seq == 0), mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT,
+                      mavlink.MAV_CMD_NAV_WAYPOINT, 0, 0, 0, 0, f"{lat / 1e7:.7f}",
+                      f"{lon / 1e7:.7f}", 0, 1)
+            rows.append("\t".join(str(f) for f in fields))
+        (tmp_path / "square.waypoints").write_text("\n".join(rows) + "\n")
+        mavproxy = MavProxy(port, tmp_path)
+        try:
+            assert mavproxy.saw(f"Received {len(SCHEMA)} parameters", 30.0), mavproxy.lines
+            since = len(mavproxy.lines)
+            mavproxy.send("wp load square.waypoints")
+            assert saw_since(mavproxy, "Sent all 3 waypoints", since) is not None, mavproxy.lines
+            assert saw_since(mavproxy, "MISSION_ACK: TYPE_MISSION: ACCEPTED", since) is not None
+            stored = companion.mission.items
+            assert len(stored) == 3
+            for item, (lat, lon) in zip(stored, points, strict=True):
+                assert item.frame == mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT
+                assert item.command == mavlink.MAV_CMD_NAV_WAYPOINT
+                assert abs(item.x - lat) <= 1 and abs(item.y - lon) <= 1  # MAVProxy truncates
+
+            since = len(mavproxy.lines)
+            mavproxy.send("wp list")
+            at = saw_since(mavproxy, "Requesting 3 waypoints", since)
+            assert at is not None, mavproxy.lines[since:]
+
+            def rows_listed() -> list[re.Match[str]]:
+                found = [m for line in mavproxy.lines[at + 1:] if (m := WP_LINE.match(line))]
+                return found if len(found) >= 3 else []
+
+            listed = wait_until(rows_listed, 10.0)
+            assert listed, mavproxy.lines[at:]
+            for match, (lat, lon) in zip(listed, points, strict=True):
+                assert int(match[1]) == mavlink.MAV_CMD_NAV_WAYPOINT
+                assert int(match[2]) == mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT
+                assert abs(float(match[3]) - lat / 1e7) < 2e-7, match[0]
+                assert abs(float(match[4]) - lon / 1e7) < 2e-7, match[0]
+
+            mavproxy.send("arm throttle")
+            assert mavproxy.saw("ARMED")
+            since = len(mavproxy.lines)
+            mavproxy.send("mode AUTO")
+            assert saw_since(mavproxy, "Mission started at item 1", since) is not None
+            assert saw_since(mavproxy, "Mission complete", since, 20.0) is not None, (
+                mavproxy.lines[since:], sim.snapshot().pose)
+            assert saw_since(mavproxy, "Mode HOLD", since) is not None
+            truth = sim.snapshot().pose
+            assert math.dist((truth.x_m, truth.y_m), legs[-1]) < 0.10, truth
+
+            since = len(mavproxy.lines)
+            mavproxy.send("wp clear")
+            assert saw_since(mavproxy, "MISSION_ACK: TYPE_MISSION: ACCEPTED", since) is not None
+            assert wait_until(lambda: companion.mission.items == (), 5.0)
+            since = len(mavproxy.lines)
+            mavproxy.send("wp list")
+            assert saw_since(mavproxy, "Requesting 0 waypoints", since) is not None
+        finally:
+            stop_mavproxy(mavproxy)
