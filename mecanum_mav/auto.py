@@ -51,29 +51,23 @@ from mecanum_mav.dialect import mavlink
 from mecanum_mav.geo import GlobalOrigin
 from mecanum_mav.geometry import Pose2d, wrap_pi
 from mecanum_mav.guided import Setpoint
-from mecanum_mav.mission import GLOBAL_FRAMES, MissionItem, command_name, position_ned
+from mecanum_mav.mission import (
+    GLOBAL_FRAMES,
+    NAV_COMMANDS,
+    POSITION_COMMANDS,
+    MissionItem,
+    command_name,
+    position_ned,
+)
 from mecanum_mav.params import Params
 from mecanum_mav.pathfollow import Leg, LegFollower, corner_speed
 from mecanum_mav.vehicle import Severity
 
-__all__ = ["ExecutorEvent", "MissionExecutor", "MissionState"]
+__all__ = ["ExecutorEvent", "MissionExecutor"]
 
 YAW_ACCEPT_RAD = math.radians(2.0)
 MAX_STEPS_PER_UPDATE = 1000  # DO items chained without a navigation item in between
 Vec = tuple[float, float]
-
-_NAV = (mavlink.MAV_CMD_NAV_WAYPOINT, mavlink.MAV_CMD_NAV_LOITER_TIME,
-        mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH)
-
-
-class MissionState:
-    """MAVLink MISSION_STATE values (for MISSION_CURRENT)."""
-
-    NO_MISSION = 1
-    NOT_STARTED = 2
-    ACTIVE = 3
-    PAUSED = 4
-    COMPLETE = 5
 
 
 class ExecutorEvent(NamedTuple):
@@ -147,14 +141,14 @@ class MissionExecutor:
 
     @property
     def state(self) -> int:
-        """The MISSION_STATE to report."""
+        """The MAVLink MISSION_STATE to report in MISSION_CURRENT."""
         if not self.has_mission:
-            return MissionState.NO_MISSION
+            return mavlink.MISSION_STATE_NO_MISSION
         if self.complete:
-            return MissionState.COMPLETE
+            return mavlink.MISSION_STATE_COMPLETE
         if self.running:
-            return MissionState.ACTIVE
-        return MissionState.PAUSED if self.started else MissionState.NOT_STARTED
+            return mavlink.MISSION_STATE_ACTIVE
+        return mavlink.MISSION_STATE_PAUSED if self.started else mavlink.MISSION_STATE_NOT_STARTED
 
     def set_current(self, seq: int, pose: Pose2d, now_s: float) -> str | None:
         """MISSION_SET_CURRENT / DO_SET_MISSION_CURRENT; the reason if refused.
@@ -190,7 +184,7 @@ class MissionExecutor:
             return "no mission"
         positions: dict[int, Vec] = {}
         for item in self.items[1:]:
-            if item.command not in (mavlink.MAV_CMD_NAV_WAYPOINT, mavlink.MAV_CMD_NAV_LOITER_TIME):
+            if item.command not in POSITION_COMMANDS:
                 continue
             if (item.frame in GLOBAL_FRAMES and item.command == mavlink.MAV_CMD_NAV_LOITER_TIME
                     and item.x == 0 and item.y == 0):
@@ -301,7 +295,7 @@ class MissionExecutor:
             self._emit("current", seq)
             item = self.items[seq]
             cmd = item.command
-            if cmd in _NAV:
+            if cmd in NAV_COMMANDS:
                 self._start_nav(item, start, here, velocity_ned)
                 return
             if cmd == mavlink.MAV_CMD_DO_JUMP:
@@ -360,7 +354,7 @@ class MissionExecutor:
     def _next_nav(self, seq: int) -> MissionItem | None:
         """The next navigation item from ``seq`` in list order (DO_JUMP not followed)."""
         for item in self.items[seq:]:
-            if item.command in _NAV:
+            if item.command in NAV_COMMANDS:
                 return item
             if item.command == mavlink.MAV_CMD_DO_JUMP:
                 return None

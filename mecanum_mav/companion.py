@@ -260,7 +260,7 @@ class Companion:
 
     def _compute_output(self, now: float) -> tuple[tuple[float, ...], tuple[int, ...]]:
         """(normalized wheel commands, pulse widths in us) for the current state."""
-        if self.vehicle.guided() or self.vehicle.auto():
+        if self.vehicle.autonomous():
             return self._guided_output(now)
         self._next_control_s = math.inf
         self._guided_last = None
@@ -616,10 +616,10 @@ class Companion:
 
     def _sync_executor(self, now: float) -> None:
         """The mission runs while AUTO may drive (armed, no failsafe); otherwise it pauses."""
-        ex = self.executor
-        if ex.running and not self.vehicle.auto():
+        ex, may_drive = self.executor, self.vehicle.auto()
+        if ex.running and not may_drive:
             ex.pause()
-        elif self.vehicle.auto() and not ex.running and not ex.complete:
+        elif may_drive and not ex.running and not ex.complete:
             pose = self.estimator.pose
             reason = ex.start(pose, now, self.origin)
             if reason is not None:

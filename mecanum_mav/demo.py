@@ -54,9 +54,9 @@ def demo_mission(side_m: float) -> tuple[list[MissionItem], list[Vec]]:
 class ScriptedGroundStation:
     """A minimal ground station on a pymavlink link: mission upload, arming, modes.
 
-    It speaks the vehicle's side of nothing: it is the client, with the mission protocol's
-    retries (a request not answered in ``timeout_s`` is answered again when re-requested; a
-    missing MISSION_ACK re-sends MISSION_COUNT).
+    The client side of the mission protocol: it answers each request the vehicle sends (also
+    re-requests) and, when the vehicle falls silent for the protocol's 1.5 s, starts again
+    with MISSION_COUNT.
     """
 
     def __init__(self, url: str = "udpin:127.0.0.1:0") -> None:

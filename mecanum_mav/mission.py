@@ -31,14 +31,13 @@ command p1 p2 p3 p4 x y z autocontinue``, with ``x``/``y`` in degrees (global fr
 
 from __future__ import annotations
 
-import contextlib
 import math
 import os
-import tempfile
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+from mecanum_mav.atomicfile import write_atomic
 from mecanum_mav.dialect import mavlink
 from mecanum_mav.geo import GlobalOrigin
 
@@ -46,7 +45,8 @@ __all__ = [
     "GLOBAL_FRAMES",
     "LOCAL_FRAMES",
     "MAX_ITEMS",
-    "SUPPORTED_COMMANDS",
+    "NAV_COMMANDS",
+    "POSITION_COMMANDS",
     "MissionFileError",
     "MissionItem",
     "MissionItemError",
@@ -76,11 +76,8 @@ LOCAL_FRAMES = frozenset({mavlink.MAV_FRAME_LOCAL_NED})
 POSITION_COMMANDS = frozenset({mavlink.MAV_CMD_NAV_WAYPOINT, mavlink.MAV_CMD_NAV_LOITER_TIME})
 """Commands whose x/y/z are a position."""
 
-SUPPORTED_COMMANDS = frozenset({
-    *POSITION_COMMANDS, mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH, mavlink.MAV_CMD_CONDITION_YAW,
-    mavlink.MAV_CMD_DO_CHANGE_SPEED, mavlink.MAV_CMD_DO_JUMP,
-})
-"""Commands the executor carries out; any other is skipped with a STATUSTEXT."""
+NAV_COMMANDS = POSITION_COMMANDS | {mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH}
+"""Navigation commands the executor drives (the rest it runs on the way, or skips)."""
 
 _LOCAL_SCALE = 1e4  # MISSION_ITEM_INT local x/y: metres * 1e4
 _GLOBAL_SCALE = 1e7  # MISSION_ITEM_INT global x/y: degrees * 1e7
@@ -274,26 +271,14 @@ def _format_xy(value: int, frame: int) -> str:
 
 
 def save_mission(items: Iterable[MissionItem], path: str | os.PathLike[str]) -> None:
-    """Write ``items`` to ``path`` atomically (a temporary file beside it, then rename)."""
-    target = Path(path)
+    """Write ``items`` to ``path`` atomically (:func:`~mecanum_mav.atomicfile.write_atomic`)."""
     lines = [_HEADER]
     for it in items:
         fields = [str(it.seq), str(it.current), str(it.frame), str(it.command),
                   *(repr(p) for p in it.params), _format_xy(it.x, it.frame),
                   _format_xy(it.y, it.frame), repr(it.z), str(it.autocontinue)]
         lines.append("\t".join(fields))
-    fd, tmp_name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
-    tmp = Path(tmp_name)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            f.write("\n".join(lines) + "\n")
-            f.flush()
-            os.fsync(f.fileno())
-        tmp.replace(target)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            tmp.unlink()
-        raise
+    write_atomic(path, ("\n".join(lines) + "\n").encode("utf-8"))
 
 
 def load_mission(path: str | os.PathLike[str]) -> list[MissionItem]:

@@ -57,16 +57,15 @@ import math
 import numbers
 import os
 import re
-import stat
 import struct
 import sys
-import tempfile
 import types
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from mecanum_mav import WHEEL_NAMES
+from mecanum_mav.atomicfile import write_atomic
 
 Value = int | float
 """A parameter value: ``int`` for int parameters, ``float`` for float parameters."""
@@ -821,42 +820,10 @@ def format_text(params: Mapping[str, Value], *, header: str | None = None) -> st
 def save(
     params: Mapping[str, Value], path: str | os.PathLike[str], *, header: str | None = None
 ) -> None:
-    """Write every parameter to ``path`` atomically (see the module docstring).
-
-    The file keeps the permissions of the file it replaces (0644 for a new file). On any
-    exception the temporary file is removed and ``path`` is untouched.
-    """
-    target = Path(path)
-    data = format_text(params, header=header).encode("utf-8")
-    try:
-        mode = stat.S_IMODE(target.stat().st_mode)
-    except FileNotFoundError:
-        mode = 0o644
-    fd, tmp_name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
-    tmp = Path(tmp_name)
-    try:
-        with os.fdopen(fd, "wb") as stream:
-            stream.write(data)
-            stream.flush()
-            os.fsync(stream.fileno())
-        tmp.chmod(mode)
-        tmp.replace(target)
-    except BaseException:
-        with contextlib.suppress(FileNotFoundError):
-            tmp.unlink()
-        raise
-    _fsync_directory(target.parent)
-
-
-def _fsync_directory(directory: Path) -> None:
-    """Make a rename durable (POSIX); a no-op where directories cannot be opened."""
-    if not hasattr(os, "O_DIRECTORY"):
-        return
-    fd = os.open(directory, os.O_RDONLY | os.O_DIRECTORY)
-    try:
-        os.fsync(fd)
-    finally:
-        os.close(fd)
+    """Write every parameter to ``path`` atomically
+    (:func:`~mecanum_mav.atomicfile.write_atomic`: the permissions of the file it replaces are
+    kept; on any exception ``path`` is untouched)."""
+    write_atomic(path, format_text(params, header=header).encode("utf-8"))
 
 
 def markdown_table() -> str:

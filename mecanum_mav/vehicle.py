@@ -52,6 +52,8 @@ class Severity(IntEnum):
 AVAILABLE_MODES: frozenset[Mode] = frozenset(Mode)
 """Modes this build can enter; asking for another is DENIED with a reason."""
 
+_AUTONOMOUS = (Mode.GUIDED, Mode.AUTO)
+
 
 @dataclass(frozen=True)
 class Decision:
@@ -178,13 +180,17 @@ class Vehicle:
             and not self.fc_lost and not self.gcs_failsafe
         )
 
+    def autonomous(self) -> bool:
+        """True when the controllers may move the wheels: armed, GUIDED or AUTO, no failsafe."""
+        return self.armed and self.mode in _AUTONOMOUS and not self.failsafe
+
     def guided(self) -> bool:
         """True when GUIDED setpoints may move the wheels: armed, GUIDED, no failsafe."""
-        return self.armed and self.mode is Mode.GUIDED and not self.failsafe
+        return self.mode is Mode.GUIDED and self.autonomous()
 
     def auto(self) -> bool:
         """True when the mission may move the wheels: armed, AUTO, no failsafe."""
-        return self.armed and self.mode is Mode.AUTO and not self.failsafe
+        return self.mode is Mode.AUTO and self.autonomous()
 
     @property
     def failsafe(self) -> bool:

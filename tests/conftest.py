@@ -103,3 +103,13 @@ def simulated_rover(params: Params | None = None, **companion_options) -> Iterat
         companion.close()
         sim.stop()
         gcs.close()
+
+
+@pytest.fixture
+def rover(request) -> Iterator[tuple]:
+    """A simulated rover (see :func:`simulated_rover`); parametrize indirectly with a dict of
+    parameter values."""
+    params = Params()
+    params.update(getattr(request, "param", {}))
+    with simulated_rover(params) as parts:
+        yield parts

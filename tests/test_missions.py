@@ -7,7 +7,6 @@ import math
 import time
 from dataclasses import replace
 
-import pytest
 from conftest import simulated_rover
 from missionpeer import (
     GLOBAL_REL,
@@ -45,14 +44,6 @@ def set_mode(gcs, mode: int) -> int:
 
 def text_seen(gcs, fragment: str, since: int, timeout_s: float = 1.0) -> bool:
     return gcs.wait("STATUSTEXT", lambda m: fragment in m.text, timeout_s, since) is not None
-
-
-@pytest.fixture
-def rover(request):
-    params = Params()
-    params.update(getattr(request, "param", {}))
-    with simulated_rover(params) as parts:
-        yield parts
 
 
 # --------------------------------------------------------------------------- the protocol

@@ -6,19 +6,9 @@ import math
 import time
 
 import pytest
-from conftest import simulated_rover
 from test_end_to_end import arm, stream_sticks
 
 from mecanum_mav.links import mavlink
-from mecanum_mav.params import Params
-
-
-@pytest.fixture
-def rover(request):
-    params = Params()
-    params.update(getattr(request, "param", {}))
-    with simulated_rover(params) as parts:
-        yield parts
 
 
 def settle(sim, gcs, companion, timeout_s: float = 3.0):
