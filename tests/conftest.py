@@ -9,10 +9,10 @@ from dataclasses import dataclass
 import pytest
 from mavpeers import Peer, flight_controller, ground_station
 
-from mecanum_mav.companion import Companion
-from mecanum_mav.links import mavlink
-from mecanum_mav.params import Params
-from mecanum_mav.simfc import SimFlightController
+from mecanum_mav.app.companion import Companion
+from mecanum_mav.config.params import Params
+from mecanum_mav.io.links import mavlink
+from mecanum_mav.sim.simfc import SimFlightController
 
 
 @dataclass

@@ -12,7 +12,7 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from mecanum_mav.links import Link, mavlink, open_link
+from mecanum_mav.io.links import Link, mavlink, open_link
 
 
 class Peer:

@@ -8,8 +8,8 @@ import time
 from collections.abc import Iterable
 from dataclasses import replace
 
-from mecanum_mav.links import mavlink
-from mecanum_mav.mission import MissionItem, float_xy, item_from_fields
+from mecanum_mav.io.links import mavlink
+from mecanum_mav.protocol.mission import MissionItem, float_xy, item_from_fields
 
 WP, LOITER, RTL = (mavlink.MAV_CMD_NAV_WAYPOINT, mavlink.MAV_CMD_NAV_LOITER_TIME,
                    mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH)

@@ -9,13 +9,13 @@ import math
 import pytest
 from missionpeer import JUMP, LOITER, RTL, SPEED, YAW, do, local_wp, renumber
 
-from mecanum_mav.auto import MissionExecutor
-from mecanum_mav.geometry import Pose2d, body_to_ned
-from mecanum_mav.guided import GuidedController
-from mecanum_mav.links import mavlink
-from mecanum_mav.mission import MissionItem
-from mecanum_mav.params import Params
-from mecanum_mav.pathfollow import Leg, LegFollower, corner_speed, sqrt_controller
+from mecanum_mav.config.params import Params
+from mecanum_mav.control.executor import MissionExecutor
+from mecanum_mav.control.guided import GuidedController
+from mecanum_mav.control.pathfollow import Leg, LegFollower, corner_speed, sqrt_controller
+from mecanum_mav.io.links import mavlink
+from mecanum_mav.mecanum.geometry import Pose2d, body_to_ned
+from mecanum_mav.protocol.mission import MissionItem
 
 HOME = local_wp(0, 0.0, 0.0)
 DT, TAU = 0.02, 0.08

@@ -13,10 +13,10 @@ import numpy as np
 import pytest
 from test_odometry import assert_pose_close, exact_arc
 
-from mecanum_mav.chassis import SimChassis
-from mecanum_mav.geometry import Pose2d
-from mecanum_mav.kinematics import MecanumKinematics
-from mecanum_mav.params import Params
+from mecanum_mav.config.params import Params
+from mecanum_mav.mecanum.geometry import Pose2d
+from mecanum_mav.mecanum.kinematics import MecanumKinematics
+from mecanum_mav.sim.chassis import SimChassis
 
 KIN = MecanumKinematics.from_half_extents(0.2, 0.15)
 FORWARD = (1.0, 1.0, 1.0, 1.0)

@@ -9,9 +9,9 @@ import sys
 
 import pytest
 
-from mecanum_mav.cli import main, run_batch
-from mecanum_mav.mixing import Desaturation
-from mecanum_mav.params import Params
+from mecanum_mav.app.cli import main, run_batch
+from mecanum_mav.config.params import Params
+from mecanum_mav.mecanum.mixing import Desaturation
 
 
 def run(capsys, *argv):
@@ -123,7 +123,7 @@ def test_params_save_writes_a_loadable_file(capsys, tmp_path):
 
 
 def test_console_script_runs_as_a_module():
-    done = subprocess.run([sys.executable, "-m", "mecanum_mav.cli", "mix", "-x", "1", "--json"],
+    done = subprocess.run([sys.executable, "-m", "mecanum_mav.app.cli", "mix", "-x", "1", "--json"],
                           capture_output=True, text=True, timeout=60, check=False)
     assert done.returncode == 0, done.stderr
     assert json.loads(done.stdout)["wheels"] == [1.0, 1.0, 1.0, 1.0]

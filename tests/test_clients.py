@@ -18,11 +18,11 @@ from pathlib import Path
 
 import pytest
 
-from mecanum_mav.companion import Companion
-from mecanum_mav.geo import GlobalOrigin
-from mecanum_mav.links import mavlink
-from mecanum_mav.params import SCHEMA, Params
-from mecanum_mav.simfc import SimFlightController
+from mecanum_mav.app.companion import Companion
+from mecanum_mav.config.params import SCHEMA, Params
+from mecanum_mav.io.links import mavlink
+from mecanum_mav.mecanum.geo import GlobalOrigin
+from mecanum_mav.sim.simfc import SimFlightController
 
 
 def free_udp_port() -> int:

@@ -9,8 +9,8 @@ import pytest
 from conftest import Rig
 from mavpeers import channels
 
-from mecanum_mav.links import mavlink
-from mecanum_mav.params import Params
+from mecanum_mav.config.params import Params
+from mecanum_mav.io.links import mavlink
 
 ARM = mavlink.MAV_CMD_COMPONENT_ARM_DISARM
 SET_MODE = mavlink.MAV_CMD_DO_SET_MODE
@@ -343,7 +343,7 @@ def test_an_exception_in_the_control_path_ends_at_neutral(rig, monkeypatch):
     def broken(*args, **kwargs):
         raise RuntimeError("mixer bug")
 
-    monkeypatch.setattr("mecanum_mav.companion.wheels_from_stick", broken)
+    monkeypatch.setattr("mecanum_mav.app.companion.wheels_from_stick", broken)
     since = rig.gcs.mark()
     assert drive(rig, 1000, 0, 0, NEUTRAL) is not None
     assert statustext(rig, "Error computing output: neutral", since)

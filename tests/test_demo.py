@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from mecanum_mav.cli import main
+from mecanum_mav.app.cli import main
 
 
 def test_demo_runs_the_mission_prints_a_table_per_leg_and_writes_the_figure(tmp_path, capsys):

@@ -19,9 +19,9 @@ import pytest
 from conftest import simulated_rover
 from mavpeers import channels, ground_station
 
-from mecanum_mav.companion import Companion
-from mecanum_mav.links import mavlink, mavutil
-from mecanum_mav.params import Params
+from mecanum_mav.app.companion import Companion
+from mecanum_mav.config.params import Params
+from mecanum_mav.io.links import mavlink, mavutil
 
 ARM = mavlink.MAV_CMD_COMPONENT_ARM_DISARM
 
@@ -92,7 +92,7 @@ def read_tlog(path: Path) -> list:
 
 
 def start_cli(*args: str) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, "-m", "mecanum_mav.cli", *args],
+    return subprocess.Popen([sys.executable, "-m", "mecanum_mav.app.cli", *args],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 

@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from mecanum_mav.envelope import non_clipping_limit_2010, robot_speed, speed_grid
-from mecanum_mav.mixing import chassis_from_wheels, polar_2011
+from mecanum_mav.mecanum.envelope import non_clipping_limit_2010, robot_speed, speed_grid
+from mecanum_mav.mecanum.mixing import chassis_from_wheels, polar_2011
 
 R2 = math.sqrt(0.5)
 HEADINGS = np.linspace(0.0, 360.0, 361)
@@ -82,7 +82,7 @@ def test_cartesian_square_stick_reaches_full_speed_on_cardinals_and_diagonals_al
 
 def test_plot_writes_every_figure(tmp_path):
     pytest.importorskip("matplotlib")
-    from mecanum_mav.plots import FIGURES, render_all
+    from mecanum_mav.app.plots import FIGURES, render_all
 
     paths = render_all(tmp_path)
     assert [p.name for p in paths] == [name for name, _ in FIGURES]

@@ -9,10 +9,10 @@ import pytest
 from conftest import simulated_rover
 from test_end_to_end import arm
 
-from mecanum_mav.geometry import Pose2d
-from mecanum_mav.guided import SetpointError, decode_setpoint
-from mecanum_mav.links import mavlink
-from mecanum_mav.params import Params
+from mecanum_mav.config.params import Params
+from mecanum_mav.control.guided import SetpointError, decode_setpoint
+from mecanum_mav.io.links import mavlink
+from mecanum_mav.mecanum.geometry import Pose2d
 
 IGNORE_POS, IGNORE_VEL, IGNORE_ACC = 1 | 2 | 4, 8 | 16 | 32, 64 | 128 | 256
 IGNORE_YAW, IGNORE_RATE = 1024, 2048

@@ -6,10 +6,10 @@ import math
 
 import pytest
 
-from mecanum_mav.estimator import WheelOdometryEstimator
-from mecanum_mav.geometry import Pose2d
-from mecanum_mav.guided import GuidedController, Setpoint
-from mecanum_mav.params import Params
+from mecanum_mav.config.params import Params
+from mecanum_mav.control.estimator import WheelOdometryEstimator
+from mecanum_mav.control.guided import GuidedController, Setpoint
+from mecanum_mav.mecanum.geometry import Pose2d
 
 ORIGIN = Pose2d(0.0, 0.0, 0.0)
 

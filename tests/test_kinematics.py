@@ -16,8 +16,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from mecanum_mav.geometry import Twist2d
-from mecanum_mav.kinematics import MecanumKinematics
+from mecanum_mav.mecanum.geometry import Twist2d
+from mecanum_mav.mecanum.kinematics import MecanumKinematics
 
 WPILIB_TOLERANCE = 0.1
 

@@ -1,4 +1,4 @@
-"""The mission protocol state machine (mecanum_mav.missionproto): fake time, no sockets."""
+"""The mission protocol state machine (protocol.missionservice): fake time, no sockets."""
 
 from __future__ import annotations
 
@@ -6,9 +6,9 @@ import math
 
 import pytest
 
-from mecanum_mav.dialect import mavlink
-from mecanum_mav.mission import MAX_ITEMS, MissionItem, item_from_fields
-from mecanum_mav.missionproto import (
+from mecanum_mav.protocol.dialect import mavlink
+from mecanum_mav.protocol.mission import MAX_ITEMS, MissionItem, item_from_fields
+from mecanum_mav.protocol.missionservice import (
     ITEM_TIMEOUT_S,
     MAX_RETRIES,
     MissionService,

@@ -22,12 +22,13 @@ from missionpeer import (
 )
 from test_end_to_end import arm
 
-from mecanum_mav.companion import Companion
-from mecanum_mav.geo import GlobalOrigin
-from mecanum_mav.links import mavlink
-from mecanum_mav.mission import MissionItem, load_mission
-from mecanum_mav.params import Params
-from mecanum_mav.pathfollow import Leg
+from mecanum_mav.app.companion import Companion
+from mecanum_mav.config.params import Params
+from mecanum_mav.control.pathfollow import Leg
+from mecanum_mav.io.links import mavlink
+from mecanum_mav.io.missionfile import load_mission
+from mecanum_mav.mecanum.geo import GlobalOrigin
+from mecanum_mav.protocol.mission import MissionItem
 
 SET_MODE = mavlink.MAV_CMD_DO_SET_MODE
 ACCEPTED = mavlink.MAV_MISSION_ACCEPTED

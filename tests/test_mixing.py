@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from mecanum_mav.mixing import (
+from mecanum_mav.mecanum.mixing import (
     ALGORITHM_NAMES,
     Desaturation,
     cartesian,

@@ -17,9 +17,16 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from mecanum_mav.geometry import Pose2d, Twist2d, pose_exp, pose_exp_array, pose_log, wrap_pi
-from mecanum_mav.kinematics import MecanumKinematics
-from mecanum_mav.odometry import MecanumOdometry
+from mecanum_mav.mecanum.geometry import (
+    Pose2d,
+    Twist2d,
+    pose_exp,
+    pose_exp_array,
+    pose_log,
+    wrap_pi,
+)
+from mecanum_mav.mecanum.kinematics import MecanumKinematics
+from mecanum_mav.mecanum.odometry import MecanumOdometry
 
 KIN = MecanumKinematics.from_half_extents(0.2, 0.15)
 
@@ -329,7 +336,7 @@ def test_wrap_pi_turns_non_finite_angles_into_nan():
 
 
 def test_body_to_ned_and_back_are_inverse_rotations_clockwise_from_north():
-    from mecanum_mav.geometry import body_to_ned, ned_to_body
+    from mecanum_mav.mecanum.geometry import body_to_ned, ned_to_body
 
     assert body_to_ned(1.0, 0.0, math.pi / 2) == pytest.approx((0.0, 1.0))  # facing east
     assert body_to_ned(0.0, 1.0, math.pi / 2) == pytest.approx((-1.0, 0.0))  # right = south

@@ -8,7 +8,7 @@ import time
 import pytest
 from test_end_to_end import arm, stream_sticks
 
-from mecanum_mav.links import mavlink
+from mecanum_mav.io.links import mavlink
 
 
 def settle(sim, gcs, companion, timeout_s: float = 3.0):

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from mavpeers import flight_controller, ground_station
 
-from mecanum_mav.companion import Companion
-from mecanum_mav.links import mavlink
+from mecanum_mav.app.companion import Companion
+from mecanum_mav.io.links import mavlink
 from mecanum_mav.params import SCHEMA, load
 
 REAL32, INT32 = mavlink.MAV_PARAM_TYPE_REAL32, mavlink.MAV_PARAM_TYPE_INT32

@@ -1,4 +1,4 @@
-"""The parameter schema, the validated store and parameter files (mecanum_mav.params)."""
+"""The parameter schema, the validated store and parameter files (mecanum_mav.config.params)."""
 
 from __future__ import annotations
 
@@ -14,6 +14,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from mecanum_mav.config.params import _index
+from mecanum_mav.io.paramfile import main as _main
 from mecanum_mav.params import (
     DEFAULTS_FILE_HEADER,
     SCHEMA,
@@ -23,8 +25,6 @@ from mecanum_mav.params import (
     ParamFileError,
     Params,
     ParamSpec,
-    _index,
-    _main,
     float32_canonical,
     format_text,
     load,
@@ -291,7 +291,7 @@ def test_a_copy_is_independent_of_its_original():
 def test_the_committed_default_file_is_generated_from_the_schema_defaults():
     expected = format_text(Params(), header=DEFAULTS_FILE_HEADER)
     assert DEFAULT_FILE.read_text(encoding="utf-8") == expected, (
-        "params/default.parm is stale: python -m mecanum_mav.params "
+        "params/default.parm is stale: python -m mecanum_mav.config.params "
         "--write-defaults params/default.parm"
     )
     assert load(DEFAULT_FILE) == Params()

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from mecanum_mav.params import markdown_table
+from mecanum_mav.config.params import markdown_table
 
 ROOT = Path(__file__).resolve().parent.parent
 

@@ -9,9 +9,9 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from mecanum_mav.params import Params
-from mecanum_mav.pwm import PwmMap, WheelOutput
-from mecanum_mav.shaping import deadband, expo, shape_stick, square_to_circle
+from mecanum_mav.config.params import Params
+from mecanum_mav.control.pwm import PwmMap, WheelOutput
+from mecanum_mav.mecanum.shaping import deadband, expo, shape_stick, square_to_circle
 
 unit = st.floats(-1.0, 1.0, allow_nan=False)
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import time
 
-from mecanum_mav.links import mavlink
+from mecanum_mav.io.links import mavlink
 
 CMD = mavlink
 

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import pytest
 
-from mecanum_mav.manual import InputError, RcStickState, stick_from_manual_control
-from mecanum_mav.params import Params
-from mecanum_mav.vehicle import Mode, Vehicle
+from mecanum_mav.config.params import Params
+from mecanum_mav.control.sticks import InputError, RcStickState, stick_from_manual_control
+from mecanum_mav.control.vehicle import Mode, Vehicle
 
 
 def vehicle(**values: float) -> Vehicle:

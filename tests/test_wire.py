@@ -5,8 +5,8 @@ from __future__ import annotations
 from hypothesis import given
 from hypothesis import strategies as st
 
-from mecanum_mav.links import mavlink
-from mecanum_mav.wire import decode_manual_control, encode_rc_override
+from mecanum_mav.io.links import mavlink
+from mecanum_mav.protocol.codec import decode_manual_control, encode_rc_override
 
 int16 = st.integers(-32768, 32767)
 uint16 = st.integers(0, 65535)

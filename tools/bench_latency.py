@@ -12,7 +12,7 @@ Method
     - baseline: a minimal pymavlink relay, a ``selectors`` loop on two ``udpout`` links that
       parses each datagram (``parse_buffer``) and answers every MANUAL_CONTROL at once with an
       RC_CHANNELS_OVERRIDE (channels 1-4 = 1500 + x // 2), nothing else;
-    - companion: the real :class:`mecanum_mav.companion.Companion` with default parameters,
+    - companion: the real :class:`mecanum_mav.app.companion.Companion` with default parameters,
       armed over COMMAND_LONG first, doing everything it does (20 Hz refresh, 1 Hz heartbeats,
       failsafe checks, status texts).
 
@@ -78,12 +78,12 @@ from typing import Any
 
 import numpy as np
 
-from mecanum_mav.links import Link, mavlink, open_link
-from mecanum_mav.manual import stick_from_manual_control
-from mecanum_mav.mixing import ALGORITHM_NAMES, Desaturation, mix_stick
-from mecanum_mav.params import Params
-from mecanum_mav.pwm import PwmMap
-from mecanum_mav.shaping import shape_stick
+from mecanum_mav.config.params import Params
+from mecanum_mav.control.pwm import PwmMap
+from mecanum_mav.control.sticks import stick_from_manual_control
+from mecanum_mav.io.links import Link, mavlink, open_link
+from mecanum_mav.mecanum.mixing import ALGORITHM_NAMES, Desaturation, mix_stick
+from mecanum_mav.mecanum.shaping import shape_stick
 
 # ---------------------------------------------------------------------------- constants
 
@@ -205,7 +205,7 @@ def sut_main(kind: str, gcs_url: str, fc_url: str, ctl: Connection, profile: boo
                 os.write(stop_w, b"x")
                 thread.join(5.0)
         else:
-            from mecanum_mav.companion import Companion
+            from mecanum_mav.app.companion import Companion
 
             companion = Companion(Params(), gcs_url, fc_url)
             loop = companion.run if profiler is None else lambda: profiler.runcall(companion.run)

@@ -30,17 +30,17 @@ from typing import Any
 
 import numpy as np
 
-from mecanum_mav.links import Link, mavlink, open_link
-from mecanum_mav.params import Params
-from mecanum_mav.simfc import SimFlightController
+from mecanum_mav.config.params import Params
+from mecanum_mav.io.links import Link, mavlink, open_link
+from mecanum_mav.sim.simfc import SimFlightController
 
 VELOCITY_ONLY = 1 | 2 | 4 | 32 | 64 | 128 | 256 | 1024 | 2048
 
 
 def companion_main(gcs_url: str, fc_url: str, ctl: Connection) -> None:
     """Child: run the companion, time its control ticks, answer "cpu"/"ticks"/"stop"."""
-    from mecanum_mav.companion import Companion
-    from mecanum_mav.guided import GuidedController
+    from mecanum_mav.app.companion import Companion
+    from mecanum_mav.control.guided import GuidedController
 
     ticks: list[float] = []
     original = GuidedController.update

@@ -24,7 +24,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from mecanum_mav.mixing import (
+from mecanum_mav.mecanum.mixing import (
     cartesian,
     holonomic_2010,
     max_speed_scaled,

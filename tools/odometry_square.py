@@ -21,10 +21,10 @@ import sys
 import time
 from dataclasses import dataclass
 
-from mecanum_mav.companion import Companion
-from mecanum_mav.links import Link, mavlink, open_link
-from mecanum_mav.params import Params
-from mecanum_mav.simfc import SimFlightController
+from mecanum_mav.app.companion import Companion
+from mecanum_mav.config.params import Params
+from mecanum_mav.io.links import Link, mavlink, open_link
+from mecanum_mav.sim.simfc import SimFlightController
 
 POSITION_ONLY = 8 | 16 | 32 | 64 | 128 | 256 | 2048  # ignore velocity, accel, yaw rate
 

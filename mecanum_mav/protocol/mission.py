@@ -32,14 +32,11 @@ command p1 p2 p3 p4 x y z autocontinue``, with ``x``/``y`` in degrees (global fr
 from __future__ import annotations
 
 import math
-import os
-from collections.abc import Iterable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
-from pathlib import Path
 
-from mecanum_mav.atomicfile import write_atomic
-from mecanum_mav.dialect import mavlink
-from mecanum_mav.geo import GlobalOrigin
+from mecanum_mav.mecanum.geo import GlobalOrigin
+from mecanum_mav.protocol.dialect import mavlink
 
 __all__ = [
     "GLOBAL_FRAMES",
@@ -47,17 +44,13 @@ __all__ = [
     "MAX_ITEMS",
     "NAV_COMMANDS",
     "POSITION_COMMANDS",
-    "MissionFileError",
     "MissionItem",
     "MissionItemError",
     "check_item",
     "command_name",
     "float_xy",
     "item_from_fields",
-    "load_mission",
-    "mission_path_for",
     "position_ned",
-    "save_mission",
 ]
 
 MAX_ITEMS = 5000
@@ -79,8 +72,8 @@ POSITION_COMMANDS = frozenset({mavlink.MAV_CMD_NAV_WAYPOINT, mavlink.MAV_CMD_NAV
 NAV_COMMANDS = POSITION_COMMANDS | {mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH}
 """Navigation commands the executor drives (the rest it runs on the way, or skips)."""
 
-_LOCAL_SCALE = 1e4  # MISSION_ITEM_INT local x/y: metres * 1e4
-_GLOBAL_SCALE = 1e7  # MISSION_ITEM_INT global x/y: degrees * 1e7
+LOCAL_XY_SCALE = 1e4  # MISSION_ITEM_INT local x/y: metres * 1e4
+GLOBAL_XY_SCALE = 1e7  # MISSION_ITEM_INT global x/y: degrees * 1e7
 _INT32 = 2**31 - 1
 MAX_LOCAL_M = 100_000.0
 MAX_SPEED_MPS = 50.0
@@ -94,9 +87,6 @@ class MissionItemError(ValueError):
         super().__init__(text)
         self.result = result
 
-
-class MissionFileError(ValueError):
-    """A mission file that cannot be read; the text names the file and line."""
 
 
 @dataclass(frozen=True)
@@ -130,11 +120,12 @@ def command_name(command: int) -> str:
     return entry.name.removeprefix("MAV_CMD_")
 
 
-def _scale(frame: int) -> float:
+def xy_scale(frame: int) -> float:
+    """How MISSION_ITEM_INT scales x/y in ``frame``: 1e7 global, 1e4 local, else 1."""
     if frame in GLOBAL_FRAMES:
-        return _GLOBAL_SCALE
+        return GLOBAL_XY_SCALE
     if frame in LOCAL_FRAMES:
-        return _LOCAL_SCALE
+        return LOCAL_XY_SCALE
     return 1.0  # MAV_FRAME_MISSION and the rest: x/y are plain numbers
 
 
@@ -151,7 +142,7 @@ def item_from_fields(seq: int, frame: int, command: int, current: int, autoconti
         MissionItemError: a legacy x/y that is not finite or does not fit the integer form.
     """
     if not encoded:
-        scale = _scale(frame)
+        scale = xy_scale(frame)
         for value, result, name in ((x, mavlink.MAV_MISSION_INVALID_PARAM5_X, "x"),
                                     (y, mavlink.MAV_MISSION_INVALID_PARAM6_Y, "y")):
             if not (math.isfinite(value) and abs(value * scale) <= _INT32):
@@ -164,7 +155,7 @@ def item_from_fields(seq: int, frame: int, command: int, current: int, autoconti
 
 def float_xy(item: MissionItem) -> tuple[float, float]:
     """The item's x/y as the legacy MISSION_ITEM sends them (degrees, metres or as-is)."""
-    scale = _scale(item.frame)
+    scale = xy_scale(item.frame)
     return item.x / scale, item.y / scale
 
 
@@ -202,7 +193,7 @@ def check_item(item: MissionItem, count: int) -> None:
             _need(abs(item.y) <= 1_800_000_000, mavlink.MAV_MISSION_INVALID_PARAM6_Y,
                   f"{where}: longitude off the earth")
         else:
-            limit = MAX_LOCAL_M * _LOCAL_SCALE
+            limit = MAX_LOCAL_M * LOCAL_XY_SCALE
             _need(abs(item.x) <= limit, mavlink.MAV_MISSION_INVALID_PARAM5_X,
                   f"{where}: x beyond 100 km")
             _need(abs(item.y) <= limit, mavlink.MAV_MISSION_INVALID_PARAM6_Y,
@@ -243,69 +234,9 @@ def position_ned(item: MissionItem, origin: GlobalOrigin | None) -> tuple[float,
         ValueError: a global item and no origin, or a frame without a position.
     """
     if item.frame in LOCAL_FRAMES:
-        return item.x / _LOCAL_SCALE, item.y / _LOCAL_SCALE
+        return item.x / LOCAL_XY_SCALE, item.y / LOCAL_XY_SCALE
     if item.frame in GLOBAL_FRAMES:
         if origin is None:
             raise ValueError("global item and no origin (ORIGIN_LAT/LON or SET_GPS_GLOBAL_ORIGIN)")
         return origin.to_local(item.x, item.y)
     raise ValueError(f"frame {item.frame} has no position")
-
-
-# ------------------------------------------------------------------ the mission file
-
-_HEADER = "QGC WPL 110"
-
-
-def mission_path_for(param_path: str | os.PathLike[str]) -> Path:
-    """Where the mission of a parameter file lives: beside it, ``rover.parm`` ->
-    ``rover.waypoints``."""
-    return Path(param_path).with_suffix(".waypoints")
-
-
-def _format_xy(value: int, frame: int) -> str:
-    scale = _scale(frame)
-    if scale == 1.0:
-        return str(value)
-    digits = 7 if scale == _GLOBAL_SCALE else 4
-    return f"{value / scale:.{digits}f}"
-
-
-def save_mission(items: Iterable[MissionItem], path: str | os.PathLike[str]) -> None:
-    """Write ``items`` to ``path`` atomically (:func:`~mecanum_mav.atomicfile.write_atomic`)."""
-    lines = [_HEADER]
-    for it in items:
-        fields = [str(it.seq), str(it.current), str(it.frame), str(it.command),
-                  *(repr(p) for p in it.params), _format_xy(it.x, it.frame),
-                  _format_xy(it.y, it.frame), repr(it.z), str(it.autocontinue)]
-        lines.append("\t".join(fields))
-    write_atomic(path, ("\n".join(lines) + "\n").encode("utf-8"))
-
-
-def load_mission(path: str | os.PathLike[str]) -> list[MissionItem]:
-    """Read a QGC WPL 110 file; every item is checked as an upload would be.
-
-    Raises:
-        MissionFileError: ``file:line: what is wrong`` for the first problem found.
-        OSError: the file cannot be read.
-    """
-    source = Path(path)
-    lines = source.read_text(encoding="utf-8").splitlines()
-    if not lines or lines[0].strip() != _HEADER:
-        raise MissionFileError(f"{source}:1: not a mission file (first line must be {_HEADER})")
-    items: list[MissionItem] = []
-    rows = [(n, line.split()) for n, line in enumerate(lines[1:], start=2) if line.strip()]
-    for n, fields in rows:
-        try:
-            if len(fields) != 12:
-                raise ValueError(f"expected 12 fields, found {len(fields)}")
-            seq, current, frame, command = (int(f) for f in fields[:4])
-            p1, p2, p3, p4, x, y, z = (float(f) for f in fields[4:11])
-            if seq != len(items):
-                raise ValueError(f"item {seq} where item {len(items)} was expected")
-            item = item_from_fields(seq, frame, command, current, int(fields[11]),
-                                    (p1, p2, p3, p4), x, y, z, encoded=False)
-            check_item(item, len(rows))
-        except ValueError as exc:  # MissionItemError is a ValueError too
-            raise MissionFileError(f"{source}:{n}: {exc}") from None
-        items.append(item)
-    return items

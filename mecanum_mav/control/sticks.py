@@ -1,8 +1,8 @@
 """Pilot stick input: MANUAL_CONTROL and ground-station RC_CHANNELS_OVERRIDE -> (x, y, r).
 
 Output is a normalized stick: x forward, y right, r clockwise, each in [-1, 1], before input
-shaping (:func:`mecanum_mav.shaping.shape_stick`). Decoding is strict: a message with a value
-outside its field's range is rejected whole with a reason (:class:`InputError`), never
+shaping (:func:`mecanum_mav.mecanum.shaping.shape_stick`). Decoding is strict: a message
+with a value outside its field's range is rejected whole with a reason (:class:`InputError`), never
 clamped into motion.
 
 MANUAL_CONTROL (MAVLink "directional control"): x forward, y right, r clockwise, each
@@ -21,7 +21,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from mecanum_mav.params import Params
+from mecanum_mav.config.params import Params
 
 __all__ = [
     "INVALID_AXIS",

@@ -1,7 +1,7 @@
 """The MAVLink parameter protocol, served from the one parameter schema.
 
 - ``PARAM_REQUEST_LIST``: every parameter as ``PARAM_VALUE``; the index is the parameter's
-  position in :data:`mecanum_mav.params.SCHEMA`, the count the schema's length.
+  position in :data:`mecanum_mav.config.params.SCHEMA`, the count the schema's length.
 - ``PARAM_REQUEST_READ``: by index, or by name when ``param_index`` is -1. An unknown name or
   index gets no answer (the protocol's way: the ground station times out).
 - ``PARAM_SET``: validated by the schema (range, integer, finite, cross-parameter rules). If
@@ -17,8 +17,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from mecanum_mav.dialect import mavlink
-from mecanum_mav.params import SCHEMA, SPECS, ParamError, Params
+from mecanum_mav.config.params import SCHEMA, SPECS, ParamError, Params
+from mecanum_mav.protocol.dialect import mavlink
 
 __all__ = ["RESTART_REQUIRED", "ParamService", "ParamValue"]
 
@@ -45,7 +45,7 @@ class ParamValue:
 
 
 class ParamService:
-    """Answers the parameter protocol for a :class:`~mecanum_mav.params.Params` store."""
+    """Answers the parameter protocol for a :class:`~mecanum_mav.config.params.Params` store."""
 
     def __init__(self, params: Params) -> None:
         self.params = params

@@ -1,7 +1,8 @@
 """Speed envelopes of the mixing algorithms: the numbers behind seed 000's illustrations.
 
 "Robot speed" is the translation speed that the wheels' forward kinematics give, as a fraction
-of full wheel speed: ``hypot(x, y)`` of :func:`mecanum_mav.mixing.chassis_from_wheels`. It is
+of full wheel speed: ``hypot(x, y)`` of
+:func:`mecanum_mav.mecanum.mixing.chassis_from_wheels`. It is
 what Anderson's comparison of the 2010 and 2011 WPILib algorithms plots against the commanded
 velocity (magnitude) and heading (direction, degrees clockwise from the nose).
 """
@@ -11,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from mecanum_mav.mixing import ALGORITHMS, cartesian, chassis_from_wheels
+from mecanum_mav.mecanum.mixing import ALGORITHMS, cartesian, chassis_from_wheels
 
 __all__ = [
     "ENVELOPE_ALGORITHMS",
@@ -22,7 +23,7 @@ __all__ = [
 ]
 
 ENVELOPE_ALGORITHMS: tuple[str, ...] = tuple(ALGORITHMS)
-"""Names accepted by :func:`robot_speed`: those of :data:`mecanum_mav.mixing.ALGORITHMS`."""
+"""Names accepted by :func:`robot_speed`: those of :data:`mecanum_mav.mecanum.mixing.ALGORITHMS`."""
 
 
 def square_stick(
@@ -46,7 +47,7 @@ def robot_speed(
     """Translation speed (fraction of full wheel speed) an algorithm gives for a command.
 
     Args:
-        algorithm: a key of :data:`mecanum_mav.mixing.ALGORITHMS`. The polar algorithms take
+        algorithm: a key of :data:`mecanum_mav.mecanum.mixing.ALGORITHMS`. The polar algorithms take
             ``velocity`` as magnitude; ``cartesian`` takes the square stick of
             :func:`square_stick`.
         velocity: commanded velocity (magnitude), [0, 1].

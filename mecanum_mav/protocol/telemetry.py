@@ -20,9 +20,9 @@ from dataclasses import dataclass
 from typing import Any
 
 from mecanum_mav import __version__
-from mecanum_mav.dialect import mavlink
-from mecanum_mav.geometry import body_to_ned
-from mecanum_mav.params import Params
+from mecanum_mav.config.params import Params
+from mecanum_mav.mecanum.geometry import body_to_ned
+from mecanum_mav.protocol.dialect import mavlink
 
 __all__ = ["STREAMS", "StreamSchedule", "TelemetryState", "build", "ftp_nak"]
 

@@ -23,7 +23,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from enum import IntEnum
 
-from mecanum_mav.params import Params
+from mecanum_mav.config.params import Params
 
 __all__ = ["Decision", "Mode", "Severity", "Vehicle"]
 

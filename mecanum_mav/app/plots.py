@@ -1,7 +1,7 @@
 """PNG figures of the speed envelopes (seed 000's Illustrations 1-7, and our mixers).
 
 Needs matplotlib: ``pip install 'mecanum-mav[plot]'``. The numbers come from
-:mod:`mecanum_mav.envelope`; this module only draws them.
+:mod:`mecanum_mav.mecanum.envelope`; this module only draws them.
 """
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from mecanum_mav.envelope import non_clipping_limit_2010, robot_speed, speed_grid
+from mecanum_mav.mecanum.envelope import non_clipping_limit_2010, robot_speed, speed_grid
 
 __all__ = ["FIGURES", "render_all"]
 

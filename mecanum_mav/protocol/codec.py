@@ -19,7 +19,7 @@ from __future__ import annotations
 import struct
 from typing import Any
 
-from mecanum_mav.dialect import mavlink
+from mecanum_mav.protocol.dialect import mavlink
 
 __all__ = ["ManualControl", "decode_manual_control", "encode_rc_override"]
 

@@ -1,5 +1,5 @@
 """The mission protocol on the ground-station link: MAVLink messages in and out of
-:class:`~mecanum_mav.missionproto.MissionService`.
+:class:`~mecanum_mav.protocol.missionservice.MissionService`.
 
 This is the I/O edge only: it decodes the mission messages, hands them to the pure protocol
 machine and sends what it answers. The companion routes the messages here and calls
@@ -11,7 +11,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
-from mecanum_mav.missionproto import MissionService, Outgoing
+from mecanum_mav.protocol.missionservice import MissionService, Outgoing
 
 __all__ = ["MISSION_MESSAGES", "MissionLink"]
 

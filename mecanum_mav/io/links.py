@@ -1,13 +1,13 @@
 """MAVLink links: pymavlink connections driven by a selector loop, MAVLink 2, never raising.
 
-MAVLink 2 and the ArduPilot dialect throughout (:mod:`mecanum_mav.dialect`). URLs are pymavlink
-connection strings: ``udpin:HOST:PORT`` (listen; replies go to every peer heard),
+MAVLink 2 and the ArduPilot dialect throughout (:mod:`mecanum_mav.protocol.dialect`). URLs are
+pymavlink connection strings: ``udpin:HOST:PORT`` (listen; replies go to every peer heard),
 ``udpout:HOST:PORT``, ``tcp:HOST:PORT``, ``tcpin:HOST:PORT``, or a serial device
 ``/dev/ttyUSB0,57600`` (pyserial).
 
 A :class:`Link` is read when its file descriptor is readable: :meth:`Link.read` returns every
 message that arrived, parsed from the raw bytes (a datagram may carry several). On datagram
-links a lone MANUAL_CONTROL takes the fast codec of :mod:`mecanum_mav.wire`, and
+links a lone MANUAL_CONTROL takes the fast codec of :mod:`mecanum_mav.protocol.codec`, and
 :meth:`Link.send_rc_override` packs with it too: the control path never waits on pymavlink's
 pure-Python parser and packer. Malformed bytes, bad CRCs and truncated packets are counted in
 :attr:`Link.bad`, never raised; a send that fails (peer gone, no route) is counted in
@@ -22,8 +22,8 @@ import struct
 import time
 from typing import Any, BinaryIO
 
-from mecanum_mav.dialect import mavlink, mavutil
-from mecanum_mav.wire import decode_manual_control, encode_rc_override
+from mecanum_mav.protocol.codec import decode_manual_control, encode_rc_override
+from mecanum_mav.protocol.dialect import mavlink, mavutil
 
 log = logging.getLogger(__name__)
 

@@ -10,7 +10,7 @@ Sources (parameter ``ODOM_SRC``):
 Heading (parameter ``ODOM_YAW_SRC``): 0 auto (default) takes the flight controller's
 ``ATTITUDE`` yaw while it is fresh, because a gyro beats wheel-derived yaw on a slipping
 mecanum base; 1 uses the wheels' own turn. Translation always comes from the wheels by least
-squares (:class:`~mecanum_mav.kinematics.MecanumKinematics`) and the SE(2) exponential.
+squares (:class:`~mecanum_mav.mecanum.kinematics.MecanumKinematics`) and the SE(2) exponential.
 
 Everything is in the local NED frame (x north, y east, yaw clockwise from north) with the
 origin where the companion started or was last reset; velocities are body FRD. Time is passed
@@ -22,10 +22,10 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
-from mecanum_mav.geometry import Pose2d, ned_to_body, wrap_pi
-from mecanum_mav.kinematics import MecanumKinematics
-from mecanum_mav.odometry import MecanumOdometry
-from mecanum_mav.params import Params
+from mecanum_mav.config.params import Params
+from mecanum_mav.mecanum.geometry import Pose2d, ned_to_body, wrap_pi
+from mecanum_mav.mecanum.kinematics import MecanumKinematics
+from mecanum_mav.mecanum.odometry import MecanumOdometry
 
 __all__ = ["FRESH_S", "WheelOdometryEstimator"]
 

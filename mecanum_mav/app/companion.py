@@ -34,34 +34,41 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any, BinaryIO
 
-from mecanum_mav.auto import MissionExecutor
-from mecanum_mav.estimator import WheelOdometryEstimator
-from mecanum_mav.geo import GlobalOrigin
-from mecanum_mav.guided import GuidedController, SetpointError, decode_setpoint
-from mecanum_mav.links import Link, mavlink, open_link
-from mecanum_mav.manual import InputError, RcStickState, stick_from_manual_control
-from mecanum_mav.mission import (
+from mecanum_mav.config.params import Params
+from mecanum_mav.control.estimator import WheelOdometryEstimator
+from mecanum_mav.control.executor import MissionExecutor
+from mecanum_mav.control.guided import GuidedController, SetpointError, decode_setpoint
+from mecanum_mav.control.pwm import PwmMap
+from mecanum_mav.control.sticks import InputError, RcStickState, stick_from_manual_control
+from mecanum_mav.control.vehicle import Decision, Mode, Severity, Vehicle
+from mecanum_mav.io.links import Link, mavlink, open_link
+from mecanum_mav.io.missionfile import (
     MissionFileError,
-    MissionItem,
     load_mission,
     mission_path_for,
     save_mission,
 )
-from mecanum_mav.missionlink import MISSION_MESSAGES, MissionLink
-from mecanum_mav.missionproto import MissionService
-from mecanum_mav.mixing import (
+from mecanum_mav.io.paramfile import save
+from mecanum_mav.mecanum.geo import GlobalOrigin
+from mecanum_mav.mecanum.mixing import (
     ALGORITHM_NAMES,
     Desaturation,
     desaturate_prioritized,
     wheels_from_stick,
 )
-from mecanum_mav.paramproto import RESTART_REQUIRED, ParamService, ParamValue
-from mecanum_mav.params import Params, save
-from mecanum_mav.pwm import PwmMap
-from mecanum_mav.rcout import override_fields, release_fields
-from mecanum_mav.shaping import shape_stick
-from mecanum_mav.telemetry import REQUESTABLE, StreamSchedule, TelemetryState, build, ftp_nak
-from mecanum_mav.vehicle import Decision, Mode, Severity, Vehicle
+from mecanum_mav.mecanum.shaping import shape_stick
+from mecanum_mav.protocol.mission import MissionItem
+from mecanum_mav.protocol.missionlink import MISSION_MESSAGES, MissionLink
+from mecanum_mav.protocol.missionservice import MissionService
+from mecanum_mav.protocol.paramservice import RESTART_REQUIRED, ParamService, ParamValue
+from mecanum_mav.protocol.rcoverride import override_fields, release_fields
+from mecanum_mav.protocol.telemetry import (
+    REQUESTABLE,
+    StreamSchedule,
+    TelemetryState,
+    build,
+    ftp_nak,
+)
 
 log = logging.getLogger(__name__)
 

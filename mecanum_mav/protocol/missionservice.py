@@ -10,9 +10,10 @@ Upload (ground station -> vehicle)
     ``MISSION_COUNT(n)`` starts it; the vehicle requests item 0, 1, ... with
     ``MISSION_REQUEST_INT`` and after the last item answers ``MISSION_ACK`` ACCEPTED; only then
     is the stored mission replaced (atomic: any failure leaves the old mission as it was).
-    ``n == 0`` clears the mission at once; ``n >`` :data:`~mecanum_mav.mission.MAX_ITEMS` gets
-    NO_SPACE. Each item goes through :func:`~mecanum_mav.mission.item_from_fields` and
-    :func:`~mecanum_mav.mission.check_item`; a refused item ends the upload with a
+    ``n == 0`` clears the mission at once; ``n >``
+    :data:`~mecanum_mav.protocol.mission.MAX_ITEMS` gets NO_SPACE. Each item goes
+    through :func:`~mecanum_mav.protocol.mission.item_from_fields` and
+    :func:`~mecanum_mav.protocol.mission.check_item`; a refused item ends the upload with a
     ``MISSION_ACK`` carrying its MAV_MISSION_RESULT and the reason as an ``"error"`` event.
 
     Every request has a timeout of :data:`ITEM_TIMEOUT_S` (the spec's value for items). When it
@@ -45,7 +46,7 @@ Upload (ground station -> vehicle)
 Download (vehicle -> ground station)
     ``MISSION_REQUEST_LIST`` -> ``MISSION_COUNT``; ``MISSION_REQUEST_INT(seq)`` ->
     ``MISSION_ITEM_INT``; ``MISSION_REQUEST(seq)`` -> ``MISSION_ITEM`` with float x/y
-    (degrees or metres, :func:`~mecanum_mav.mission.float_xy`). The spec suggests answering
+    (degrees or metres, :func:`~mecanum_mav.protocol.mission.float_xy`). The spec suggests answering
     ``MISSION_REQUEST`` with ``MISSION_ITEM_INT``; ArduPilot answers ``MISSION_ITEM`` and old
     ground stations that send ``MISSION_REQUEST`` expect it, so this follows ArduPilot. The
     ground station drives the download and its retries, so the vehicle keeps no download
@@ -79,8 +80,8 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
-from mecanum_mav.dialect import mavlink
-from mecanum_mav.mission import (
+from mecanum_mav.protocol.dialect import mavlink
+from mecanum_mav.protocol.mission import (
     MAX_ITEMS,
     MissionItem,
     MissionItemError,
@@ -131,7 +132,7 @@ class Outgoing:
     @property
     def xy(self) -> tuple[float, float] | tuple[int, int]:
         """The item's x/y as this message carries them: the stored integers for
-        MISSION_ITEM_INT, degrees or metres (:func:`~mecanum_mav.mission.float_xy`) for the
+        MISSION_ITEM_INT, degrees or metres (:func:`~mecanum_mav.protocol.mission.float_xy`) for the
         legacy MISSION_ITEM.
 
         Raises:

@@ -27,11 +27,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from mecanum_mav.geometry import Pose2d, Twist2d, pose_exp
-from mecanum_mav.kinematics import MecanumKinematics
+from mecanum_mav.mecanum.geometry import Pose2d, Twist2d, pose_exp
+from mecanum_mav.mecanum.kinematics import MecanumKinematics
 
 if TYPE_CHECKING:
-    from mecanum_mav.params import Params
+    from mecanum_mav.config.params import Params
 
 __all__ = ["SimChassis"]
 

@@ -29,8 +29,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from mecanum_mav.geometry import Pose2d, body_to_ned, ned_to_body, wrap_pi
-from mecanum_mav.params import Params
+from mecanum_mav.config.params import Params
+from mecanum_mav.mecanum.geometry import Pose2d, body_to_ned, ned_to_body, wrap_pi
 
 __all__ = ["FRAMES", "GuidedController", "Setpoint", "SetpointError", "decode_setpoint"]
 

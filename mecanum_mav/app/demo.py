@@ -22,12 +22,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from mecanum_mav.companion import Companion
-from mecanum_mav.links import Link, mavlink, open_link
-from mecanum_mav.mission import MissionItem
-from mecanum_mav.params import Params
-from mecanum_mav.pathfollow import Leg
-from mecanum_mav.simfc import SimFlightController
+from mecanum_mav.app.companion import Companion
+from mecanum_mav.config.params import Params
+from mecanum_mav.control.pathfollow import Leg
+from mecanum_mav.io.links import Link, mavlink, open_link
+from mecanum_mav.protocol.mission import MissionItem
+from mecanum_mav.sim.simfc import SimFlightController
 
 __all__ = ["DemoResult", "LegReport", "ScriptedGroundStation", "demo_mission", "run_demo"]
 
@@ -236,7 +236,7 @@ def _watch(sim: SimFlightController, gcs: ScriptedGroundStation, points: list[Ve
 
 def plot_demo(result: DemoResult, path: Path) -> Path:
     """Draw planned, true and odometry paths (north up, east right) to ``path`` (PNG)."""
-    from mecanum_mav.plots import _pyplot
+    from mecanum_mav.app.plots import _pyplot
 
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(6.4, 6.4))

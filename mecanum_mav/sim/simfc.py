@@ -39,12 +39,12 @@ from dataclasses import dataclass
 from types import TracebackType
 from typing import Any
 
-from mecanum_mav.chassis import SimChassis
-from mecanum_mav.geometry import Pose2d
-from mecanum_mav.links import Link, mavlink, open_link
-from mecanum_mav.params import Params
-from mecanum_mav.pwm import PwmMap
-from mecanum_mav.shutdown import on_termination
+from mecanum_mav.app.shutdown import on_termination
+from mecanum_mav.config.params import Params
+from mecanum_mav.control.pwm import PwmMap
+from mecanum_mav.io.links import Link, mavlink, open_link
+from mecanum_mav.mecanum.geometry import Pose2d
+from mecanum_mav.sim.chassis import SimChassis
 
 __all__ = ["RcOverrides", "SimFlightController", "SimState", "main"]
 

@@ -1,21 +1,21 @@
 """AUTO: the mission executor. Pure logic; the pose and the time are passed in.
 
 The executor walks the mission from item 1 (item 0 is home) and turns the current item into a
-:class:`~mecanum_mav.guided.Setpoint` for the same velocity and heading layer GUIDED uses
+:class:`~mecanum_mav.control.guided.Setpoint` for the same velocity and heading layer GUIDED uses
 (``GUID_SPD_MAX``, ``GUID_ACC_MAX``, ``GUID_YAW_P``, ``GUID_YAW_RATE``, ``GUID_YAW_LEAD``).
 
 Items:
 
 - ``NAV_WAYPOINT``: drive the leg from the previous waypoint (or from where the rover is when
   the mission starts, resumes or jumps) to this one, following the line
-  (:mod:`mecanum_mav.pathfollow`) at the mission speed. Reached within param2 metres
+  (:mod:`mecanum_mav.control.pathfollow`) at the mission speed. Reached within param2 metres
   (0 or NaN: ``WP_RADIUS``), or once past it when passing through at speed; then it holds
   the point for param1 seconds. param4, if a number, is a heading (degrees clockwise from
   north) to take on this leg and keep; NaN (what QGroundControl and MAVSDK send) leaves the
   heading alone. Mission Planner and MAVProxy files often carry 0 there, which means north.
-  Between two legs the rover passes the waypoint at the
-  speed :func:`~mecanum_mav.pathfollow.corner_speed` allows for ``WP_OVERSHOOT`` (it stops for
-  turns of 90 degrees or more, and where it holds).
+  Between two legs the rover passes the waypoint at the speed
+  :func:`~mecanum_mav.control.pathfollow.corner_speed` allows for ``WP_OVERSHOOT`` (it stops
+  for turns of 90 degrees or more, and where it holds).
 - ``NAV_LOITER_TIME``: drive there, hold the point for param1 seconds. In a global frame a
   latitude and longitude of 0 mean "here".
 - ``NAV_RETURN_TO_LAUNCH``: drive to home (the local origin, as HOME_POSITION reports).
@@ -47,11 +47,14 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import NamedTuple
 
-from mecanum_mav.dialect import mavlink
-from mecanum_mav.geo import GlobalOrigin
-from mecanum_mav.geometry import Pose2d, wrap_pi
-from mecanum_mav.guided import Setpoint
-from mecanum_mav.mission import (
+from mecanum_mav.config.params import Params
+from mecanum_mav.control.guided import Setpoint
+from mecanum_mav.control.pathfollow import Leg, LegFollower, corner_speed
+from mecanum_mav.control.vehicle import Severity
+from mecanum_mav.mecanum.geo import GlobalOrigin
+from mecanum_mav.mecanum.geometry import Pose2d, wrap_pi
+from mecanum_mav.protocol.dialect import mavlink
+from mecanum_mav.protocol.mission import (
     GLOBAL_FRAMES,
     NAV_COMMANDS,
     POSITION_COMMANDS,
@@ -59,9 +62,6 @@ from mecanum_mav.mission import (
     command_name,
     position_ned,
 )
-from mecanum_mav.params import Params
-from mecanum_mav.pathfollow import Leg, LegFollower, corner_speed
-from mecanum_mav.vehicle import Severity
 
 __all__ = ["ExecutorEvent", "MissionExecutor"]
 

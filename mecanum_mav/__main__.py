@@ -1,0 +1,7 @@
+"""``python -m mecanum_mav``: the ``mecanum-mav`` command line."""
+
+import sys
+
+from mecanum_mav.app.cli import main
+
+sys.exit(main())

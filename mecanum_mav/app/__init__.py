@@ -1,0 +1,2 @@
+"""The application: the companion process (a thin shell around the core), the command line,
+the demo and the figures."""

@@ -1,0 +1,443 @@
+"""The ``mecanum-mav`` command line.
+
+Sub-commands:
+    sim     the companion and the built-in simulated flight controller (the quick start)
+    run     the companion between a ground station (--gcs) and a flight controller (--fc)
+    simfc   the simulated flight controller alone, as its own process
+    mix     wheel outputs (normalized and PWM) for one command, or a batch from stdin
+    plot    the speed-envelope figures of seed 000 (and of our mixers) as PNGs
+    params  validate a parameter file, print the parameters, or the schema as Markdown
+
+Exit status: 0 on success, 1 when a batch had bad lines (each reported), 2 for usage errors
+and parameter files that do not validate.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import csv
+import io
+import json
+import logging
+import math
+import sys
+from collections.abc import Iterable, Sequence
+from pathlib import Path
+from typing import TextIO
+
+from mecanum_mav import __version__
+from mecanum_mav.config.params import (
+    ParamError,
+    ParamFileError,
+    Params,
+    markdown_table,
+    parse_assignment,
+)
+from mecanum_mav.control.pwm import WHEEL_KEYS, PwmMap
+from mecanum_mav.io.paramfile import load, save
+from mecanum_mav.mecanum.mixing import ALGORITHM_NAMES, Desaturation, mix_stick
+
+DESAT_NAMES = {d.name.lower(): d for d in Desaturation}
+CSV_COLUMNS = ("x", "y", "rotation", "heading_deg", "magnitude", "direction_deg", "algo")
+POLAR_KEYS = ("magnitude", "direction_deg")
+OUTPUT_HEADER = [f"w_{k.lower()}" for k in WHEEL_KEYS] + [
+    f"pwm_{k.lower()}" for k in WHEEL_KEYS
+] + ["error"]
+
+
+class CommandError(ValueError):
+    """A command (one line of a batch, or the flags of ``mix``) that cannot be mixed."""
+
+
+# --------------------------------------------------------------------------- parameters
+
+
+def load_params(path: Path | None, assignments: Sequence[str]) -> Params:
+    """Parameters from defaults, then ``path`` (if any), then ``--set NAME=VALUE`` overrides.
+
+    Raises:
+        ParamFileError: the file does not validate (every bad line is listed).
+        ParamError: an override is unknown, malformed or out of range.
+    """
+    params = load(path) if path is not None else Params()
+    # All overrides at once: consistency (e.g. two wheels swapping channels) is checked on the
+    # result, not after each one.
+    params.update(dict(parse_assignment(text) for text in assignments))
+    return params
+
+
+# --------------------------------------------------------------------------- mixing a command
+
+
+def _number(fields: dict[str, object], key: str, default: float | None = None) -> float | None:
+    raw = fields.get(key)
+    if raw is None or raw == "":
+        return default
+    try:
+        value = float(raw)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        raise CommandError(f"{key}: not a number: {raw!r}") from None
+    if not math.isfinite(value):
+        raise CommandError(f"{key}: must be finite, got {raw!r}")
+    return value
+
+
+def stick_from_fields(fields: dict[str, object]) -> tuple[float, float, float, float]:
+    """``(x, y, rotation, heading_deg)`` from a command given in Cartesian or polar form.
+
+    Polar fields (``magnitude``, ``direction_deg``) become ``x = m cos d``, ``y = m sin d``;
+    missing Cartesian fields are 0. Mixing both forms in one command is an error.
+    """
+    unknown = sorted(set(fields) - set(CSV_COLUMNS))
+    if unknown:
+        known = ", ".join(CSV_COLUMNS)
+        raise CommandError(f"unknown field(s) {', '.join(unknown)}; known: {known}")
+    polar = any(fields.get(k) not in (None, "") for k in POLAR_KEYS)
+    cartesian = any(fields.get(k) not in (None, "") for k in ("x", "y"))
+    if polar and cartesian:
+        raise CommandError("give x/y or magnitude/direction_deg, not both")
+    rotation = _number(fields, "rotation", 0.0)
+    heading = _number(fields, "heading_deg", 0.0)
+    if polar:
+        m = _number(fields, "magnitude", 0.0)
+        d = math.radians(_number(fields, "direction_deg", 0.0) or 0.0)
+        x, y = (m or 0.0) * math.cos(d), (m or 0.0) * math.sin(d)
+    else:
+        x, y = _number(fields, "x", 0.0) or 0.0, _number(fields, "y", 0.0) or 0.0
+    return x, y, rotation or 0.0, heading or 0.0
+
+
+def mix_fields(
+    fields: dict[str, object], params: Params, default_algo: str, priority: Desaturation
+) -> tuple[str, list[float], tuple[int, int, int, int]]:
+    """Mix one command; returns (algorithm, four normalized wheels, four PWM values in us)."""
+    algo = str(fields.pop("algo", None) or default_algo)
+    if algo not in ALGORITHM_NAMES:
+        raise CommandError(f"unknown algorithm {algo!r}; known: {', '.join(ALGORITHM_NAMES)}")
+    x, y, rotation, heading = stick_from_fields(fields)
+    wheels = [round(float(w), 6) + 0.0 for w in mix_stick(
+        x, y, rotation, algo, heading_deg=heading, priority=priority)]
+    return algo, wheels, PwmMap.from_params(params).pulses_us(wheels)
+
+
+# --------------------------------------------------------------------------- batch
+
+
+def _parse_line(
+    line: str, header: list[str] | None, default_keys: Sequence[str]
+) -> dict[str, object]:
+    if line.lstrip().startswith("{"):
+        try:
+            fields = json.loads(line)
+        except json.JSONDecodeError as exc:
+            raise CommandError(f"bad JSON: {exc.msg} at column {exc.colno}") from None
+        if not isinstance(fields, dict):
+            raise CommandError("a JSON line must be an object")
+        return dict(fields)
+    values = next(csv.reader([line]))
+    keys = header or list(default_keys)
+    if len(values) > len(keys):
+        raise CommandError(
+            f"expected at most {len(keys)} values ({','.join(keys)}), got {len(values)}"
+        )
+    return {k: v.strip() for k, v in zip(keys, values, strict=False)}
+
+
+def _is_header(line: str) -> bool:
+    first = next(csv.reader([line]), [""])[0].strip()
+    return first in CSV_COLUMNS
+
+
+def run_batch(
+    lines: Iterable[str], out: TextIO, err: TextIO, params: Params, algo: str,
+    priority: Desaturation,
+) -> int:
+    """Mix one command per input line (CSV or JSON lines); write one output line each.
+
+    Blank lines and ``#`` comments are skipped. A CSV header line (naming columns from
+    :data:`CSV_COLUMNS`) sets the column order and is answered by an output header; without a
+    header the columns are ``x,y,rotation,heading_deg`` for ``cartesian`` and
+    ``magnitude,direction_deg,rotation,heading_deg`` for the polar algorithms. CSV lines get
+    CSV answers (``w_fl..w_rr,pwm_fl..pwm_rr,error``), JSON lines JSON answers. A bad line is
+    answered with its error (and reported on ``err``), never with wheel values.
+
+    Returns:
+        0 if every line mixed, 1 otherwise.
+    """
+    default_keys = ("x", "y", "rotation", "heading_deg") if algo == "cartesian" else (
+        "magnitude", "direction_deg", "rotation", "heading_deg")
+    header: list[str] | None = None
+    writer = csv.writer(out, lineterminator="\n")
+    failures = 0
+    for number, raw in enumerate(lines, start=1):
+        line = raw.strip()
+        if not line or line.startswith("#"):
+            continue
+        if header is None and not line.startswith("{") and _is_header(line):
+            header = [h.strip() for h in next(csv.reader([line]))]
+            bad = [h for h in header if h not in CSV_COLUMNS]
+            if bad:
+                err.write(f"line {number}: unknown column(s) {', '.join(bad)}\n")
+                return 1
+            writer.writerow(OUTPUT_HEADER)
+            continue
+        as_json = line.startswith("{")
+        try:
+            used, wheels, pwm = mix_fields(_parse_line(line, header, default_keys), params, algo,
+                                           priority)
+        except CommandError as exc:
+            failures += 1
+            err.write(f"line {number}: {exc}\n")
+            if as_json:
+                out.write(json.dumps({"line": number, "error": str(exc)}) + "\n")
+            else:
+                writer.writerow([""] * 8 + [str(exc)])
+            continue
+        if as_json:
+            out.write(json.dumps({"algorithm": used, "wheels": wheels, "pwm": list(pwm)}) + "\n")
+        else:
+            writer.writerow([*wheels, *pwm, ""])
+    return 1 if failures else 0
+
+
+# --------------------------------------------------------------------------- sub-commands
+
+
+def cmd_mix(args: argparse.Namespace, params: Params) -> int:
+    algo = args.algo or ALGORITHM_NAMES[int(params["MIX_ALGO"])]
+    priority = DESAT_NAMES[args.desat] if args.desat else Desaturation(int(params["MIX_DESAT"]))
+    if args.batch:
+        return run_batch(sys.stdin, sys.stdout, sys.stderr, params, algo, priority)
+    fields: dict[str, object] = {
+        "x": args.x, "y": args.y, "magnitude": args.magnitude,
+        "direction_deg": args.direction, "rotation": args.rotation, "heading_deg": args.heading,
+    }
+    try:
+        used, wheels, pwm = mix_fields({k: v for k, v in fields.items() if v is not None},
+                                       params, algo, priority)
+    except CommandError as exc:
+        print(f"mecanum-mav mix: {exc}", file=sys.stderr)
+        return 2
+    channels = PwmMap.from_params(params).channels
+    if args.json:
+        print(json.dumps({"algorithm": used, "desaturation": priority.name.lower(),
+                          "wheels": wheels, "pwm": list(pwm), "channels": list(channels)}))
+        return 0
+    print(f"algorithm {used}, desaturation {priority.name.lower()}")
+    print("wheel  command    PWM us  channel")
+    for key, w, p, ch in zip(WHEEL_KEYS, wheels, pwm, channels, strict=True):
+        print(f"{key:<5}  {w:+.4f}   {p:>6}  {ch:>7}")
+    return 0
+
+
+def cmd_plot(args: argparse.Namespace, params: Params) -> int:
+    from mecanum_mav.app.plots import render_all
+
+    try:
+        paths = render_all(Path(args.out))
+    except RuntimeError as exc:
+        print(f"mecanum-mav plot: {exc}", file=sys.stderr)
+        return 2
+    for path in paths:
+        print(path)
+    return 0
+
+
+def cmd_params(args: argparse.Namespace, params: Params) -> int:
+    if args.markdown:
+        print(markdown_table())
+        return 0
+    if args.save:
+        save(params, Path(args.save))
+        print(f"saved {len(params.names())} parameters to {args.save}")
+        return 0
+    buffer = io.StringIO()
+    for name in params.names():
+        marker = "  # changed" if name in params.changed() else ""
+        buffer.write(f"{name} {params[name]}{marker}\n")
+    sys.stdout.write(buffer.getvalue())
+    return 0
+
+
+# --------------------------------------------------------------------------- the companion
+
+DEFAULT_GCS_URL = "udpout:127.0.0.1:14550"
+"""Where QGroundControl and MAVProxy listen by default."""
+
+
+def serve(params: Params, gcs_url: str, fc_url: str, param_path: Path | None,
+          tlog_path: Path | None) -> int:
+    """Run the companion in the foreground until SIGINT/SIGTERM; ``fc_url`` may be ``sim``."""
+    from mecanum_mav.app.companion import Companion
+    from mecanum_mav.app.shutdown import on_termination
+    from mecanum_mav.sim.simfc import SimFlightController
+
+    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s: %(message)s")
+    with contextlib.ExitStack() as stack:
+        try:
+            if fc_url == "sim":
+                sim = SimFlightController("udpin:127.0.0.1:0", params)
+                sim.start()
+                stack.callback(sim.stop)
+                fc_url = f"udpout:127.0.0.1:{sim.local_port}"
+            tlog = stack.enter_context(tlog_path.open("ab")) if tlog_path else None
+            companion = Companion(params, gcs_url, fc_url, param_path=param_path, tlog=tlog)
+        except (OSError, ValueError) as exc:
+            print(f"mecanum-mav: {exc}", file=sys.stderr)
+            return 2
+        stack.callback(companion.close)
+        print(f"mecanum-mav: rover system {params['SYSID_THISMAV']} on {gcs_url}, flight "
+              f"controller on {fc_url}. Ctrl-C stops (wheels to neutral, channels released).",
+              flush=True)
+        with on_termination(companion.stop):
+            companion.run()
+    return 0
+
+
+def cmd_run(args: argparse.Namespace, params: Params) -> int:
+    return serve(params, args.gcs, args.fc, args.params, args.tlog)
+
+
+def cmd_sim(args: argparse.Namespace, params: Params) -> int:
+    host_port = args.gcs.split(":", 1)[1] if ":" in args.gcs else args.gcs
+    print(f"mecanum-mav sim: point a ground station at UDP {host_port} "
+          f"(QGroundControl and Mission Planner listen on 14550; "
+          f"MAVProxy: mavproxy.py --master=udpin:{host_port})", flush=True)
+    return serve(params, args.gcs, "sim", args.params, args.tlog)
+
+
+def cmd_demo(args: argparse.Namespace, params: Params) -> int:
+    from mecanum_mav.app.demo import plot_demo, run_demo
+
+    logging.basicConfig(level=logging.ERROR, format="%(name)s: %(message)s")
+    print(f"mecanum-mav demo: simulator + companion + scripted ground station on loopback; "
+          f"uploading a {args.side:g} m square with a diagonal, facing north, then AUTO ...",
+          flush=True)
+    try:
+        result = run_demo(params, side_m=args.side)
+    except (RuntimeError, TimeoutError, OSError) as exc:
+        print(f"mecanum-mav demo: {exc}", file=sys.stderr)
+        return 1
+    print(result.table())
+    try:
+        print(f"wrote {plot_demo(result, Path(args.png))}")
+    except RuntimeError as exc:  # no matplotlib
+        print(f"mecanum-mav demo: no PNG: {exc}", file=sys.stderr)
+    return 0
+
+
+def cmd_simfc(args: argparse.Namespace, params: Params) -> int:
+    from mecanum_mav.sim.simfc import main as simfc_main
+
+    return simfc_main(args.listen, params)
+
+
+# --------------------------------------------------------------------------- parser
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="mecanum-mav",
+        description="Drive a mecanum-wheeled rover over MAVLink. Frames: x forward, y right, "
+        "rotation clockwise; directions in degrees clockwise from the nose.",
+    )
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    common = argparse.ArgumentParser(add_help=False)
+    common.add_argument("--params", type=Path, metavar="FILE",
+                        help="parameter file (NAME VALUE per line, # comments)")
+    common.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
+                        help="override a parameter (repeatable)")
+
+    sim = sub.add_parser("sim", parents=[common],
+                         help="companion + simulated flight controller (start here)",
+                         description="Run the companion with the built-in simulated flight "
+                         "controller and chassis; a ground station drives it over UDP.")
+    sim.add_argument("--gcs", default=DEFAULT_GCS_URL, metavar="URL",
+                     help=f"ground-station link (default {DEFAULT_GCS_URL})")
+    sim.add_argument("--tlog", type=Path, metavar="FILE", help="record all traffic (tlog)")
+    sim.set_defaults(handler=cmd_sim)
+
+    demo = sub.add_parser("demo", parents=[common],
+                          help="the whole product in one command: an AUTO mission in the "
+                          "simulator",
+                          description="Run the simulator, the companion and a scripted ground "
+                          "station; upload a square-with-a-diagonal mission facing north, run it "
+                          "in AUTO, print time, cross-track and arrival error per leg, and draw "
+                          "planned, true and odometry paths.")
+    demo.add_argument("--side", type=float, default=2.0, metavar="M",
+                      help="side of the square in metres (default 2)")
+    demo.add_argument("--png", default="demo.png", metavar="FILE",
+                      help="where to write the figure (default demo.png)")
+    demo.set_defaults(handler=cmd_demo)
+
+    run = sub.add_parser("run", parents=[common], help="the companion",
+                         description="Run the companion: the rover a ground station sees, "
+                         "driving the flight controller's outputs by RC_CHANNELS_OVERRIDE.")
+    run.add_argument("--gcs", default=DEFAULT_GCS_URL, metavar="URL",
+                     help=f"ground-station link, a pymavlink URL (default {DEFAULT_GCS_URL})")
+    run.add_argument("--fc", required=True, metavar="URL",
+                     help="flight-controller link: a pymavlink URL (e.g. /dev/ttyACM0,115200 or "
+                     "udpout:HOST:PORT), or 'sim' for the built-in simulator")
+    run.add_argument("--tlog", type=Path, metavar="FILE", help="record all traffic (tlog)")
+    run.set_defaults(handler=cmd_run)
+
+    simfc = sub.add_parser("simfc", parents=[common], help="the simulated flight controller",
+                           description="Run the simulated ArduPilot Rover flight controller "
+                           "and chassis alone, listening on a MAVLink URL.")
+    simfc.add_argument("--listen", default="udpin:127.0.0.1:14551", metavar="URL",
+                       help="where to listen (default udpin:127.0.0.1:14551)")
+    simfc.set_defaults(handler=cmd_simfc)
+
+    mix = sub.add_parser("mix", parents=[common], help="wheel outputs for a drive command",
+                         description="Print the four wheel commands (normalized and PWM) for a "
+                         "Cartesian (-x/-y) or polar (--magnitude/--direction) command, or mix a "
+                         "batch read from stdin (CSV or JSON lines, one output line each).")
+    mix.add_argument("--algo", choices=ALGORITHM_NAMES,
+                     help="mixing algorithm (default: parameter MIX_ALGO)")
+    mix.add_argument("--desat", choices=sorted(DESAT_NAMES),
+                     help="desaturation strategy (default: parameter MIX_DESAT)")
+    mix.add_argument("-x", type=float, help="forward command, [-1, 1]")
+    mix.add_argument("-y", type=float, help="right command, [-1, 1]")
+    mix.add_argument("-m", "--magnitude", type=float, help="polar magnitude, [-1, 1]")
+    mix.add_argument("-d", "--direction", type=float,
+                     help="polar direction, degrees clockwise from the nose")
+    mix.add_argument("-r", "--rotation", type=float, default=0.0,
+                     help="clockwise rotation, [-1, 1]")
+    mix.add_argument("--heading", type=float, default=0.0,
+                     help="robot heading (deg clockwise from north) for field-oriented driving")
+    mix.add_argument("--json", action="store_true", help="print one JSON object")
+    mix.add_argument("--batch", action="store_true",
+                     help="read commands from stdin, one per line (CSV or JSON lines)")
+    mix.set_defaults(handler=cmd_mix)
+
+    plot = sub.add_parser("plot", parents=[common], help="speed-envelope figures (PNG)")
+    plot.add_argument("--out", default="figures", metavar="DIR", help="output folder")
+    plot.set_defaults(handler=cmd_plot)
+
+    par = sub.add_parser("params", parents=[common],
+                         help="validate --params FILE and print the parameters")
+    par.add_argument("--markdown", action="store_true", help="print the schema as a table")
+    par.add_argument("--save", metavar="FILE", help="write the parameters to FILE (atomic)")
+    par.set_defaults(handler=cmd_params)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``mecanum-mav`` console script."""
+    args = build_parser().parse_args(argv)
+    try:
+        params = load_params(args.params, args.set)
+    except (ParamFileError, ParamError) as exc:
+        print(f"mecanum-mav: {exc}", file=sys.stderr)
+        return 2
+    except OSError as exc:
+        print(f"mecanum-mav: cannot read parameters: {exc}", file=sys.stderr)
+        return 2
+    return int(args.handler(args, params))
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,1 @@
+"""The one parameter schema and the validated parameter store (no files, no I/O)."""

@@ -1,0 +1,120 @@
+"""The PWM edge: normalized wheel commands -> RC channel pulse widths (microseconds).
+
+This is the one place where mirrored motors are handled (per-wheel reverse) and where the
+per-wheel PWM range lives (``MOT_<W>_MIN/TRIM/MAX``). Neutral is each wheel's trim: a stopped
+wheel, and what every failsafe sends.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+if TYPE_CHECKING:
+    from mecanum_mav.config.params import Params
+
+__all__ = ["WHEEL_KEYS", "PwmMap", "WheelOutput"]
+
+WHEEL_KEYS: tuple[str, str, str, str] = ("FL", "FR", "RL", "RR")
+"""Parameter name infixes of the wheels, in wheel order."""
+
+
+@dataclass(frozen=True)
+class WheelOutput:
+    """One wheel's output channel.
+
+    Attributes:
+        channel: RC channel number, 1..18.
+        minimum, trim, maximum: pulse widths in microseconds; trim is neutral (stopped).
+        reversed: True when the motor is mounted mirrored: +1 then maps to ``minimum``.
+    """
+
+    channel: int
+    minimum: int
+    trim: int
+    maximum: int
+    reversed: bool = False
+
+    def pulse_us(self, command: float) -> int:
+        """Pulse width in microseconds for a normalized command in [-1, 1] (limited to it).
+
+        Positive commands go from trim towards maximum, negative towards minimum, each side
+        linear on its own (so an off-centre trim still gives full range both ways). A
+        non-finite command gives trim.
+        """
+        if not math.isfinite(command):
+            return self.trim
+        c = -command if self.reversed else command
+        c = -1.0 if c < -1.0 else (1.0 if c > 1.0 else c)
+        span = (self.maximum - self.trim) if c >= 0.0 else (self.trim - self.minimum)
+        return round(self.trim + c * span)
+
+    def command_from_pulse(self, pulse_us: float) -> float:
+        """Normalized command in [-1, 1] that a pulse width (microseconds) stands for.
+
+        The inverse of :meth:`pulse_us` (exact up to its rounding to whole microseconds):
+        each side of trim is linear on its own, reverse flips the sign, and pulses outside
+        [minimum, maximum] are limited to them. A non-finite pulse gives 0 (stopped).
+        """
+        if not math.isfinite(pulse_us):
+            return 0.0
+        p = min(max(float(pulse_us), self.minimum), self.maximum)
+        span = (self.maximum - self.trim) if p >= self.trim else (self.trim - self.minimum)
+        c = (p - self.trim) / span
+        return -c if self.reversed else c
+
+
+@dataclass(frozen=True)
+class PwmMap:
+    """The four wheels' output channels, in wheel order FL, FR, RL, RR."""
+
+    wheels: tuple[WheelOutput, WheelOutput, WheelOutput, WheelOutput]
+
+    @classmethod
+    def from_params(cls, params: Params) -> PwmMap:
+        """Build from the ``MOT_<W>_CH/MIN/TRIM/MAX/REV`` parameters."""
+        outs = [
+            WheelOutput(
+                channel=int(params[f"MOT_{w}_CH"]),
+                minimum=int(params[f"MOT_{w}_MIN"]),
+                trim=int(params[f"MOT_{w}_TRIM"]),
+                maximum=int(params[f"MOT_{w}_MAX"]),
+                reversed=bool(params[f"MOT_{w}_REV"]),
+            )
+            for w in WHEEL_KEYS
+        ]
+        return cls((outs[0], outs[1], outs[2], outs[3]))
+
+    def __post_init__(self) -> None:
+        # Precomputed once: the control loop asks for these on every output.
+        object.__setattr__(self, "channels", tuple(w.channel for w in self.wheels))
+        object.__setattr__(self, "_neutral", tuple(w.trim for w in self.wheels))
+
+    channels: tuple[int, ...] = field(init=False)
+    """RC channel numbers (1..18) of FL, FR, RL, RR."""
+
+    def neutral(self) -> tuple[int, int, int, int]:
+        """Trim on every wheel, microseconds: the safe output."""
+        return self._neutral  # type: ignore[attr-defined,no-any-return]
+
+    def pulses_us(self, wheels: Sequence[float] | NDArray[np.float64]) -> tuple[int, int, int, int]:
+        """Pulse widths (us) for one set of four normalized wheel commands FL, FR, RL, RR."""
+        w = self.wheels
+        return (w[0].pulse_us(float(wheels[0])), w[1].pulse_us(float(wheels[1])),
+                w[2].pulse_us(float(wheels[2])), w[3].pulse_us(float(wheels[3])))
+
+    def pulses_us_array(self, wheels: ArrayLike) -> NDArray[np.int64]:
+        """Vectorized :meth:`pulses_us` for ``[..., 4]`` commands; returns ``[..., 4]`` ints."""
+        c = np.asarray(wheels, dtype=np.float64)
+        sign = np.array([-1.0 if w.reversed else 1.0 for w in self.wheels])
+        trim = np.array([w.trim for w in self.wheels], dtype=np.float64)
+        up = np.array([w.maximum - w.trim for w in self.wheels], dtype=np.float64)
+        down = np.array([w.trim - w.minimum for w in self.wheels], dtype=np.float64)
+        finite = np.isfinite(c)
+        c = np.clip(np.where(finite, c, 0.0) * sign, -1.0, 1.0)
+        return np.rint(trim + c * np.where(c >= 0.0, up, down)).astype(np.int64)

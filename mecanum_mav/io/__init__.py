@@ -1,0 +1,1 @@
+"""Sockets and files: MAVLink links, atomic writes, parameter and mission file formats."""
