@@ -4,7 +4,8 @@ Conventions (see README): body frame FRD (x forward, y right, z down), local fra
 positive rotation clockwise seen from above, wheel order FL, FR, RL, RR, SI units inside.
 """
 
-__version__ = "0.1.0"
+from mecanum_mav.mecanum.wheels import WHEEL_NAMES
 
-WHEEL_NAMES: tuple[str, str, str, str] = ("front_left", "front_right", "rear_left", "rear_right")
-"""Wheel order used on the last axis of every wheel array."""
+__all__ = ["WHEEL_NAMES", "__version__"]
+
+__version__ = "0.1.0"

@@ -252,7 +252,7 @@ async def _mavsdk_mission_scenario(port: int, grpc_port: int, sim: SimFlightCont
         while not state.is_connected:
             state = await _first(drone.core.connection_state())
         await drone.mission.upload_mission(plan)
-        stored = companion.mission.items
+        stored = companion.core.mission.items
         # seq 0 home, then each waypoint followed by its DO_CHANGE_SPEED.
         assert len(stored) == 1 + 2 * len(points), stored
         assert [(it.x, it.y) for it in stored[1::2]] == points, stored
@@ -357,7 +357,7 @@ def test_mavproxy_loads_a_waypoint_file_lists_it_and_clears_it(tmp_path):
             mavproxy.send("wp load square.waypoints")
             assert saw_since(mavproxy, "Sent all 3 waypoints", since) is not None, mavproxy.lines
             assert saw_since(mavproxy, "MISSION_ACK: TYPE_MISSION: ACCEPTED", since) is not None
-            stored = companion.mission.items
+            stored = companion.core.mission.items
             assert len(stored) == 3
             for item, (lat, lon) in zip(stored, points, strict=True):
                 assert item.frame == mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT
@@ -395,7 +395,7 @@ def test_mavproxy_loads_a_waypoint_file_lists_it_and_clears_it(tmp_path):
             since = len(mavproxy.lines)
             mavproxy.send("wp clear")
             assert saw_since(mavproxy, "MISSION_ACK: TYPE_MISSION: ACCEPTED", since) is not None
-            assert wait_until(lambda: companion.mission.items == (), 5.0)
+            assert wait_until(lambda: companion.core.mission.items == (), 5.0)
             since = len(mavproxy.lines)
             mavproxy.send("wp list")
             assert saw_since(mavproxy, "Requesting 0 waypoints", since) is not None

@@ -343,7 +343,7 @@ def test_an_exception_in_the_control_path_ends_at_neutral(rig, monkeypatch):
     def broken(*args, **kwargs):
         raise RuntimeError("mixer bug")
 
-    monkeypatch.setattr("mecanum_mav.app.companion.wheels_from_stick", broken)
+    monkeypatch.setattr("mecanum_mav.control.chain.wheels_from_stick", broken)
     since = rig.gcs.mark()
     assert drive(rig, 1000, 0, 0, NEUTRAL) is not None
     assert statustext(rig, "Error computing output: neutral", since)

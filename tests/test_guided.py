@@ -84,8 +84,9 @@ def test_a_position_target_is_reached_within_5cm_and_2deg_without_overshoot(rove
         s = sim.snapshot()
         along = s.pose.x_m * direction[0] + s.pose.y_m * direction[1]
         overshoot = max(overshoot, along - math.hypot(*goal))
-        if s.time_s > 0 and math.hypot(*s.velocity_body) < 0.005 and companion.guided.arrived(
-                companion.estimator.pose, 0.03):
+        core = companion.core
+        if s.time_s > 0 and math.hypot(*s.velocity_body) < 0.005 and (
+                core.autopilot.guided.arrived(core.estimator.pose, 0.03)):
             break
         gcs.pump(0.02)
     final = sim.snapshot().pose

@@ -155,7 +155,7 @@ def test_the_mission_persists_beside_the_parameter_file(tmp_path):
     restarted = Companion(Params(), "udpout:127.0.0.1:9", "udpout:127.0.0.1:9",
                           param_path=param_path)
     try:
-        assert_same_mission(list(restarted.mission.items), MIXED)
+        assert_same_mission(list(restarted.core.mission.items), MIXED)
     finally:
         restarted.close()
 
@@ -270,7 +270,7 @@ def test_disarming_in_auto_sends_neutral_and_arming_resumes(rover):
     gcs.mav.command_long_send(1, 1, mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 0, 0, 0, 0, 0, 0, 0,
                               0)
     assert sim.wait_for(lambda s: math.hypot(*s.velocity_body) < 0.005, 3.0)
-    assert companion.pulses_us == companion.pwm.neutral()
+    assert companion.core.pulses_us == companion.core.pwm.neutral()
     since = gcs.mark()
     arm(gcs)
     assert gcs.wait("MISSION_ITEM_REACHED", lambda m: m.seq == 1, 10.0, since)

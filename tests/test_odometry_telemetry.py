@@ -38,7 +38,7 @@ def test_dead_reckoning_tracks_the_simulated_true_pose(rover, tolerance_m):
     sim, gcs, companion = rover
     drive_legs(sim, gcs)
     truth = settle(sim, gcs, companion)
-    pose = companion.estimator.pose
+    pose = companion.core.estimator.pose
     travelled = math.hypot(truth.pose.x_m, truth.pose.y_m)
     assert travelled > 1.0
     assert math.hypot(pose.x_m - truth.pose.x_m, pose.y_m - truth.pose.y_m) < tolerance_m

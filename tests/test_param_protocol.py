@@ -63,7 +63,7 @@ def test_unknown_parameter_names_get_no_answer(rig):
 def test_param_set_in_range_is_stored_and_announced(rig):
     reply = set_param(rig, "INP_EXPO", 0.25)
     assert reply is not None and abs(reply.param_value - 0.25) < 1e-7
-    assert rig.companion.params["INP_EXPO"] == 0.25
+    assert rig.companion.core.params["INP_EXPO"] == 0.25
 
 
 def test_param_set_out_of_range_answers_the_unchanged_value_and_says_why(rig):
@@ -125,7 +125,7 @@ def test_parameter_messages_for_another_system_are_ignored(rig):
     rig.gcs.mav.param_request_list_send(9, 1)
     rig.gcs.mav.param_set_send(9, 1, b"INP_EXPO", 0.5, REAL32)
     assert rig.gcs.wait("PARAM_VALUE", timeout_s=0.5, since=since) is None
-    assert rig.companion.params["INP_EXPO"] == 0.0
+    assert rig.companion.core.params["INP_EXPO"] == 0.0
 
 
 def test_a_geometry_change_is_stored_and_flagged_for_a_restart(rig):

@@ -23,10 +23,11 @@ from typing import Any
 
 import pytest
 
+from mecanum_mav.app.cli import serve_simfc as main
 from mecanum_mav.config.params import Params
 from mecanum_mav.control.pwm import PwmMap
 from mecanum_mav.io.links import Link, mavlink, open_link
-from mecanum_mav.sim.simfc import RcOverrides, SimFlightController, SimState, main
+from mecanum_mav.sim.simfc import RcOverrides, SimFlightController, SimState
 
 WAIT_S = 3.0
 LEAVE_LOW = 65535  # channels 1-8: leave alone
@@ -343,7 +344,7 @@ def test_stop_also_ends_a_loop_run_in_the_callers_own_thread():
 def test_main_serves_until_sigterm_and_says_where_it_listens():
     code = (
         "import sys\nfrom mecanum_mav.params import Params\n"
-        "from mecanum_mav.sim.simfc import main\n"
+        "from mecanum_mav.app.cli import serve_simfc as main\n"
         "sys.exit(main('udpin:127.0.0.1:0', Params()))"
     )
     proc = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True)

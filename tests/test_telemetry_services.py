@@ -79,10 +79,10 @@ def test_file_transfer_requests_are_refused_as_file_not_found(rig):
 
 
 def test_set_home_to_here_resets_the_odometry_origin_and_counter(rig):
-    before = rig.companion.estimator.reset_counter
+    before = rig.companion.core.estimator.reset_counter
     ack = rig.command(CMD.MAV_CMD_DO_SET_HOME, 1)
     assert ack.result == CMD.MAV_RESULT_ACCEPTED
-    assert rig.companion.estimator.reset_counter == before + 1
+    assert rig.companion.core.estimator.reset_counter == before + 1
     since = rig.gcs.mark()
     odom = rig.gcs.wait("ODOMETRY", lambda m: m.reset_counter == before + 1, 1.0, since)
     assert odom is not None and (odom.x, odom.y) == (0.0, 0.0)

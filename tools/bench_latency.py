@@ -84,6 +84,7 @@ from mecanum_mav.control.sticks import stick_from_manual_control
 from mecanum_mav.io.links import Link, mavlink, open_link
 from mecanum_mav.mecanum.mixing import ALGORITHM_NAMES, Desaturation, mix_stick
 from mecanum_mav.mecanum.shaping import shape_stick
+from mecanum_mav.protocol.rcoverride import LEAVE_LOW
 
 # ---------------------------------------------------------------------------- constants
 
@@ -91,6 +92,7 @@ GOAL_DELAY_RATIO = 1.20  # companion p50 / baseline p50
 GOAL_GROWTH_RATIO = 1.20  # 1 kHz: p50 of the last quarter / p50 of the first quarter
 GOAL_DROPS_PCT = 1.0  # 1 kHz drops
 GOAL_IDLE_CPU_PCT = 1.0  # % of one core
+_LEAVE_5_TO_8 = (LEAVE_LOW,) * 4  # the baseline relay drives channels 1-4 only
 
 SO_TIMESTAMPNS = getattr(socket, "SO_TIMESTAMPNS", 35)  # Linux value; not exported by Python
 TIMESPEC = struct.Struct("@qq")
@@ -184,7 +186,7 @@ def run_relay(gcs_url: str, fc_url: str, stop_fd: int) -> None:
                     for msg in conn.mav.parse_buffer(data) or ():
                         if conn is gcs and msg.get_type() == "MANUAL_CONTROL":
                             p = relay_pulse(msg.x)
-                            send_override(1, 1, p, p, p, p, 65535, 65535, 65535, 65535)
+                            send_override(1, 1, p, p, p, p, *_LEAVE_5_TO_8)
     finally:
         selector.close()
         gcs.close()

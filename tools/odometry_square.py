@@ -95,13 +95,14 @@ def run_square(side_m: float = 10.0, speed_mps: float = 2.5, slip: float = 0.0,
                 if selector.select(0.1):
                     gcs.read()
                 truth = sim.snapshot()
-                active = companion.guided.setpoint
+                active = companion.core.autopilot.guided.setpoint
                 if (active is not None and active.position_ned == corner
-                        and companion.guided.arrived(companion.estimator.pose, 0.03)
+                        and companion.core.autopilot.guided.arrived(
+                            companion.core.estimator.pose, 0.03)
                         and math.hypot(*truth.velocity_body) < 0.01):
                     break
         truth = sim.snapshot().pose
-        odom = companion.estimator.pose
+        odom = companion.core.estimator.pose
         yaw_error = (odom.yaw_rad - truth.yaw_rad + math.pi) % (2 * math.pi) - math.pi
         return SquareResult(slip, 4.0 * side_m,
                             math.hypot(odom.x_m - truth.x_m, odom.y_m - truth.y_m),

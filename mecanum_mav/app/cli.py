@@ -34,9 +34,10 @@ from mecanum_mav.config.params import (
     markdown_table,
     parse_assignment,
 )
-from mecanum_mav.control.pwm import WHEEL_KEYS, PwmMap
+from mecanum_mav.control.pwm import PwmMap
 from mecanum_mav.io.paramfile import load, save
 from mecanum_mav.mecanum.mixing import ALGORITHM_NAMES, Desaturation, mix_stick
+from mecanum_mav.mecanum.wheels import WHEEL_KEYS
 
 DESAT_NAMES = {d.name.lower(): d for d in Desaturation}
 CSV_COLUMNS = ("x", "y", "rotation", "heading_deg", "magnitude", "direction_deg", "algo")
@@ -327,10 +328,34 @@ def cmd_demo(args: argparse.Namespace, params: Params) -> int:
     return 0
 
 
-def cmd_simfc(args: argparse.Namespace, params: Params) -> int:
-    from mecanum_mav.sim.simfc import main as simfc_main
+def serve_simfc(url: str, params: Params) -> int:
+    """``mecanum-mav simfc --listen URL``: serve in the foreground until SIGINT or SIGTERM.
 
-    return simfc_main(args.listen, params)
+    Prints one line saying where it listens; returns 0, or 1 (message on stderr) when the
+    link cannot be opened. Call from the main thread (it installs signal handlers).
+    """
+    import threading
+
+    from mecanum_mav.app.shutdown import on_termination
+    from mecanum_mav.sim.simfc import SimFlightController
+
+    try:
+        sim = SimFlightController(url, params)
+    except (OSError, ValueError) as exc:
+        print(f"simfc: {exc}", file=sys.stderr)
+        return 1
+    stop = threading.Event()
+    with sim, on_termination(stop.set):
+        port = sim.local_port
+        where = f"{url} (port {port})" if port is not None else url
+        print(f"simfc: simulated ArduPilot Rover, system {params['FC_SYSID']} component "
+              f"{params['FC_COMPID']}, listening on {where}", flush=True)
+        sim.run(stop)
+    return 0
+
+
+def cmd_simfc(args: argparse.Namespace, params: Params) -> int:
+    return serve_simfc(args.listen, params)
 
 
 # --------------------------------------------------------------------------- parser

@@ -27,12 +27,12 @@ from mecanum_mav.config.params import Params
 from mecanum_mav.control.pathfollow import Leg
 from mecanum_mav.io.links import Link, mavlink, open_link
 from mecanum_mav.protocol.mission import MissionItem
+from mecanum_mav.protocol.modes import Mode
 from mecanum_mav.sim.simfc import SimFlightController
 
 __all__ = ["DemoResult", "LegReport", "ScriptedGroundStation", "demo_mission", "run_demo"]
 
 Vec = tuple[float, float]
-AUTO, HOLD = 10, 4
 
 
 def demo_mission(side_m: float) -> tuple[list[MissionItem], list[Vec]]:
@@ -190,7 +190,7 @@ def run_demo(params: Params | None = None, side_m: float = 2.0,
             if time.monotonic() > deadline:
                 raise RuntimeError("arming refused")
             gcs.pump(0.25)  # the flight controller's first heartbeat may be on its way
-        if gcs.command(mavlink.MAV_CMD_DO_SET_MODE, 1, AUTO) != 0:
+        if gcs.command(mavlink.MAV_CMD_DO_SET_MODE, 1, Mode.AUTO) != 0:
             raise RuntimeError("AUTO refused")
         return _watch(sim, gcs, points, timeout_s)
     finally:
@@ -226,7 +226,7 @@ def _watch(sim: SimFlightController, gcs: ScriptedGroundStation, points: list[Ve
                 out.legs.append(LegReport(msg.seq, planned[k], planned[k + 1], now - leg_start_s,
                                           leg_cross, math.dist(here, planned[k + 1])))
                 leg_start_s, leg_cross = now, 0.0
-            elif kind == "HEARTBEAT" and msg.get_srcSystem() == 1 and msg.custom_mode == HOLD:
+            elif kind == "HEARTBEAT" and msg.get_srcSystem() == 1 and msg.custom_mode == Mode.HOLD:
                 if len(out.legs) == len(points):
                     out.total_s = time.monotonic() - start_s
                     return out

@@ -8,7 +8,12 @@ One schema
     (:func:`parse_assignment`), the README table (:func:`markdown_table`) and the MAVLink
     parameter protocol (index = position in :data:`SCHEMA`). Names follow ArduPilot: at most
     16 characters (the MAVLink ``param_id`` field), upper case, ``GROUP_NAME``; the schema is
-    checked when this module is imported and a bad entry raises.
+    checked when this module is imported and a bad entry raises. An entry also says whether
+    a change waits for a restart (``reboot_required``, which the parameter protocol reports).
+
+Cross-parameter rules
+    :data:`RULES` declares them as data (MIN < TRIM < MAX triples, groups of distinct RC
+    channels); :func:`consistency_problems` evaluates them and :class:`Params` keeps them.
 
 Files
     Parameter files (the format MAVProxy and Mission Planner load) are read and written by
@@ -43,14 +48,18 @@ import types
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 
-from mecanum_mav import WHEEL_NAMES
+from mecanum_mav.mecanum.wheels import WHEEL_KEYS as WHEELS
+from mecanum_mav.mecanum.wheels import WHEEL_NAMES
 
 __all__ = [
     "GROUP_TITLES",
     "NAME_MAX_LEN",
+    "RULES",
     "SCHEMA",
     "SPECS",
     "WHEELS",
+    "DistinctChannels",
+    "OrderedTriple",
     "ParamError",
     "ParamFileError",
     "ParamSpec",
@@ -128,7 +137,8 @@ def _join(items: Sequence[str], word: str = "or") -> str:
 
 @dataclass(frozen=True)
 class ParamSpec:
-    """One parameter: name, kind, default, inclusive range, units, meaning, labels.
+    """One parameter: name, kind, default, inclusive range, units, meaning, labels, and
+    whether a change waits for a restart.
 
     Construction checks the entry and raises ``ValueError`` when it is inconsistent (bad
     name, default out of range, int parameter with a non-int bound, float bound that does
@@ -144,6 +154,9 @@ class ParamSpec:
     description: str
     values: Mapping[int, str] | None = field(default=None, hash=False)
     """Enumeration labels (value -> label); ``None`` for a plain number."""
+    reboot_required: bool = False
+    """True when a new value is stored at once but used only after a restart (ArduPilot's
+    ``RebootRequired``): the MAVLink parameter service says so when it is set."""
 
     def __post_init__(self) -> None:
         if self.values is not None:
@@ -237,9 +250,8 @@ class ParamSpec:
         return self.check(float(text))
 
 
-WHEELS: tuple[str, str, str, str] = ("FL", "FR", "RL", "RR")
-"""Wheel abbreviations in parameter names, in the order of ``mecanum_mav.WHEEL_NAMES``."""
-
+# WHEELS (exported): the wheel abbreviations in parameter names, FL, FR, RL, RR, defined in
+# mecanum_mav.mecanum.wheels as WHEEL_KEYS.
 _WHEEL_WORDS = {
     abbreviation: full.replace("_", "-")
     for abbreviation, full in zip(WHEELS, WHEEL_NAMES, strict=True)
@@ -338,11 +350,13 @@ SCHEMA: tuple[ParamSpec, ...] = (
     ),
     ParamSpec(
         "GEO_HALF_LEN", float, default=0.15, minimum=0.02, maximum=5.0, units="m",
+        reboot_required=True,
         description="Distance along body x (forward) from the robot centre to each wheel "
         "centre, half the wheelbase.",
     ),
     ParamSpec(
         "GEO_HALF_WID", float, default=0.15, minimum=0.02, maximum=5.0, units="m",
+        reboot_required=True,
         description="Distance along body y (right) from the robot centre to each wheel "
         "centre, half the track width.",
     ),
@@ -358,6 +372,7 @@ SCHEMA: tuple[ParamSpec, ...] = (
     *(spec for i, w in enumerate(WHEELS) for spec in _wheel_specs(w, channel=i + 1)),
     ParamSpec(
         "SYSID_THISMAV", int, default=1, minimum=1, maximum=255, units="",
+        reboot_required=True,
         description="MAVLink system id of the vehicle (this companion) on the ground-station "
         "link; component id is always 1.",
     ),
@@ -539,29 +554,35 @@ SCHEMA: tuple[ParamSpec, ...] = (
     ),
     ParamSpec(
         "SIM_MOTOR_TAU", float, default=0.08, minimum=0.001, maximum=5.0, units="s",
+        reboot_required=True,
         description="Simulator: first-order time constant of each motor's speed response.",
     ),
     ParamSpec(
         "SIM_SLIP", float, default=0.0, minimum=0.0, maximum=0.5, units="",
+        reboot_required=True,
         description="Simulator: standard deviation of each wheel's traction error as a "
         "fraction of its speed (0 = no slip).",
     ),
     ParamSpec(
         "SIM_RC_TMO", float, default=3.0, minimum=0.1, maximum=60.0, units="s",
+        reboot_required=True,
         description="Simulator: override timeout after which an un-refreshed RC override "
         "lapses to neutral (ArduPilot RC_OVERRIDE_TIME).",
     ),
     ParamSpec(
         "SIM_GCS_SYSID", int, default=255, minimum=1, maximum=255, units="",
+        reboot_required=True,
         description="Simulator: the only sender system id whose RC overrides it obeys "
         "(ArduPilot SYSID_MYGCS).",
     ),
     ParamSpec(
         "SIM_RATE", float, default=100.0, minimum=10.0, maximum=1000.0, units="Hz",
+        reboot_required=True,
         description="Simulator: physics update rate.",
     ),
     ParamSpec(
         "SIM_SEED", int, default=0, minimum=0, maximum=1000000, units="",
+        reboot_required=True,
         description="Simulator: random seed of the slip noise, for repeatable runs.",
     ),
 )
@@ -600,28 +621,81 @@ def get_spec(name: str) -> ParamSpec:
         raise ParamError(unknown_name(name)) from None
 
 
-def consistency_problems(values: Mapping[str, Value]) -> list[tuple[str, tuple[str, ...]]]:
-    """Cross-parameter rule violations as (message, names involved)."""
-    problems: list[tuple[str, tuple[str, ...]]] = []
-    for prefix in (*(f"MOT_{w}" for w in WHEELS), "RCIN"):
-        names = (f"{prefix}_MIN", f"{prefix}_TRIM", f"{prefix}_MAX")
+Problem = tuple[str, tuple[str, ...]]
+"""A broken cross-parameter rule: (message, names of the parameters involved)."""
+
+
+@dataclass(frozen=True)
+class OrderedTriple:
+    """Rule: ``{prefix}_MIN < {prefix}_TRIM < {prefix}_MAX`` (pulse widths, microseconds)."""
+
+    prefix: str
+
+    @property
+    def names(self) -> tuple[str, str, str]:
+        """The three parameters, MIN, TRIM, MAX."""
+        return (f"{self.prefix}_MIN", f"{self.prefix}_TRIM", f"{self.prefix}_MAX")
+
+    def problems(self, values: Mapping[str, Value]) -> list[Problem]:
+        """The rule's violation in ``values`` (at most one)."""
+        names = self.names
         low, trim, high = (values[n] for n in names)
-        if not low < trim < high:
-            got = ", ".join(f"{n} {values[n]}" for n in names)
-            problems.append((f"{prefix}: need MIN < TRIM < MAX, got {got} us", names))
-    channel_groups = (
-        ([f"MOT_{w}_CH" for w in WHEELS], "one motor each"),
-        (["RCMAP_STEER", "RCMAP_THROTTLE", "RCMAP_LATERAL"], "one stick axis each"),
-    )
-    for group, rule in channel_groups:
+        if low < trim < high:
+            return []
+        got = ", ".join(f"{n} {values[n]}" for n in names)
+        return [(f"{self.prefix}: need MIN < TRIM < MAX, got {got} us", names)]
+
+
+@dataclass(frozen=True)
+class DistinctChannels:
+    """Rule: the RC channel parameters in ``names`` hold different channels; ``purpose``
+    ends the message (``"one motor each"``)."""
+
+    names: tuple[str, ...]
+    purpose: str
+
+    def problems(self, values: Mapping[str, Value]) -> list[Problem]:
+        """One violation per channel that two or more of the parameters share."""
         users: dict[Value, list[str]] = {}
-        for name in group:
+        for name in self.names:
             users.setdefault(values[name], []).append(name)
-        for channel, on_channel in users.items():
-            if len(on_channel) > 1:
-                message = f"{_join(on_channel, 'and')} share RC channel {channel}; {rule}"
-                problems.append((message, tuple(on_channel)))
-    return problems
+        return [
+            (f"{_join(on_channel, 'and')} share RC channel {channel}; {self.purpose}",
+             tuple(on_channel))
+            for channel, on_channel in users.items()
+            if len(on_channel) > 1
+        ]
+
+
+Rule = OrderedTriple | DistinctChannels
+"""A cross-parameter rule: ``names`` (the parameters it reads) and ``problems(values)``."""
+
+RULES: tuple[Rule, ...] = (
+    *(OrderedTriple(f"MOT_{w}") for w in WHEELS),
+    OrderedTriple("RCIN"),
+    DistinctChannels(tuple(f"MOT_{w}_CH" for w in WHEELS), "one motor each"),
+    DistinctChannels(("RCMAP_STEER", "RCMAP_THROTTLE", "RCMAP_LATERAL"), "one stick axis each"),
+)
+"""The cross-parameter rules every :class:`Params` store keeps, in the order their
+problems are reported: each wheel's MOT_x_MIN < MOT_x_TRIM < MOT_x_MAX, the same for RCIN,
+four distinct MOT_x_CH and three distinct RCMAP channels."""
+
+
+
+def _check_rules(rules: Sequence[Rule]) -> None:
+    """Raise when a rule reads a parameter the schema does not have."""
+    for rule in rules:
+        for name in rule.names:
+            if name not in SPECS:
+                raise ValueError(f"parameter schema: a rule reads unknown parameter {name}")
+
+
+_check_rules(RULES)
+
+
+def consistency_problems(values: Mapping[str, Value]) -> list[Problem]:
+    """Violations of :data:`RULES` in ``values`` (every schema name present), in rule order."""
+    return [problem for rule in RULES for problem in rule.problems(values)]
 
 
 _DEFAULT_PROBLEMS = consistency_problems({s.name: s.default for s in SCHEMA})
@@ -714,8 +788,8 @@ class Params(Mapping[str, Value]):
         return clone
 
     def check_consistency(self) -> list[str]:
-        """Messages for broken cross-parameter rules (always empty for a store built here):
-        each wheel's MOT_x_MIN < MOT_x_TRIM < MOT_x_MAX, and four distinct MOT_x_CH."""
+        """Messages for broken cross-parameter rules (:data:`RULES`; always empty for a store
+        built here)."""
         return [message for message, _ in consistency_problems(self._values)]
 
 

@@ -50,7 +50,6 @@ from typing import NamedTuple
 from mecanum_mav.config.params import Params
 from mecanum_mav.control.guided import Setpoint
 from mecanum_mav.control.pathfollow import Leg, LegFollower, corner_speed
-from mecanum_mav.control.vehicle import Severity
 from mecanum_mav.mecanum.geo import GlobalOrigin
 from mecanum_mav.mecanum.geometry import Pose2d, wrap_pi
 from mecanum_mav.protocol.dialect import mavlink
@@ -62,6 +61,7 @@ from mecanum_mav.protocol.mission import (
     command_name,
     position_ned,
 )
+from mecanum_mav.protocol.statustext import Severity
 
 __all__ = ["ExecutorEvent", "MissionExecutor"]
 

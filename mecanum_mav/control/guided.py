@@ -31,6 +31,11 @@ from dataclasses import dataclass
 
 from mecanum_mav.config.params import Params
 from mecanum_mav.mecanum.geometry import Pose2d, body_to_ned, ned_to_body, wrap_pi
+from mecanum_mav.protocol.limits import (
+    MAX_SETPOINT_POSITION_M,
+    MAX_SETPOINT_YAW_RATE_RADPS,
+    MAX_SPEED_MPS,
+)
 
 __all__ = ["FRAMES", "GuidedController", "Setpoint", "SetpointError", "decode_setpoint"]
 
@@ -38,9 +43,6 @@ FRAMES = {1: "LOCAL_NED", 7: "LOCAL_OFFSET_NED", 8: "BODY_NED", 9: "BODY_OFFSET_
           12: "BODY_FRD"}
 IGNORE_X, IGNORE_Y, IGNORE_VX, IGNORE_VY = 1, 2, 8, 16
 IGNORE_YAW, IGNORE_YAW_RATE = 1024, 2048
-MAX_POSITION_M = 10_000.0
-MAX_SPEED_MPS = 50.0
-MAX_YAW_RATE = 20.0  # rad/s; anything beyond is not a rover command
 
 
 class SetpointError(ValueError):
@@ -100,14 +102,16 @@ def decode_setpoint(frame: int, type_mask: int, x: float, y: float, vx: float, v
     if frame not in FRAMES:
         raise SetpointError(f"frame {frame} not supported")
     position = _pair(x, y, bool(type_mask & IGNORE_X), bool(type_mask & IGNORE_Y),
-                     "position", MAX_POSITION_M)
+                     "position", MAX_SETPOINT_POSITION_M)
     velocity = _pair(vx, vy, bool(type_mask & IGNORE_VX), bool(type_mask & IGNORE_VY),
                      "velocity", MAX_SPEED_MPS)
     yaw_target = None if type_mask & IGNORE_YAW else yaw
     rate = None if type_mask & IGNORE_YAW_RATE else yaw_rate
     if yaw_target is not None and not math.isfinite(yaw_target):
         raise SetpointError("yaw not finite")
-    if rate is not None and not (math.isfinite(rate) and abs(rate) <= MAX_YAW_RATE):
+    if rate is not None and not (
+        math.isfinite(rate) and abs(rate) <= MAX_SETPOINT_YAW_RATE_RADPS
+    ):
         raise SetpointError("yaw rate not finite or absurd")
     if position is None and velocity is None and yaw_target is None and rate is None:
         raise SetpointError("nothing usable (z and accelerations are ignored)")

@@ -15,13 +15,12 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from mecanum_mav.mecanum.wheels import WHEEL_KEYS
+
 if TYPE_CHECKING:
     from mecanum_mav.config.params import Params
 
 __all__ = ["WHEEL_KEYS", "PwmMap", "WheelOutput"]
-
-WHEEL_KEYS: tuple[str, str, str, str] = ("FL", "FR", "RL", "RR")
-"""Parameter name infixes of the wheels, in wheel order."""
 
 
 @dataclass(frozen=True)

@@ -12,9 +12,9 @@ drive axis; with ``MAN_Z_SCALE`` on it scales the whole stick (z/1000).
 RC_CHANNELS_OVERRIDE from the ground station (MAVProxy's ``rc`` command drives this way):
 channels ``RCMAP_STEER`` (rotation), ``RCMAP_THROTTLE`` (forward) and ``RCMAP_LATERAL``
 (right), pulse widths around ``RCIN_TRIM`` within ``RCIN_MIN..RCIN_MAX``. Channel semantics as
-ArduPilot: on 1-8 65535 leaves the channel as it was and 0 releases it; on 9-18 0 and 65535
-leave it and 65534 releases it. There is no radio behind the companion, so a released channel
-reads centre.
+ArduPilot (:mod:`mecanum_mav.protocol.rcoverride` holds the rules: on 1-8 65535 leaves the
+channel as it was and 0 releases it; on 9-18 0 and 65535 leave it and 65534 releases it). There
+is no radio behind the companion, so a released channel reads centre.
 """
 
 from __future__ import annotations
@@ -22,6 +22,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 from mecanum_mav.config.params import Params
+from mecanum_mav.protocol.rcoverride import LEAVE, RELEASE, field_action
 
 __all__ = [
     "INVALID_AXIS",
@@ -33,8 +34,6 @@ __all__ = [
 INVALID_AXIS = 0x7FFF
 """MANUAL_CONTROL's marker for an axis that is not in use (INT16_MAX)."""
 
-UINT16_MAX = 65535
-RELEASE_HIGH = 65534  # channels 9-18: return the channel to the radio
 PULSE_RANGE_US = (800, 2200)
 """Pulse widths a ground station may send for a stick; anything else is rejected."""
 
@@ -88,32 +87,32 @@ class RcStickState:
     def apply(self, channels: Sequence[int]) -> None:
         """Apply one RC_CHANNELS_OVERRIDE's 18 channel fields (chan1_raw..chan18_raw).
 
+        What each field means (leave, release, pulse) is
+        :func:`mecanum_mav.protocol.rcoverride.field_action`'s answer.
+
         Raises:
             InputError: a pulse outside 800..2200 us on any channel (nothing is applied).
         """
-        updates: dict[int, int | None] = {}
+        updates: dict[int, int] = {}
+        low, high = PULSE_RANGE_US
         for number, value in enumerate(channels, start=1):
-            low = number <= 8
-            if value == UINT16_MAX or (not low and value == 0):
+            action = field_action(number, value)
+            if action == LEAVE:
                 continue
-            if (low and value == 0) or (not low and value == RELEASE_HIGH):
-                updates[number] = None
-                continue
-            if not PULSE_RANGE_US[0] <= value <= PULSE_RANGE_US[1]:
-                raise InputError(f"RC ch{number}={value} not in 800..2200 us")
-            updates[number] = value
-        for number, pulse in updates.items():
-            if pulse is None:
+            if action != RELEASE and not low <= action <= high:
+                raise InputError(f"RC ch{number}={value} not in {low}..{high} us")
+            updates[number] = action
+        for number, action in updates.items():
+            if action == RELEASE:
                 self.pulses.pop(number, None)
             else:
-                self.pulses[number] = pulse
+                self.pulses[number] = action
 
     def touches_sticks(self, channels: Sequence[int], params: Params) -> bool:
         """Whether a message sets or releases any of the three stick channels."""
         for name in self.AXES:
             number = int(params[name])
-            value = channels[number - 1]
-            if not (value == UINT16_MAX or (number > 8 and value == 0)):
+            if field_action(number, channels[number - 1]) != LEAVE:
                 return True
         return False
 

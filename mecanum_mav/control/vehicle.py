@@ -21,33 +21,14 @@ Failsafes (each a parameter):
 from __future__ import annotations
 
 from dataclasses import dataclass
-from enum import IntEnum
+from typing import Protocol
 
 from mecanum_mav.config.params import Params
+from mecanum_mav.config.views import FailsafeConfig
+from mecanum_mav.protocol.modes import Mode
+from mecanum_mav.protocol.statustext import Severity
 
-__all__ = ["Decision", "Mode", "Severity", "Vehicle"]
-
-
-class Mode(IntEnum):
-    """Rover modes, numbered as ArduPilot Rover's ``custom_mode``."""
-
-    MANUAL = 0
-    HOLD = 4
-    AUTO = 10
-    GUIDED = 15
-
-
-class Severity(IntEnum):
-    """MAVLink ``MAV_SEVERITY`` of a STATUSTEXT."""
-
-    EMERGENCY = 0
-    ALERT = 1
-    CRITICAL = 2
-    ERROR = 3
-    WARNING = 4
-    NOTICE = 5
-    INFO = 6
-
+__all__ = ["Decision", "Mode", "ModeHooks", "Severity", "Vehicle"]
 
 AVAILABLE_MODES: frozenset[Mode] = frozenset(Mode)
 """Modes this build can enter; asking for another is DENIED with a reason."""
@@ -67,16 +48,28 @@ Event = tuple[Severity, str]
 """A state change a pilot must know about: (severity, STATUSTEXT text)."""
 
 
+class ModeHooks(Protocol):
+    """What a mode change does beyond the mode itself (the controllers behind GUIDED and AUTO)."""
+
+    def refuse_entry(self, mode: Mode, now_s: float) -> str | None:
+        """Why ``mode`` cannot be entered now, or None to allow it."""
+
+    def on_mode_change(self, before: Mode, after: Mode, now_s: float) -> None:
+        """The mode changed from ``before`` to ``after`` at ``now_s``."""
+
+
 class Vehicle:
     """Arming, mode and failsafe state of the rover.
 
     Args:
-        params: the parameter store (timeouts and failsafe action are read live, so a changed
-            parameter takes effect at the next update).
+        params: the parameter store; the failsafe timeouts and action are read from it here
+            and by :meth:`reconfigure` (after a parameter changed).
+        hooks: the side effects of mode changes (see :class:`ModeHooks`), or None.
     """
 
-    def __init__(self, params: Params) -> None:
-        self.params = params
+    def __init__(self, params: Params, hooks: ModeHooks | None = None) -> None:
+        self.config = FailsafeConfig.from_params(params)
+        self.hooks = hooks
         self.armed = False
         self.mode = Mode.MANUAL
         self.gcs_seen_s: float | None = None
@@ -86,6 +79,10 @@ class Vehicle:
         self.fc_lost = True
         self.input_stale = True
         self._events: list[Event] = []
+
+    def reconfigure(self, params: Params) -> None:
+        """Take the failsafe parameters from ``params`` (after a parameter changed)."""
+        self.config = FailsafeConfig.from_params(params)
 
     # ----------------------------------------------------------------- inputs
 
@@ -133,39 +130,49 @@ class Vehicle:
         return Decision(True)
 
     def request_mode(self, mode_number: int, now_s: float) -> Decision:
-        """Switch to a Rover mode number; unknown and unavailable modes are refused."""
+        """Switch to a Rover mode number; unknown and unavailable modes are refused, and so is
+        a mode whose controller cannot start (:meth:`ModeHooks.refuse_entry`, e.g. AUTO
+        without a mission). The hooks see every change, failsafe switches included."""
         try:
             mode = Mode(mode_number)
         except ValueError:
             return self._refuse(f"Mode {mode_number} unknown")
         if mode not in AVAILABLE_MODES:
             return self._refuse(f"Mode {mode.name} not available")
-        if mode is not self.mode:
-            self.mode = mode
-            self._say(Severity.INFO, f"Mode {mode.name}")
+        if mode is self.mode:
+            return Decision(True)
+        if self.hooks is not None:
+            reason = self.hooks.refuse_entry(mode, now_s)
+            if reason is not None:
+                self._say(Severity.WARNING, f"{mode.name} refused: {reason}")
+                return Decision(False, reason)
+        before, self.mode = self.mode, mode
+        self._say(Severity.INFO, f"Mode {mode.name}")
+        if self.hooks is not None:
+            self.hooks.on_mode_change(before, mode, now_s)
         return Decision(True)
 
     # ----------------------------------------------------------------- time
 
     def update(self, now_s: float) -> None:
         """Check every timeout at time ``now_s`` (monotonic seconds); queue the events."""
-        p = self.params
-        fc_down = self.fc_seen_s is None or now_s - self.fc_seen_s > p["FS_FC_TMO"]
+        c = self.config
+        fc_down = self.fc_seen_s is None or now_s - self.fc_seen_s > c.fc_timeout_s
         if fc_down and not self.fc_lost:
             self.fc_lost = True
             self._say(Severity.CRITICAL, "Flight controller link lost")
         if self.fc_lost and self.armed:
             self.request_disarm(now_s, "flight controller link lost")
-        gcs_late = self.gcs_seen_s is not None and now_s - self.gcs_seen_s > p["FS_GCS_TMO"]
+        gcs_late = self.gcs_seen_s is not None and now_s - self.gcs_seen_s > c.gcs_timeout_s
         if gcs_late and not self.gcs_failsafe:
             self.gcs_failsafe = True
             self._say(Severity.CRITICAL, "GCS link lost: failsafe")
             if self.armed:
-                if p["FS_GCS_ACTION"] == 1:
+                if c.gcs_action_disarm:
                     self.request_disarm(now_s, "GCS failsafe")
                 else:
                     self.request_mode(Mode.HOLD, now_s)
-        stale = self.input_s is None or now_s - self.input_s > p["FS_INPUT_TMO"]
+        stale = self.input_s is None or now_s - self.input_s > c.input_timeout_s
         if stale and not self.input_stale:
             self.input_stale = True
             if self.armed and self.mode is Mode.MANUAL:

@@ -18,12 +18,14 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import math
 import struct
 import time
 from typing import Any, BinaryIO
 
-from mecanum_mav.protocol.codec import decode_manual_control, encode_rc_override
+from mecanum_mav.protocol.codec import encode_rc_override
 from mecanum_mav.protocol.dialect import mavlink, mavutil
+from mecanum_mav.protocol.framing import MessageParser
 
 log = logging.getLogger(__name__)
 
@@ -31,6 +33,8 @@ __all__ = ["Link", "mavlink", "mavutil", "open_link"]
 
 _READ_CHUNK = 4096
 _TLOG_STAMP = struct.Struct(">Q")
+SEND_WARNING_PERIOD_S = 1.0
+"""A link that keeps failing to send is logged at WARNING at most this often."""
 _MAX_READS = 64  # per readiness event: bounded work, the selector calls again if more waits
 
 
@@ -50,10 +54,11 @@ class Link:
         self.conn: Any = mavutil.mavlink_connection(
             url, source_system=source_system, source_component=source_component
         )
-        self.conn.mav.robust_parsing = True
-        self._datagrams = url.startswith(("udp:", "udpin:", "udpout:", "udpbcast:"))
+        self.parser = MessageParser(self.conn.mav, name=name,
+                                    datagrams=url.startswith(("udp:", "udpin:", "udpout:",
+                                                              "udpbcast:")))
         self.received = 0
-        self.bad = 0
+        self._warned_s = -math.inf
         self.sent = 0
         self.send_errors = 0
         self._tlog: BinaryIO | None = None
@@ -87,6 +92,11 @@ class Link:
         """File descriptor to wait on (may change for ``tcpin`` after a client connects)."""
         return int(self.conn.fd)
 
+    @property
+    def bad(self) -> int:
+        """Malformed, truncated or bad-CRC packets received (counted, never raised)."""
+        return self.parser.bad
+
     def read(self) -> list[Any]:
         """Every complete message waiting on the link, oldest first; never raises."""
         messages: list[Any] = []
@@ -98,65 +108,34 @@ class Link:
                 break
             if not data:
                 break
-            if self._datagrams:
-                fast = decode_manual_control(data)
-                if fast is not None:
-                    messages.append(fast)
-                    self._record(fast)
-                    continue
             if self.conn.first_byte:
                 self.conn.auto_mavlink_version(data)
-            try:
-                parsed = self._parse(data)
-            except Exception as exc:  # pymavlink raises MAVError (and worse) on some garbage
-                self.bad += 1
-                log.debug("%s: unparseable bytes: %s", self.name, exc)
-                self._reset_parser()
-                continue
-            if self._datagrams and self.conn.mav.buf_len() > 0:
-                # A MAVLink packet never spans UDP datagrams: a leftover is a truncated
-                # packet, and keeping it would swallow the start of the next datagram.
-                self.bad += 1
-                self._reset_parser()
-            for msg in parsed:
-                if msg.get_type() == "BAD_DATA":
-                    self.bad += 1
-                else:
-                    messages.append(msg)
+            parsed = self.parser.parse(data)
+            if self._tlog is not None:
+                for msg in parsed:
                     self._record(msg)
+            messages += parsed
         self.received += len(messages)
         return messages
-
-    def _parse(self, data: bytes) -> list[Any]:
-        """``parse_buffer`` without its extra empty pass when the buffer is already empty
-        (one message per datagram is the common case on the hot path)."""
-        mav = self.conn.mav
-        msg = mav.parse_char(data)
-        parsed = []
-        while msg is not None:
-            parsed.append(msg)
-            if mav.buf_len() == 0:
-                break
-            msg = mav.parse_char(b"")
-        return parsed
-
-    def _reset_parser(self) -> None:
-        mav = self.conn.mav
-        mav.buf = bytearray()
-        mav.buf_index = 0
-        mav.expected_length = mavlink.HEADER_LEN_V1 + 2
-        mav.have_prefix_error = False
 
     def send(self, msg: Any) -> bool:
         """Pack and send one message object; returns False (and counts) on failure."""
         try:
             self.conn.mav.send(msg)
         except Exception as exc:  # a send must never take the control loop down
-            self.send_errors += 1
-            log.debug("%s: send failed: %s", self.name, exc)
+            self._send_failed(exc)
             return False
         self.sent += 1
         return True
+
+    def _send_failed(self, exc: Exception) -> None:
+        """Count a failed send; warn at most once a second per link (a dead peer would
+        otherwise flood the log at the output rate)."""
+        self.send_errors += 1
+        now = time.monotonic()
+        if now - self._warned_s >= SEND_WARNING_PERIOD_S:
+            self._warned_s = now
+            log.warning("%s: send failed (%d so far): %s", self.name, self.send_errors, exc)
 
     def send_rc_override(self, target_system: int, target_component: int,
                          channels: list[int]) -> None:
@@ -170,8 +149,7 @@ class Link:
         try:
             self.conn.write(packet)
         except Exception as exc:  # a send must never take the control loop down
-            self.send_errors += 1
-            log.debug("%s: send failed: %s", self.name, exc)
+            self._send_failed(exc)
             return
         self.sent += 1
         if self._tlog is not None:

@@ -3,7 +3,8 @@
 Frames and signs (see CONVENTIONS.md): x forward, y right, yaw rate positive clockwise seen
 from above; wheel order FL, FR, RL, RR on the last axis of every wheel array; a positive
 wheel speed rolls the robot forward. Rollers are in the usual "X": a wheel rolls at
-``v_x + s_i * v_y`` of the velocity at its contact point, with ``s = (+1, -1, -1, +1)``.
+``v_x + s_i * v_y`` of the velocity at its contact point, with ``s = (+1, -1, -1, +1)``
+(:data:`ROLLER_SIGNS`, defined in :mod:`mecanum_mav.mecanum.wheels` as ``LATERAL_SIGNS``).
 
 For a rigid body turning at ``w`` about a centre of rotation ``c`` (which moves at
 ``(vx, vy)``), the velocity at a point ``p`` relative to ``c`` is ``(vx - w*p_y, vy + w*p_x)``,
@@ -24,14 +25,13 @@ import numpy as np
 import numpy.typing as npt
 
 from mecanum_mav.mecanum.geometry import Twist2d
+from mecanum_mav.mecanum.wheels import CORNER_SIGNS
+from mecanum_mav.mecanum.wheels import LATERAL_SIGNS as ROLLER_SIGNS
 
 __all__ = ["ROLLER_SIGNS", "MecanumKinematics"]
 
 FloatArray = npt.NDArray[np.float64]
 Position = tuple[float, float]
-
-ROLLER_SIGNS: tuple[float, float, float, float] = (1.0, -1.0, -1.0, 1.0)
-"""s_i for (FL, FR, RL, RR): a wheel rolls at v_x + s_i * v_y (FRD) of its contact point."""
 
 _PY_SCALARS = (float, int)
 
@@ -104,8 +104,8 @@ class MecanumKinematics:
         with L = ``half_length_m`` (centre to axle) and W = ``half_width_m`` (centre to
         wheel contact, sideways).
         """
-        length, width = half_length_m, half_width_m
-        return cls((length, -width), (length, width), (-length, -width), (-length, width))
+        fl, fr, rl, rr = ((sx * half_length_m, sy * half_width_m) for sx, sy in CORNER_SIGNS)
+        return cls(fl, fr, rl, rr)
 
     @property
     def matrix(self) -> FloatArray:

@@ -7,10 +7,11 @@ returns an ``ndarray`` whose last axis is the four wheels in the order FL, FR, R
 wheel command rolls the robot forward; mirrored motors are handled at the PWM edge, never here.
 
 With rollers in the usual "X" arrangement a wheel command is ``x + s*y + q*r`` with lateral signs
-``s = (+1, -1, -1, +1)`` and rotation signs ``q = (+1, -1, +1, -1)``. The translation part of
-the FL/RR pair is ``a = x + y`` and of the FR/RL pair ``b = x - y``, so the largest wheel
-magnitude is exactly ``max(|a|, |b|) + |r|``: every desaturation strategy has a closed form,
-which is what keeps the scalar path in single-digit microseconds.
+``s = (+1, -1, -1, +1)`` and rotation signs ``q = (+1, -1, +1, -1)`` (defined in
+:mod:`mecanum_mav.mecanum.wheels`; tests/test_wheels.py holds the closed forms here to them).
+The translation part of the FL/RR pair is ``a = x + y`` and of the FR/RL pair ``b = x - y``, so
+the largest wheel magnitude is exactly ``max(|a|, |b|) + |r|``: every desaturation strategy has
+a closed form, which is what keeps the scalar path in single-digit microseconds.
 
 Bad input: a command with any non-finite component (NaN, +/-inf) is read as a stop: that
 command's four wheels are 0.0. Magnitudes, stick axes and rotations outside [-1, 1] are limited
@@ -32,6 +33,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from mecanum_mav.mecanum.shaping import deadband, expo, shape_stick, square_to_circle
+from mecanum_mav.mecanum.wheels import LATERAL_SIGNS as _LATERAL_SIGNS
+from mecanum_mav.mecanum.wheels import ROTATION_SIGNS as _ROTATION_SIGNS
 
 __all__ = [
     "ALGORITHMS",
@@ -60,10 +63,12 @@ Wheels = NDArray[np.float64]
 WheelTuple = tuple[float, float, float, float]
 """One set of wheel commands FL, FR, RL, RR as plain floats (the control loop's path)."""
 
-LATERAL_SIGNS = np.array([1.0, -1.0, -1.0, 1.0])
-"""Sign of the y (right) command in each wheel, FL, FR, RL, RR."""
-ROTATION_SIGNS = np.array([1.0, -1.0, 1.0, -1.0])
-"""Sign of the clockwise rotation command in each wheel, FL, FR, RL, RR."""
+LATERAL_SIGNS: NDArray[np.float64] = np.array(_LATERAL_SIGNS)
+"""Sign of the y (right) command in each wheel, FL, FR, RL, RR (an array of
+:data:`mecanum_mav.mecanum.wheels.LATERAL_SIGNS`)."""
+ROTATION_SIGNS: NDArray[np.float64] = np.array(_ROTATION_SIGNS)
+"""Sign of the clockwise rotation command in each wheel, FL, FR, RL, RR (an array of
+:data:`mecanum_mav.mecanum.wheels.ROTATION_SIGNS`)."""
 
 _INV_SQRT2 = 1.0 / math.sqrt(2.0)
 _SCALAR_TYPES = frozenset({float, int, np.float64, np.float32, np.int64, np.int32})

@@ -37,6 +37,13 @@ from dataclasses import dataclass
 
 from mecanum_mav.mecanum.geo import GlobalOrigin
 from mecanum_mav.protocol.dialect import mavlink
+from mecanum_mav.protocol.limits import (
+    MAX_MISSION_HOLD_S,
+    MAX_MISSION_LOCAL_M,
+    MAX_MISSION_RADIUS_M,
+    MAX_MISSION_YAW_RATE_DPS,
+    MAX_SPEED_MPS,
+)
 
 __all__ = [
     "GLOBAL_FRAMES",
@@ -75,9 +82,6 @@ NAV_COMMANDS = POSITION_COMMANDS | {mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH}
 LOCAL_XY_SCALE = 1e4  # MISSION_ITEM_INT local x/y: metres * 1e4
 GLOBAL_XY_SCALE = 1e7  # MISSION_ITEM_INT global x/y: degrees * 1e7
 _INT32 = 2**31 - 1
-MAX_LOCAL_M = 100_000.0
-MAX_SPEED_MPS = 50.0
-MAX_YAW_RATE_DPS = 3600.0
 
 
 class MissionItemError(ValueError):
@@ -193,22 +197,25 @@ def check_item(item: MissionItem, count: int) -> None:
             _need(abs(item.y) <= 1_800_000_000, mavlink.MAV_MISSION_INVALID_PARAM6_Y,
                   f"{where}: longitude off the earth")
         else:
-            limit = MAX_LOCAL_M * LOCAL_XY_SCALE
+            limit = MAX_MISSION_LOCAL_M * LOCAL_XY_SCALE
+            km = f"{MAX_MISSION_LOCAL_M / 1000.0:g} km"
             _need(abs(item.x) <= limit, mavlink.MAV_MISSION_INVALID_PARAM5_X,
-                  f"{where}: x beyond 100 km")
+                  f"{where}: x beyond {km}")
             _need(abs(item.y) <= limit, mavlink.MAV_MISSION_INVALID_PARAM6_Y,
-                  f"{where}: y beyond 100 km")
-        _need(_param_ok(item.param1, 0.0, 86_400.0, nan_ok=True),
-              mavlink.MAV_MISSION_INVALID_PARAM1, f"{where}: time must be 0 .. 86400 s")
+                  f"{where}: y beyond {km}")
+        _need(_param_ok(item.param1, 0.0, MAX_MISSION_HOLD_S, nan_ok=True),
+              mavlink.MAV_MISSION_INVALID_PARAM1,
+              f"{where}: time must be 0 .. {MAX_MISSION_HOLD_S:g} s")
         if cmd == mavlink.MAV_CMD_NAV_WAYPOINT:
-            _need(_param_ok(item.param2, 0.0, 1000.0, nan_ok=True),
-                  mavlink.MAV_MISSION_INVALID_PARAM2, f"{where}: radius must be 0 .. 1000 m")
+            _need(_param_ok(item.param2, 0.0, MAX_MISSION_RADIUS_M, nan_ok=True),
+                  mavlink.MAV_MISSION_INVALID_PARAM2,
+                  f"{where}: radius must be 0 .. {MAX_MISSION_RADIUS_M:g} m")
         _need(not math.isinf(item.param4), mavlink.MAV_MISSION_INVALID_PARAM4,
               f"{where}: yaw infinite")
     elif cmd == mavlink.MAV_CMD_CONDITION_YAW:
         _need(math.isfinite(item.param1), mavlink.MAV_MISSION_INVALID_PARAM1,
               f"{where}: yaw angle not finite")
-        _need(_param_ok(item.param2, 0.0, MAX_YAW_RATE_DPS, nan_ok=True),
+        _need(_param_ok(item.param2, 0.0, MAX_MISSION_YAW_RATE_DPS, nan_ok=True),
               mavlink.MAV_MISSION_INVALID_PARAM2, f"{where}: yaw rate must be >= 0 deg/s")
         _need(math.isnan(item.param3) or item.param3 in (-1.0, 0.0, 1.0),
               mavlink.MAV_MISSION_INVALID_PARAM3, f"{where}: direction must be -1, 0 or 1")
@@ -217,7 +224,8 @@ def check_item(item: MissionItem, count: int) -> None:
     elif cmd == mavlink.MAV_CMD_DO_CHANGE_SPEED:
         _need(item.param2 in (-1.0, -2.0) or _param_ok(item.param2, 0.0, MAX_SPEED_MPS,
                                                         nan_ok=False),
-              mavlink.MAV_MISSION_INVALID_PARAM2, f"{where}: speed must be 0 .. 50 m/s")
+              mavlink.MAV_MISSION_INVALID_PARAM2,
+              f"{where}: speed must be 0 .. {MAX_SPEED_MPS:g} m/s")
     elif cmd == mavlink.MAV_CMD_DO_JUMP:
         target = item.param1
         _need(math.isfinite(target) and target.is_integer() and 1 <= target < count

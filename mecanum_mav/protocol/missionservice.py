@@ -71,7 +71,8 @@ Mission types
 Items are stored as uploaded, ``current`` included (the companion may set ``current`` on the
 way out). Events (:meth:`MissionService.take_events`): ``"replaced"`` and ``"cleared"`` when the
 stored mission changed (:attr:`MissionService.version` is incremented with each), ``"error"``
-with a STATUSTEXT-sized (<= 50 characters) reason when an operation failed.
+with a STATUSTEXT-sized reason (at most :data:`~mecanum_mav.protocol.statustext.STATUSTEXT_LEN`
+characters) when an operation failed.
 """
 
 from __future__ import annotations
@@ -89,6 +90,7 @@ from mecanum_mav.protocol.mission import (
     float_xy,
     item_from_fields,
 )
+from mecanum_mav.protocol.statustext import STATUSTEXT_LEN
 
 __all__ = ["ITEM_TIMEOUT_S", "MAX_RETRIES", "STATUSTEXT_LEN", "MissionService", "Outgoing", "Src"]
 
@@ -98,9 +100,6 @@ timeout for mission items)."""
 
 MAX_RETRIES = 5
 """How many times a request is sent again before the upload is cancelled (the spec's maximum)."""
-
-STATUSTEXT_LEN = 50
-"""The longest ``"error"`` event text: what one STATUSTEXT carries."""
 
 Src = tuple[int, int]
 """(system id, component id) of a message's sender or an outgoing message's target."""
@@ -204,7 +203,8 @@ class MissionService:
         """``(kind, text)`` events since the last call, oldest first.
 
         ``"replaced"`` / ``"cleared"``: the mission changed (persist it, reset the executor);
-        ``"error"``: a failed operation, the text (<= 50 characters) for a STATUSTEXT.
+        ``"error"``: a failed operation, the text (at most ``STATUSTEXT_LEN`` characters) for a
+        STATUSTEXT.
         """
         events, self._events = self._events, []
         return events

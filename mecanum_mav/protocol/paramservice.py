@@ -22,13 +22,10 @@ from mecanum_mav.protocol.dialect import mavlink
 
 __all__ = ["RESTART_REQUIRED", "ParamService", "ParamValue"]
 
-RESTART_REQUIRED: frozenset[str] = frozenset(
-    {"SYSID_THISMAV", "GEO_HALF_LEN", "GEO_HALF_WID"}
-    | {spec.name for spec in SCHEMA if spec.name.startswith("SIM_")}
-)
-"""Parameters stored at once but used only after a restart: identity, the wheel geometry (the
-odometry's kinematics is built once, so a live change cannot bend its history) and the
-simulator."""
+RESTART_REQUIRED: frozenset[str] = frozenset(spec.name for spec in SCHEMA if spec.reboot_required)
+"""Parameters stored at once but used only after a restart (``ParamSpec.reboot_required`` in
+the schema): identity, the wheel geometry (the odometry's kinematics is built once, so a live
+change cannot bend its history) and the simulator."""
 
 _INDEX = {spec.name: index for index, spec in enumerate(SCHEMA)}
 

@@ -1,0 +1,656 @@
+"""The rover core: everything the companion decides, with messages and time in, messages out.
+
+No sockets, no clock, no files. The companion process (:mod:`mecanum_mav.app.companion`) feeds
+it what arrives on its two links and writes what it returns; the lockstep harness
+(:mod:`mecanum_mav.sim`) does the same in virtual time. Per message and per wake-up:
+
+1. :meth:`RoverCore.handle` (one received message, the time it arrived): cheap state updates
+   only. Stick input is remembered, not yet mixed, so after a burst of messages the newest
+   stick wins and nothing queues.
+2. :meth:`RoverCore.tick` (the time now): failsafes; the mission; the output (the pilot's
+   stick in MANUAL, the GUIDED/AUTO chain on its control grid, else neutral), returned as the
+   RC_CHANNELS_OVERRIDE to send at once when new input arrived or the output changed, and
+   re-sent every ``OUT_RATE`` so the flight controller's override timeout never lapses; then,
+   after the output, odometry, telemetry, heartbeats, mission protocol timeouts and status
+   texts.
+3. :meth:`RoverCore.next_due_s`: when to call :meth:`RoverCore.tick` again if nothing arrives.
+
+Both return an :class:`Outbox`: pymavlink message objects for the ground station and for the
+flight controller (packed by the link that sends them, with its own sequence numbers and ids),
+and the override's 18 channel fields when one is due.
+
+Identity on the ground-station link: system ``SYSID_THISMAV``, component 1, ArduPilot Rover
+dialect. On the flight-controller link the companion is a ground station (system
+``FC_GCS_SYSID``, 255 by default: ArduPilot obeys overrides only from its ``MAV_GCS_SYSID``).
+
+Safety: disarmed, HOLD, any failsafe, stale input, and an exception while handling a message
+or computing the output all end at neutral PWM (each wheel's trim). After an exception the
+output stays neutral (latched) until the next valid stick or setpoint or a mode change.
+:meth:`RoverCore.shutdown` gives the last overrides: neutral, then the channels released.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections import OrderedDict
+from collections.abc import Callable, Sequence
+from typing import Any, NamedTuple, Protocol
+
+from mecanum_mav.config.params import Params
+from mecanum_mav.config.views import IdentityConfig, InputConfig, OutputConfig
+from mecanum_mav.control.autopilot import Autopilot
+from mecanum_mav.control.chain import Output, manual_output
+from mecanum_mav.control.estimator import WheelOdometryEstimator
+from mecanum_mav.control.guided import SetpointError, decode_setpoint
+from mecanum_mav.control.pwm import PwmMap
+from mecanum_mav.control.sticks import InputError, RcStickState, stick_from_manual_control
+from mecanum_mav.control.vehicle import Decision, Vehicle
+from mecanum_mav.mecanum.geo import GlobalOrigin
+from mecanum_mav.protocol.dialect import mavlink
+from mecanum_mav.protocol.heartbeat import send_gcs_heartbeat, send_rover_heartbeat
+from mecanum_mav.protocol.mission import MissionItem
+from mecanum_mav.protocol.missionlink import MISSION_MESSAGES, MissionLink
+from mecanum_mav.protocol.missionservice import MissionService
+from mecanum_mav.protocol.modes import Mode
+from mecanum_mav.protocol.outbox import MessageOutbox
+from mecanum_mav.protocol.paramservice import RESTART_REQUIRED, ParamService, ParamValue
+from mecanum_mav.protocol.rcoverride import override_fields, release_fields
+from mecanum_mav.protocol.statustext import Severity, statustext_messages
+from mecanum_mav.protocol.telemetry import (
+    REQUESTABLE,
+    StreamSchedule,
+    TelemetryState,
+    build,
+    ftp_nak,
+)
+
+log = logging.getLogger(__name__)
+
+__all__ = ["COMPANION_COMPID", "Outbox", "RcOverride", "RoverCore", "Storage"]
+
+COMPANION_COMPID = 1
+"""The companion's component id on the ground-station link (MAVSDK talks to component 1 only)."""
+HEARTBEAT_PERIOD_S = 1.0
+STATUSTEXT_REPEAT_S = 1.0
+"""The same rejection is reported at most once a second."""
+SAID_MEMORY = 64
+"""How many recent status texts are remembered for the repeat limit (bounded memory)."""
+
+_NEUTRAL_WHEELS = (0.0, 0.0, 0.0, 0.0)
+
+
+class RcOverride(NamedTuple):
+    """One RC_CHANNELS_OVERRIDE to the flight controller."""
+
+    target_system: int
+    target_component: int
+    channels: list[int]
+    """The 18 ``chanN_raw`` fields, channel 1 first."""
+
+
+class Outbox(NamedTuple):
+    """What the core wants sent: message objects per link, and the override if one is due."""
+
+    gcs: Sequence[Any]
+    fc: Sequence[Any]
+    override: RcOverride | None = None
+
+
+_NOTHING = Outbox((), (), None)
+
+
+class Storage(Protocol):
+    """Where accepted parameters and missions are kept (files, in the companion)."""
+
+    def save_params(self, params: Params) -> None:
+        """Keep the parameters; raises ``OSError`` when that fails."""
+
+    def save_mission(self, items: Sequence[MissionItem]) -> None:
+        """Keep the mission; raises ``OSError`` when that fails."""
+
+
+def _no_link_errors() -> tuple[int, int]:
+    return 0, 0
+
+
+Handler = Callable[[Any, float], None]
+Command = Callable[[tuple[float, ...], float], int]
+
+
+class RoverCore:
+    """The rover's decisions (see the module docstring).
+
+    Args:
+        params: the parameter store; PARAM_SET changes it (and :meth:`reconfigure` re-reads it).
+        now_s: the time the rover boots, monotonic seconds (telemetry's ``time_boot_ms``).
+        mission: the mission to start with (item 0 is home), e.g. read from its file.
+        storage: keeps accepted parameters and missions, or None.
+        link_errors: returns (malformed packets received, sends that failed) over both links,
+            for SYS_STATUS ``errors_comm``.
+    """
+
+    def __init__(self, params: Params, *, now_s: float, mission: Sequence[MissionItem] = (),
+                 storage: Storage | None = None,
+                 link_errors: Callable[[], tuple[int, int]] = _no_link_errors) -> None:
+        self.params = params
+        self.storage = storage
+        self.link_errors = link_errors
+        self.boot_s = now_s
+        self._now_s = now_s
+        self.to_gcs = MessageOutbox()
+        self.to_fc = MessageOutbox()
+        self.param_service = ParamService(params)
+        self.estimator = WheelOdometryEstimator(params)
+        self.autopilot = Autopilot(params, self.estimator, lambda: self.origin)
+        self.vehicle = Vehicle(params, hooks=self)
+        self.streams = StreamSchedule(params)
+        self.rc_sticks = RcStickState()
+        self.mission = MissionService(mission)
+        self.mission_link = MissionLink(self.mission, self.to_gcs, self._for_us)
+        self.autopilot.executor.load(mission)
+        self.origin_set: GlobalOrigin | None = None
+        """The global origin from SET_GPS_GLOBAL_ORIGIN (overrides ORIGIN_LAT/LON)."""
+        self.stick = (0.0, 0.0, 0.0)
+        """The latest valid stick: forward, right, clockwise, normalized."""
+        self.wheels = _NEUTRAL_WHEELS
+        """The wheel commands being output, normalized FL, FR, RL, RR."""
+        self.pulses_us: tuple[int, ...] = ()
+        """The pulse widths last sent to the flight controller (us), FL, FR, RL, RR."""
+        self.faulted = False
+        """An exception forced neutral; cleared by the next valid input or a mode change."""
+        self._wheels_s: float | None = None
+        self._new_input = False
+        self._next_output_s = now_s
+        self._next_heartbeat_s = now_s
+        self._said: OrderedDict[str, float] = OrderedDict()
+        self._gcs_handlers: dict[str, Handler] = {
+            "HEARTBEAT": self._on_gcs_heartbeat,
+            "MANUAL_CONTROL": self._on_manual_control,
+            "RC_CHANNELS_OVERRIDE": self._on_rc_override,
+            "COMMAND_LONG": self._on_command,
+            "COMMAND_INT": self._on_command,
+            "SET_MODE": self._on_set_mode,
+            "PARAM_REQUEST_LIST": self._on_param_request_list,
+            "PARAM_REQUEST_READ": self._on_param_request_read,
+            "PARAM_SET": self._on_param_set,
+            "SET_POSITION_TARGET_LOCAL_NED": self._on_position_target,
+            "PING": self._on_ping,
+            "FILE_TRANSFER_PROTOCOL": self._on_ftp,
+            "MISSION_SET_CURRENT": self._on_mission_set_current,
+            "SET_GPS_GLOBAL_ORIGIN": self._on_set_origin,
+            **dict.fromkeys(MISSION_MESSAGES, self._on_mission_message),
+        }
+        self._fc_handlers: dict[str, Handler] = {
+            "HEARTBEAT": self._on_fc_heartbeat,
+            "ATTITUDE": self._on_attitude,
+            "WHEEL_DISTANCE": self._on_wheel_distance,
+        }
+        self._commands: dict[int, Command] = {
+            mavlink.MAV_CMD_COMPONENT_ARM_DISARM: self._cmd_arm_disarm,
+            mavlink.MAV_CMD_DO_SET_MODE: self._cmd_set_mode,
+            mavlink.MAV_CMD_SET_MESSAGE_INTERVAL: self._cmd_set_message_interval,
+            mavlink.MAV_CMD_GET_MESSAGE_INTERVAL: self._cmd_get_message_interval,
+            mavlink.MAV_CMD_REQUEST_MESSAGE: self._cmd_request_message,
+            mavlink.MAV_CMD_DO_SET_MISSION_CURRENT: self._cmd_set_mission_current,
+            mavlink.MAV_CMD_MISSION_START: self._cmd_mission_start,
+            mavlink.MAV_CMD_DO_SET_HOME: self._cmd_set_home,
+        }
+        self.reconfigure()
+
+    # ================================================================== the interface
+
+    def handle(self, msg: Any, now_s: float, *, from_fc: bool = False) -> Outbox:
+        """One message received on the ground-station link (or the flight controller's, with
+        ``from_fc``) at ``now_s``; returns what to send in answer."""
+        self._now_s = now_s
+        try:
+            if from_fc:
+                if msg.get_srcSystem() == self.identity.fc_sysid:
+                    fc_handler = self._fc_handlers.get(msg.get_type())
+                    if fc_handler is not None:
+                        fc_handler(msg, now_s)
+            else:
+                handler = self._gcs_handlers.get(msg.get_type())
+                if handler is not None and msg.get_srcSystem() != self.identity.sysid:
+                    handler(msg, now_s)
+        except Exception:  # never let one message take the control path down
+            log.exception("error handling %s", msg.get_type())
+            self.faulted = True
+            self.say(Severity.ERROR, f"Error handling {msg.get_type()}: neutral")
+            return self._take(self._override(self.pwm.neutral(), now_s))
+        return self._take(None)
+
+    def tick(self, now_s: float) -> Outbox:
+        """Failsafes, output, then telemetry and status at ``now_s``; returns what to send."""
+        self._now_s = now_s
+        vehicle = self.vehicle
+        vehicle.update(now_s)
+        executor = self.autopilot.executor
+        if executor.running or vehicle.mode is Mode.AUTO:
+            reason = self.autopilot.sync(vehicle.auto(), now_s)
+            if reason is not None:
+                self.say(Severity.WARNING, f"AUTO: {reason}: HOLD")
+                vehicle.request_mode(Mode.HOLD, now_s)
+        try:
+            wheels, pulses = self._compute_output(now_s)
+        except Exception:
+            log.exception("error computing the output")
+            self.faulted = True
+            self.say(Severity.ERROR, "Error computing output: neutral")
+            wheels, pulses = _NEUTRAL_WHEELS, self.pwm.neutral()
+        override = None
+        if self._new_input or pulses != self.pulses_us or now_s >= self._next_output_s:
+            override = self._override(pulses, now_s)
+        # Off the latency-critical path: everything below comes after the output.
+        if self._wheels_s is not None:
+            self.estimator.on_commanded(self.wheels, now_s - self._wheels_s, now_s)
+        self.wheels, self._wheels_s = wheels, now_s
+        self._housekeeping(now_s)
+        return self._take(override)
+
+    def next_due_s(self) -> float:
+        """When :meth:`tick` must run next if no message arrives first (monotonic s)."""
+        return min(self._next_output_s, self._next_heartbeat_s, self.streams.next_due_s(),
+                   self.autopilot.next_due_s(), self.mission.next_due_s())
+
+    def shutdown(self) -> list[RcOverride]:
+        """The last overrides before the companion lets go: neutral (twice, the wheels stop),
+        then the channels released to the flight controller's radio."""
+        neutral = self.pwm.neutral()
+        self.pulses_us = neutral
+        target = self.identity.fc_sysid, self.identity.fc_compid
+        hold = RcOverride(*target, override_fields(self.pwm.channels, neutral))
+        return [hold, hold, RcOverride(*target, release_fields(self.pwm.channels))]
+
+    def reconfigure(self) -> None:
+        """Re-read the parameter views the loop uses (after a parameter changed)."""
+        p = self.params
+        self.pwm = PwmMap.from_params(p)
+        self.identity = IdentityConfig.from_params(p)
+        self.input = InputConfig.from_params(p)
+        self.output = OutputConfig.from_params(p)
+        self.vehicle.reconfigure(p)
+
+    def say(self, severity: Severity, text: str, *, repeat_s: float = 0.0) -> None:
+        """A STATUSTEXT to the ground station (and the log); long texts go in chunks.
+
+        With ``repeat_s`` the same text is said at most once per that many seconds.
+        """
+        now = self._now_s
+        said = self._said
+        if repeat_s and now - said.get(text, -math.inf) < repeat_s:
+            return
+        said[text] = now
+        said.move_to_end(text)
+        if len(said) > SAID_MEMORY:
+            said.popitem(last=False)
+        log.log(logging.WARNING if severity <= Severity.WARNING else logging.INFO, "%s", text)
+        self.to_gcs.messages.extend(statustext_messages(severity, text))
+
+    @property
+    def origin(self) -> GlobalOrigin | None:
+        """Where local (0, 0) is on the earth: SET_GPS_GLOBAL_ORIGIN, else ORIGIN_LAT/LON."""
+        if self.origin_set is not None:
+            return self.origin_set
+        lat, lon = float(self.params["ORIGIN_LAT"]), float(self.params["ORIGIN_LON"])
+        if lat == 0.0 and lon == 0.0:
+            return None
+        return GlobalOrigin.from_degrees(lat, lon)
+
+    # ================================================================== mode hooks
+
+    def refuse_entry(self, mode: Mode, now_s: float) -> str | None:
+        """:class:`~mecanum_mav.control.vehicle.ModeHooks`: the autopilot decides."""
+        return self.autopilot.refuse_entry(mode, now_s)
+
+    def on_mode_change(self, before: Mode, after: Mode, now_s: float) -> None:
+        """A mode change clears an exception's neutral latch and starts the controllers."""
+        self.faulted = False
+        self.autopilot.on_mode_change(before, after, now_s)
+
+    # ================================================================== output
+
+    def _compute_output(self, now_s: float) -> Output:
+        vehicle = self.vehicle
+        if self.faulted:
+            self.autopilot.idle()
+            return _NEUTRAL_WHEELS, self.pwm.neutral()
+        if vehicle.autonomous():
+            return self.autopilot.output(vehicle.mode is Mode.AUTO, now_s, self.output,
+                                         self.input.desaturation, self.pwm)
+        self.autopilot.idle()
+        if not vehicle.driving():
+            return _NEUTRAL_WHEELS, self.pwm.neutral()
+        x, y, r = self.stick
+        return manual_output(x, y, r, self.input, self.pwm)
+
+    def _override(self, pulses: tuple[int, ...], now_s: float) -> RcOverride:
+        self.pulses_us = pulses
+        self._new_input = False
+        self._next_output_s = now_s + self.output.refresh_period_s
+        return RcOverride(self.identity.fc_sysid, self.identity.fc_compid,
+                          override_fields(self.pwm.channels, pulses))
+
+    def _take(self, override: RcOverride | None) -> Outbox:
+        gcs, fc = self.to_gcs, self.to_fc
+        if not (gcs.messages or fc.messages or override):
+            return _NOTHING
+        return Outbox(gcs.take() if gcs.messages else (), fc.take() if fc.messages else (),
+                      override)
+
+    def _housekeeping(self, now_s: float) -> None:
+        """Telemetry, heartbeats, the mission protocol's timeouts and status texts."""
+        # Telemetry rides the output refresh's wake-ups when it is due within half a period.
+        due = self.streams.due(now_s, self.output.refresh_period_s / 2)
+        if due:
+            state = self._telemetry_state(now_s)
+            for name in due:
+                build(name, self.to_gcs, state)
+        if now_s >= self._next_heartbeat_s:
+            vehicle = self.vehicle
+            send_rover_heartbeat(self.to_gcs, vehicle.mode, armed=vehicle.armed,
+                                 failsafe=vehicle.failsafe)
+            send_gcs_heartbeat(self.to_fc)
+            self._send_mission_current()  # MISSION_CURRENT at 1 Hz, as ArduPilot
+            self._next_heartbeat_s = now_s + HEARTBEAT_PERIOD_S
+        if now_s >= self.mission.next_due_s():
+            self.mission_link.tick(now_s)
+            self._take_mission_events(now_s)
+        if self.autopilot.executor.has_events:
+            self._take_executor_events(now_s)
+        if self.vehicle.has_events:
+            for severity, text in self.vehicle.take_events():
+                self.say(severity, text)
+
+    def _telemetry_state(self, now_s: float) -> TelemetryState:
+        est = self.estimator
+        bad, send_errors = self.link_errors()
+        return TelemetryState(now_s, self.boot_s, est.pose, est.velocity_body, est.yaw_rate,
+                              est.reset_counter, est.wheel_distances_m, self.pwm.channels,
+                              self.pulses_us, bad + send_errors, self.origin)
+
+    # ================================================================== addressing
+
+    def _for_us(self, target_system: int, target_component: int | None = None) -> bool:
+        if target_system != 0 and target_system != self.identity.sysid:
+            return False
+        return target_component is None or target_component in (0, COMPANION_COMPID)
+
+    def _from_pilot(self, msg: Any) -> bool:
+        gcs = self.identity.gcs_sysid
+        return gcs == 0 or msg.get_srcSystem() == gcs
+
+    def _reject_input(self, reason: str) -> None:
+        self.say(Severity.WARNING, f"Rejected: {reason}", repeat_s=STATUSTEXT_REPEAT_S)
+
+    # ================================================================== the flight controller
+
+    def _on_fc_heartbeat(self, msg: Any, now_s: float) -> None:
+        self.vehicle.on_fc_heartbeat(now_s)
+
+    def _on_attitude(self, msg: Any, now_s: float) -> None:
+        self.estimator.on_attitude(msg.yaw, msg.yawspeed, now_s)
+
+    def _on_wheel_distance(self, msg: Any, now_s: float) -> None:
+        if msg.count >= 4:
+            self.estimator.on_wheel_distance(msg.distance[:4], now_s)
+
+    # ================================================================== sticks and setpoints
+
+    def _on_gcs_heartbeat(self, msg: Any, now_s: float) -> None:
+        if self._from_pilot(msg):
+            self.vehicle.on_gcs_heartbeat(now_s)
+
+    def _take_stick(self, stick: tuple[float, float, float], now_s: float) -> None:
+        self.stick = stick
+        self.faulted = False
+        self.vehicle.on_stick_input(now_s)
+        self._new_input = True
+
+    def _on_manual_control(self, msg: Any, now_s: float) -> None:
+        if not (self._for_us(msg.target) and self._from_pilot(msg)):
+            return
+        try:
+            stick = stick_from_manual_control(msg.x, msg.y, msg.r, msg.z,
+                                              z_scale=self.input.z_scale)
+        except InputError as exc:
+            self._reject_input(str(exc))
+            return
+        self._take_stick(stick, now_s)
+
+    def _on_rc_override(self, msg: Any, now_s: float) -> None:
+        if not (self._for_us(msg.target_system, msg.target_component) and self._from_pilot(msg)):
+            return
+        channels = [getattr(msg, f"chan{i}_raw") for i in range(1, 19)]
+        try:
+            self.rc_sticks.apply(channels)
+        except InputError as exc:
+            self._reject_input(str(exc))
+            return
+        if self.rc_sticks.touches_sticks(channels, self.params):
+            self._take_stick(self.rc_sticks.stick(self.params), now_s)
+
+    def _on_position_target(self, msg: Any, now_s: float) -> None:
+        if not (self._for_us(msg.target_system, msg.target_component) and self._from_pilot(msg)):
+            return
+        if self.vehicle.mode is not Mode.GUIDED:
+            self._reject_input("setpoint: not in GUIDED")
+            return
+        pose = self.estimator.pose
+        try:
+            setpoint = decode_setpoint(msg.coordinate_frame, msg.type_mask, msg.x, msg.y,
+                                       msg.vx, msg.vy, msg.yaw, msg.yaw_rate, pose, now_s)
+        except SetpointError as exc:
+            self._reject_input(f"setpoint: {exc}")
+            return
+        self.autopilot.guided.accept(setpoint, pose)
+        self.faulted = False
+        self._new_input = True
+
+    # ================================================================== commands
+
+    def _on_command(self, msg: Any, now_s: float) -> None:
+        if not (self._for_us(msg.target_system, msg.target_component) and self._from_pilot(msg)):
+            return
+        command = self._commands.get(int(msg.command))
+        params = (msg.param1, msg.param2, msg.param3, msg.param4)
+        result = mavlink.MAV_RESULT_UNSUPPORTED if command is None else command(params, now_s)
+        self.to_gcs.command_ack_send(msg.command, result, 0, 0, msg.get_srcSystem(),
+                                     msg.get_srcComponent())
+
+    @staticmethod
+    def _result(decision: Decision) -> int:
+        return mavlink.MAV_RESULT_ACCEPTED if decision.accepted else mavlink.MAV_RESULT_DENIED
+
+    def _cmd_arm_disarm(self, p: tuple[float, ...], now_s: float) -> int:
+        if p[0] == 1.0:
+            return self._result(self.vehicle.request_arm(now_s))
+        if p[0] == 0.0:
+            return self._result(self.vehicle.request_disarm(now_s, "by command"))
+        self.say(Severity.WARNING, f"Arm/disarm: param1 must be 0 or 1, got {p[0]}")
+        return mavlink.MAV_RESULT_DENIED
+
+    def _cmd_set_mode(self, p: tuple[float, ...], now_s: float) -> int:
+        return self._set_mode(p[0], p[1], now_s)
+
+    def _cmd_set_message_interval(self, p: tuple[float, ...], now_s: float) -> int:
+        ok = math.isfinite(p[0]) and self.streams.set_interval(int(p[0]), p[1])
+        return mavlink.MAV_RESULT_ACCEPTED if ok else mavlink.MAV_RESULT_DENIED
+
+    def _cmd_get_message_interval(self, p: tuple[float, ...], now_s: float) -> int:
+        interval = self.streams.get_interval_us(int(p[0])) if math.isfinite(p[0]) else None
+        if interval is None:
+            return mavlink.MAV_RESULT_DENIED
+        self.to_gcs.message_interval_send(int(p[0]), interval)
+        return mavlink.MAV_RESULT_ACCEPTED
+
+    def _cmd_request_message(self, p: tuple[float, ...], now_s: float) -> int:
+        name = REQUESTABLE.get(int(p[0])) if math.isfinite(p[0]) else None
+        if name is None:
+            return mavlink.MAV_RESULT_DENIED
+        build(name, self.to_gcs, self._telemetry_state(now_s))
+        return mavlink.MAV_RESULT_ACCEPTED
+
+    def _cmd_set_mission_current(self, p: tuple[float, ...], now_s: float) -> int:
+        executor = self.autopilot.executor
+        if p[1] == 1.0:  # param2 = 1: reset the mission (DO_JUMP counters, start over)
+            executor.restart()
+        if not (math.isfinite(p[0]) and p[0] >= -1):
+            return mavlink.MAV_RESULT_DENIED
+        seq = executor.current if p[0] == -1 else int(p[0])
+        return self._set_mission_current(seq, now_s)
+
+    def _cmd_mission_start(self, p: tuple[float, ...], now_s: float) -> int:
+        if math.isfinite(p[0]) and p[0] >= 1 and self._set_mission_current(
+                int(p[0]), now_s) != mavlink.MAV_RESULT_ACCEPTED:
+            return mavlink.MAV_RESULT_DENIED
+        return self._result(self.vehicle.request_mode(Mode.AUTO, now_s))
+
+    def _cmd_set_home(self, p: tuple[float, ...], now_s: float) -> int:
+        if p[0] != 1.0:
+            self.say(Severity.WARNING, "Set home: only 'use current position' (param1=1)")
+            return mavlink.MAV_RESULT_DENIED
+        self.estimator.reset(now_s=now_s)
+        self.say(Severity.INFO, "Home and odometry origin set here")
+        return mavlink.MAV_RESULT_ACCEPTED
+
+    def _set_mode(self, base_mode: float, custom_mode: float, now_s: float) -> int:
+        if not (math.isfinite(base_mode) and math.isfinite(custom_mode)):
+            self.say(Severity.WARNING, "Set mode: base and custom mode must be numbers")
+            return mavlink.MAV_RESULT_DENIED
+        if not int(base_mode) & mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED:
+            self.say(Severity.WARNING, "Set mode: only custom (Rover) modes are supported")
+            return mavlink.MAV_RESULT_UNSUPPORTED
+        return self._result(self.vehicle.request_mode(int(custom_mode), now_s))
+
+    def _on_set_mode(self, msg: Any, now_s: float) -> None:
+        if not (self._for_us(msg.target_system) and self._from_pilot(msg)):
+            return
+        result = self._set_mode(float(msg.base_mode), float(msg.custom_mode), now_s)
+        # ArduPilot acknowledges SET_MODE with COMMAND_ACK whose command is SET_MODE's id (11).
+        self.to_gcs.command_ack_send(mavlink.MAVLINK_MSG_ID_SET_MODE, result, 0, 0,
+                                     msg.get_srcSystem(), msg.get_srcComponent())
+
+    def _on_ping(self, msg: Any, now_s: float) -> None:
+        if msg.target_system == 0:  # a request (an answer names its target)
+            self.to_gcs.ping_send(msg.time_usec, msg.seq, msg.get_srcSystem(),
+                                  msg.get_srcComponent())
+
+    def _on_ftp(self, msg: Any, now_s: float) -> None:
+        if self._for_us(msg.target_system, msg.target_component):
+            self.to_gcs.file_transfer_protocol_send(0, msg.get_srcSystem(),
+                                                    msg.get_srcComponent(),
+                                                    ftp_nak(msg.payload))
+
+    # ================================================================== parameters
+
+    def _send_param(self, value: ParamValue) -> None:
+        self.to_gcs.param_value_send(value.param_id, value.param_value, value.param_type,
+                                     value.param_count, value.param_index)
+
+    def _on_param_request_list(self, msg: Any, now_s: float) -> None:
+        if self._for_us(msg.target_system, msg.target_component):
+            for value in self.param_service.all_values():
+                self._send_param(value)
+
+    def _on_param_request_read(self, msg: Any, now_s: float) -> None:
+        if self._for_us(msg.target_system, msg.target_component):
+            value = self.param_service.read(msg.param_id, msg.param_index)
+            if value is not None:
+                self._send_param(value)
+
+    def _on_param_set(self, msg: Any, now_s: float) -> None:
+        if not (self._for_us(msg.target_system, msg.target_component) and self._from_pilot(msg)):
+            return
+        value, problem = self.param_service.set(msg.param_id, msg.param_value)
+        if value is None:
+            return  # unknown name: no answer, as the protocol specifies
+        self._send_param(value)
+        name = value.param_id.decode()
+        if problem:
+            self.say(Severity.WARNING, f"Param refused: {problem}")
+            return
+        self.reconfigure()
+        if name in RESTART_REQUIRED:
+            self.say(Severity.NOTICE, f"{name} takes effect after a restart")
+        if self.storage is not None:
+            try:
+                self.storage.save_params(self.params)
+            except OSError as exc:
+                self.say(Severity.ERROR, f"Param save failed: {exc.strerror}")
+
+    # ================================================================== missions
+
+    def _on_mission_message(self, msg: Any, now_s: float) -> None:
+        if self._from_pilot(msg):
+            self.mission_link.handle(msg, now_s)
+            self._take_mission_events(now_s)
+
+    def _take_mission_events(self, now_s: float) -> None:
+        for kind, text in self.mission.take_events():
+            if kind == "error":
+                self.say(Severity.WARNING, text)
+            else:
+                self._mission_replaced(now_s)
+
+    def _mission_replaced(self, now_s: float) -> None:
+        """A new mission was accepted (or the mission was cleared): run it, keep it."""
+        items = self.mission.items
+        executor = self.autopilot.executor
+        was_running = executor.running
+        executor.pause()
+        executor.load(items)
+        self._send_mission_current()
+        if self.vehicle.mode is Mode.AUTO and not executor.has_mission:
+            self.say(Severity.WARNING, "Mission cleared: HOLD")
+            self.vehicle.request_mode(Mode.HOLD, now_s)
+        elif was_running:
+            self.say(Severity.NOTICE, f"New mission: continuing at item {executor.current}")
+        if self.storage is not None:
+            try:
+                self.storage.save_mission(items)
+            except OSError as exc:
+                self.say(Severity.ERROR, f"Mission save failed: {exc.strerror}")
+
+    def _set_mission_current(self, seq: int, now_s: float) -> int:
+        reason = self.autopilot.executor.set_current(seq, self.estimator.pose, now_s)
+        if reason is not None:
+            self.say(Severity.WARNING, f"Set current item refused: {reason}")
+            return mavlink.MAV_RESULT_DENIED
+        self._take_executor_events(now_s)
+        return mavlink.MAV_RESULT_ACCEPTED
+
+    def _on_mission_set_current(self, msg: Any, now_s: float) -> None:
+        if self._for_us(msg.target_system, msg.target_component) and self._from_pilot(msg):
+            self._set_mission_current(msg.seq, now_s)  # answered by MISSION_CURRENT
+
+    def _on_set_origin(self, msg: Any, now_s: float) -> None:
+        if not (self._for_us(msg.target_system) and self._from_pilot(msg)):
+            return
+        try:
+            origin = GlobalOrigin(msg.latitude, msg.longitude, msg.altitude)
+        except ValueError as exc:
+            self._reject_input(f"origin: {exc}")
+            return
+        self.origin_set = origin
+        self.to_gcs.gps_global_origin_send(origin.lat_e7, origin.lon_e7, origin.alt_mm,
+                                           int((now_s - self.boot_s) * 1e6))
+        self.say(Severity.INFO, f"Origin {origin.lat_e7 / 1e7:.7f} {origin.lon_e7 / 1e7:.7f}")
+
+    def _take_executor_events(self, now_s: float) -> None:
+        for event in self.autopilot.executor.take_events():
+            if event.kind == "current":
+                self._send_mission_current()
+            elif event.kind == "reached":
+                self.mission_link.reached_send(event.seq)
+            elif event.kind == "say":
+                self.say(event.severity, event.text)
+            elif event.kind == "finished":
+                self.vehicle.request_mode(Mode.HOLD, now_s)
+
+    def _send_mission_current(self) -> None:
+        ex = self.autopilot.executor
+        total = len(ex.items) - 1 if ex.has_mission else 0xFFFF
+        self.mission_link.current_send(ex.current, total, ex.state,
+                                       self.vehicle.mode is Mode.AUTO)

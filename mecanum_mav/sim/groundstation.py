@@ -1,0 +1,232 @@
+"""One scripted ground station for the demo, the tests and the tools.
+
+:class:`ScriptedGroundStation` speaks to a vehicle through a *port*: the lockstep harness's
+virtual link (:class:`~mecanum_mav.sim.lockstep.Lockstep`, virtual time) or a real UDP socket
+(:class:`UdpPort`, wall-clock time). The script is the same either way: it records everything
+it receives, sends its own HEARTBEAT at 1 Hz while time passes, and waits for messages with a
+deadline in the port's time (never a blind sleep). System 255, component 190, as Mission
+Planner and MAVProxy.
+"""
+
+from __future__ import annotations
+
+import selectors
+import time
+from collections.abc import Callable, Sequence
+from typing import Any, Protocol
+
+from mecanum_mav.io.links import Link, open_link
+from mecanum_mav.protocol.dialect import mavlink
+from mecanum_mav.protocol.mission import MissionItem
+from mecanum_mav.protocol.modes import Mode
+
+__all__ = ["GCS_COMPID", "GCS_SYSID", "Port", "ScriptedGroundStation", "UdpPort"]
+
+GCS_SYSID = 255
+GCS_COMPID = 190
+HEARTBEAT_PERIOD_S = 1.0
+MISSION_TIMEOUT_S = 1.5
+"""The mission protocol's default timeout: silence this long restarts an upload."""
+
+Predicate = Callable[[Any], bool]
+
+
+def _any(msg: Any) -> bool:
+    return True
+
+
+class Port(Protocol):
+    """How the ground station reaches the vehicle."""
+
+    @property
+    def mav(self) -> Any:
+        """A pymavlink ``MAVLink`` sending as the ground station: ``port.mav.xxx_send(...)``."""
+
+    def now(self) -> float:
+        """The port's time, seconds (virtual or monotonic)."""
+
+    def pump(self, timeout_s: float) -> list[Any]:
+        """Let up to ``timeout_s`` pass; the messages received meanwhile (may return early)."""
+
+
+class ScriptedGroundStation:
+    """A ground station that can be scripted: send, wait, command, upload a mission.
+
+    Args:
+        port: the link to the vehicle.
+        target: (system, component) of the vehicle.
+    """
+
+    def __init__(self, port: Port, target: tuple[int, int] = (1, 1)) -> None:
+        self.port = port
+        self.target = target
+        self.messages: list[Any] = []
+        """Everything received, oldest first (index it with :meth:`mark`)."""
+        self.beating = True
+        """Whether the HEARTBEAT goes out (clear it to test the vehicle's GCS failsafe)."""
+        self._next_beat_s = -1.0
+
+    @property
+    def mav(self) -> Any:
+        """Send anything: ``gcs.mav.manual_control_send(...)``."""
+        return self.port.mav
+
+    def on_time(self, now_s: float) -> None:
+        """Time passed: the 1 Hz HEARTBEAT (the port calls this)."""
+        if self.beating and now_s >= self._next_beat_s:
+            self.mav.heartbeat_send(mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID, 0, 0,
+                                    mavlink.MAV_STATE_ACTIVE)
+            self._next_beat_s = now_s + HEARTBEAT_PERIOD_S
+
+    def pump(self, timeout_s: float) -> list[Any]:
+        """Let up to ``timeout_s`` pass; returns (and records) what arrived."""
+        got = self.port.pump(timeout_s)
+        self.messages += got
+        return got
+
+    def mark(self) -> int:
+        """An index into :attr:`messages`: wait only for what arrives after this point."""
+        self.pump(0.0)
+        return len(self.messages)
+
+    def received(self, kind: str, since: int = 0) -> list[Any]:
+        """The messages of ``kind`` received from index ``since`` on."""
+        return [m for m in self.messages[since:] if m.get_type() == kind]
+
+    def wait(self, kind: str, predicate: Predicate = _any, timeout_s: float = 3.0,
+             since: int | None = None) -> Any | None:
+        """The first message of ``kind`` matching ``predicate`` from index ``since`` (default:
+        from now on), waiting up to ``timeout_s`` of the port's time; None if none came."""
+        index = len(self.messages) if since is None else since
+        deadline = self.port.now() + timeout_s
+        while True:
+            while index < len(self.messages):
+                msg = self.messages[index]
+                index += 1
+                if msg.get_type() == kind and predicate(msg):
+                    return msg
+            remaining = deadline - self.port.now()
+            if remaining <= 0.0:
+                return None
+            self.pump(min(remaining, 0.05))
+
+    # ------------------------------------------------------------------ commands
+
+    def command(self, command: int, *params: float, timeout_s: float = 1.0) -> Any | None:
+        """COMMAND_LONG to the vehicle; its COMMAND_ACK, or None within ``timeout_s``."""
+        p = [*params, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0][:7]
+        since = self.mark()
+        self.mav.command_long_send(*self.target, command, 0, *p)
+        return self.wait("COMMAND_ACK", lambda m: m.command == command, timeout_s, since)
+
+    def arm(self, timeout_s: float = 5.0) -> None:
+        """Arm, retrying until the vehicle accepts (it waits for its flight controller).
+
+        Raises:
+            RuntimeError: not accepted within ``timeout_s``.
+        """
+        deadline = self.port.now() + timeout_s
+        while self.port.now() < deadline:
+            ack = self.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 1, timeout_s=0.5)
+            if ack is not None and ack.result == mavlink.MAV_RESULT_ACCEPTED:
+                return
+            self.pump(0.2)
+        raise RuntimeError("the vehicle never accepted arming")
+
+    def set_mode(self, mode: Mode, timeout_s: float = 1.0) -> int | None:
+        """MAV_CMD_DO_SET_MODE with a Rover mode; the COMMAND_ACK result, or None."""
+        ack = self.command(mavlink.MAV_CMD_DO_SET_MODE,
+                           mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, int(mode),
+                           timeout_s=timeout_s)
+        return None if ack is None else int(ack.result)
+
+    def sticks(self, x: int = 0, y: int = 0, r: int = 0, z: int = 500,
+               target: int | None = None) -> int:
+        """MANUAL_CONTROL (x forward, y right, r clockwise, -1000..1000); returns the index of
+        :attr:`messages` from just before it."""
+        since = self.mark()
+        self.mav.manual_control_send(self.target[0] if target is None else target, x, y, z,
+                                     r, 0)
+        return since
+
+    def upload(self, items: Sequence[MissionItem], timeout_s: float = 10.0) -> int:
+        """Upload a mission over the mission protocol; returns the MISSION_ACK type
+        (MAV_MISSION_ACCEPTED = 0). Answers every request (re-requests too); when the
+        vehicle falls silent for the protocol's 1.5 s it starts again with MISSION_COUNT.
+
+        Raises:
+            TimeoutError: no MISSION_ACK within ``timeout_s``.
+        """
+        since = self.mark()
+        self.mav.mission_count_send(*self.target, len(items), 0)
+        deadline = self.port.now() + timeout_s
+        quiet_since = self.port.now()
+        index = since
+        while self.port.now() < deadline:
+            while index < len(self.messages):
+                msg = self.messages[index]
+                index += 1
+                kind = msg.get_type()
+                if kind == "MISSION_ACK":
+                    return int(msg.type)
+                if kind in ("MISSION_REQUEST_INT", "MISSION_REQUEST") and msg.seq < len(items):
+                    it = items[msg.seq]
+                    self.mav.mission_item_int_send(
+                        *self.target, it.seq, it.frame, it.command, it.current,
+                        it.autocontinue, it.param1, it.param2, it.param3, it.param4, it.x,
+                        it.y, it.z, 0)
+                    quiet_since = self.port.now()
+            if self.port.now() - quiet_since > MISSION_TIMEOUT_S:
+                self.mav.mission_count_send(*self.target, len(items), 0)
+                quiet_since = self.port.now()
+            self.pump(0.05)
+        raise TimeoutError("mission upload: no MISSION_ACK")
+
+
+class UdpPort:
+    """A real UDP socket on 127.0.0.1 (port 0 by default), in wall-clock time.
+
+    The vehicle reaches it at :attr:`url` (``udpout:127.0.0.1:PORT``).
+    """
+
+    def __init__(self, url: str = "udpin:127.0.0.1:0", *, sysid: int = GCS_SYSID,
+                 compid: int = GCS_COMPID) -> None:
+        self.link: Link = open_link(url, source_system=sysid, source_component=compid,
+                                    name="gcs")
+        self._selector = selectors.DefaultSelector()
+        self._selector.register(self.link.fileno(), selectors.EVENT_READ)
+        self.on_time: Callable[[float], None] = lambda now_s: None
+        """Called with the time whenever the port waits (the ground station's heartbeat)."""
+
+    @property
+    def url(self) -> str:
+        """The URL a vehicle uses to reach this ground station."""
+        return f"udpout:127.0.0.1:{self.link.local_port}"
+
+    @property
+    def mav(self) -> Any:
+        """The link's pymavlink ``MAVLink`` (sends as the ground station)."""
+        return self.link.mav
+
+    def now(self) -> float:
+        """Monotonic seconds."""
+        return time.monotonic()
+
+    def pump(self, timeout_s: float) -> list[Any]:
+        """Wait up to ``timeout_s`` for a datagram; what arrived."""
+        self.on_time(time.monotonic())
+        return self.link.read() if self._selector.select(max(0.0, timeout_s)) else []
+
+    def close(self) -> None:
+        """Close the socket."""
+        self._selector.close()
+        self.link.close()
+
+
+def udp_ground_station(url: str = "udpin:127.0.0.1:0") -> tuple[ScriptedGroundStation, UdpPort]:
+    """A scripted ground station on a real UDP socket, and its port (for ``port.url`` and
+    ``port.close()``)."""
+    port = UdpPort(url)
+    gcs = ScriptedGroundStation(port)
+    port.on_time = gcs.on_time
+    return gcs, port

@@ -1,0 +1,224 @@
+"""The lockstep harness: the rover core, the simulated board and a ground station in virtual time.
+
+:class:`Lockstep` steps three parties with a fixed ``dt_s`` and no clock and no sockets:
+
+- the :class:`~mecanum_mav.control.core.RoverCore` (the companion's decisions),
+- the :class:`~mecanum_mav.sim.board.SimBoard` (an ArduPilot Rover board and the chassis),
+- a :class:`~mecanum_mav.sim.groundstation.ScriptedGroundStation` (:attr:`Lockstep.gcs`).
+
+Every message crosses a virtual wire as bytes: packed by the sender with its own ids and
+sequence numbers (the core's overrides with the fast codec, as the companion sends them) and
+parsed by the receiver as the companion's links parse them, so what a test sees is what a
+socket would carry. One step to ``t``:
+
+1. the ground station's HEARTBEAT if due; what it sent reaches the core at ``t``;
+2. what the board sent in the previous step reaches the core at ``t``;
+3. ``core.tick(t)`` if anything arrived or a timer of the core is due (as the companion's
+   loop wakes); the core's overrides and heartbeats reach the board at ``t``, its messages
+   for the ground station reach the ground station at ``t``;
+4. the board steps its physics and sends its telemetry (delivered in the next step).
+
+So a command's answer and an override's effect are exact in virtual time, and a run of
+minutes takes a fraction of a second. Every override the board receives is logged with its
+time (:attr:`Lockstep.overrides`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from typing import Any, NamedTuple, TypeVar
+
+from mecanum_mav.config.params import Params
+from mecanum_mav.control.core import COMPANION_COMPID, Outbox, RoverCore, Storage
+from mecanum_mav.protocol.codec import encode_rc_override
+from mecanum_mav.protocol.dialect import mavlink
+from mecanum_mav.protocol.framing import MessageParser
+from mecanum_mav.protocol.mission import MissionItem
+from mecanum_mav.protocol.outbox import MessageOutbox
+from mecanum_mav.sim.board import SimBoard, SimState
+from mecanum_mav.sim.groundstation import GCS_COMPID, GCS_SYSID, ScriptedGroundStation
+
+__all__ = ["Lockstep", "OverrideSeen"]
+
+FC_LINK_COMPID = 190
+T = TypeVar("T")
+
+
+class OverrideSeen(NamedTuple):
+    """An RC_CHANNELS_OVERRIDE as the board received it."""
+
+    time_s: float
+    channels: list[int]
+    """The 18 ``chanN_raw`` fields, channel 1 first."""
+    source_system: int
+
+
+class _Wire:
+    """One direction of a virtual link: bytes queued by a sender, parsed by the receiver."""
+
+    def __init__(self, sysid: int, compid: int, *, name: str) -> None:
+        self.sender = mavlink.MAVLink(self, srcSystem=sysid, srcComponent=compid)
+        self.parser = MessageParser(mavlink.MAVLink(None), datagrams=True, name=name)
+        self.queue: list[bytes] = []
+
+    def write(self, data: bytes) -> None:
+        """The sender's ``file.write``: one datagram on the wire."""
+        self.queue.append(bytes(data))
+
+    def deliver(self) -> list[Any]:
+        """Everything on the wire, parsed; the wire is empty after."""
+        if not self.queue:
+            return []
+        datagrams, self.queue = self.queue, []
+        messages: list[Any] = []
+        for data in datagrams:
+            messages += self.parser.parse(data)
+        return messages
+
+
+class _GcsPort:
+    """The ground station's end of the virtual link (virtual time)."""
+
+    def __init__(self, harness: Lockstep) -> None:
+        self._harness = harness
+
+    @property
+    def mav(self) -> Any:
+        return self._harness._gcs_to_core.sender
+
+    def now(self) -> float:
+        return self._harness.now_s
+
+    def pump(self, timeout_s: float) -> list[Any]:
+        """Step until something reaches the ground station or ``timeout_s`` has passed."""
+        h = self._harness
+        end = h.now_s + timeout_s
+        got = h._take_gcs_inbox()
+        while not got and h.now_s < end - 1e-12:
+            h.step()
+            got = h._take_gcs_inbox()
+        return got
+
+
+class Lockstep:
+    """The core, the board and a scripted ground station, stepped together in virtual time.
+
+    Args:
+        params: parameters for the core and the board (defaults if None).
+        dt_s: the virtual time step, seconds.
+        mission: the mission the core starts with.
+        storage: where the core keeps accepted parameters and missions.
+    """
+
+    def __init__(self, params: Params | None = None, *, dt_s: float = 0.002,
+                 mission: Sequence[MissionItem] = (), storage: Storage | None = None) -> None:
+        self.params = params if params is not None else Params()
+        self.dt_s = dt_s
+        self.now_s = 0.0
+        p = self.params
+        self._gcs_to_core = _Wire(GCS_SYSID, GCS_COMPID, name="gcs->core")
+        self._core_to_gcs = _Wire(int(p["SYSID_THISMAV"]), COMPANION_COMPID, name="core->gcs")
+        self._core_to_fc = _Wire(int(p["FC_GCS_SYSID"]), FC_LINK_COMPID, name="core->fc")
+        self._fc_to_core = _Wire(int(p["FC_SYSID"]), int(p["FC_COMPID"]), name="fc->core")
+        self.core = RoverCore(p, now_s=0.0, mission=mission, storage=storage,
+                              link_errors=self._link_errors)
+        self.board = SimBoard(p, 0.0)
+        self._board_out = MessageOutbox()
+        self.gcs = ScriptedGroundStation(_GcsPort(self))
+        self.overrides: list[OverrideSeen] = []
+        """Every RC_CHANNELS_OVERRIDE the board received, with its virtual time."""
+        self.fc_received: list[Any] = []
+        """Everything else the board received from the core (its HEARTBEATs)."""
+        self.on_step: list[Callable[[float], None]] = []
+        """Called with the time at the start of every step (a test's periodic sender)."""
+        self._gcs_inbox: list[Any] = []
+
+    # ------------------------------------------------------------------ time
+
+    def step(self) -> None:
+        """Advance virtual time by ``dt_s`` (see the module docstring for the order)."""
+        now = self.now_s = self.now_s + self.dt_s
+        for callback in self.on_step:
+            callback(now)
+        self.gcs.on_time(now)
+        core = self.core
+        woke = False
+        for msg in self._gcs_to_core.deliver():
+            self._write(core.handle(msg, now))
+            woke = True
+        for msg in self._fc_to_core.deliver():
+            self._write(core.handle(msg, now, from_fc=True))
+            woke = True
+        if woke or now >= core.next_due_s():
+            self._write(core.tick(now))
+        received = self._core_to_fc.deliver()
+        if received:
+            self._log_fc(received, now)
+            self.board.receive(received, now)
+        self.board.on_time(now, self._board_out)
+        for msg in self._board_out.take():
+            self._fc_to_core.sender.send(msg)
+
+    def run_for(self, seconds: float) -> None:
+        """Step for ``seconds`` of virtual time."""
+        end = self.now_s + seconds
+        while self.now_s < end - 1e-12:
+            self.step()
+
+    def run_until(self, predicate: Callable[[], T], timeout_s: float) -> T | None:
+        """Step until ``predicate()`` returns something truthy (returned), or None once
+        ``timeout_s`` of virtual time has passed."""
+        end = self.now_s + timeout_s
+        while True:
+            result = predicate()
+            if result:
+                return result
+            if self.now_s >= end - 1e-12:
+                return None
+            self.step()
+
+    # ------------------------------------------------------------------ views
+
+    def truth(self) -> SimState:
+        """The simulated chassis's true state now."""
+        return self.board.state()
+
+    def overrides_since(self, time_s: float) -> list[OverrideSeen]:
+        """The overrides the board received at or after ``time_s``."""
+        return [o for o in self.overrides if o.time_s >= time_s]
+
+    # ------------------------------------------------------------------ plumbing
+
+    def _write(self, out: Outbox) -> None:
+        """Put the core's output on the wires, as the companion's shell does."""
+        if out.override is not None:
+            sender = self._core_to_fc.sender
+            sender.srcSystem = self.core.identity.fc_gcs_sysid
+            packet = encode_rc_override(sender, *out.override)
+            if packet is None:  # a signing link: pymavlink packs it
+                sender.send(sender.rc_channels_override_encode(
+                    out.override.target_system, out.override.target_component,
+                    *out.override.channels))
+            else:
+                self._core_to_fc.write(packet)
+        for msg in out.fc:
+            self._core_to_fc.sender.send(msg)
+        for msg in out.gcs:
+            self._core_to_gcs.sender.send(msg)
+        if out.gcs:
+            self._gcs_inbox += self._core_to_gcs.deliver()
+
+    def _take_gcs_inbox(self) -> list[Any]:
+        got, self._gcs_inbox = self._gcs_inbox, []
+        return got
+
+    def _log_fc(self, messages: list[Any], now: float) -> None:
+        for msg in messages:
+            if msg.get_type() == "RC_CHANNELS_OVERRIDE":
+                channels = [getattr(msg, f"chan{i}_raw") for i in range(1, 19)]
+                self.overrides.append(OverrideSeen(now, channels, msg.get_srcSystem()))
+            else:
+                self.fc_received.append(msg)
+
+    def _link_errors(self) -> tuple[int, int]:
+        return self._gcs_to_core.parser.bad + self._fc_to_core.parser.bad, 0
