@@ -12,6 +12,7 @@ from mavpeers import Peer, flight_controller, ground_station
 from mecanum_mav.app.companion import Companion
 from mecanum_mav.config.params import Params
 from mecanum_mav.io.links import mavlink
+from mecanum_mav.sim.lockstep import Lockstep
 from mecanum_mav.sim.simfc import SimFlightController
 
 
@@ -113,3 +114,23 @@ def rover(request) -> Iterator[tuple]:
     params.update(getattr(request, "param", {}))
     with simulated_rover(params) as parts:
         yield parts
+
+
+# --------------------------------------------------------------------------- virtual time
+
+
+def lockstep(params: Params | dict | None = None, **options) -> Lockstep:
+    """A :class:`Lockstep` harness (core + simulated board + scripted ground station) whose
+    flight-controller link is up (the board's first heartbeat has been heard)."""
+    if isinstance(params, dict) or params is None:
+        values, params = params or {}, Params()
+        params.update(values)
+    h = Lockstep(params, **options)
+    assert h.run_until(lambda: not h.core.vehicle.fc_lost, 3.0), "no flight-controller heartbeat"
+    return h
+
+
+@pytest.fixture
+def harness(request) -> Lockstep:
+    """A lockstep harness; parametrize indirectly with a dict of parameter values."""
+    return lockstep(getattr(request, "param", None))

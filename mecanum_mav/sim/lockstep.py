@@ -177,6 +177,26 @@ class Lockstep:
                 return None
             self.step()
 
+    def every(self, period_s: float, action: Callable[[float], object]) -> Callable[[], None]:
+        """Call ``action(now_s)`` now and then every ``period_s`` of virtual time (a ground
+        station streaming sticks or setpoints); returns a function that stops it."""
+        next_s = [self.now_s]
+
+        def tick(now_s: float) -> None:
+            if now_s >= next_s[0] - 1e-12:
+                action(now_s)
+                next_s[0] += period_s
+
+        action(self.now_s)
+        next_s[0] += period_s
+        self.on_step.append(tick)
+        return lambda: self.on_step.remove(tick) if tick in self.on_step else None
+
+    def inject(self, data: bytes, *, from_fc: bool = False) -> None:
+        """Put raw bytes on the wire to the core, as the ground station (or the flight
+        controller) would send them: garbage, truncated or hand-made packets."""
+        (self._fc_to_core if from_fc else self._gcs_to_core).write(data)
+
     # ------------------------------------------------------------------ views
 
     def truth(self) -> SimState:
