@@ -5,6 +5,7 @@ from __future__ import annotations
 import pytest
 
 from mecanum_mav.config.params import Params
+from mecanum_mav.config.views import RcInputConfig
 from mecanum_mav.control.sticks import InputError, RcStickState, stick_from_manual_control
 from mecanum_mav.control.vehicle import Mode, Vehicle
 
@@ -149,16 +150,16 @@ def rc(**set_: int) -> list[int]:
 def test_rc_override_maps_throttle_lateral_and_steering_like_ardupilot_rover():
     state, params = RcStickState(), Params()
     state.apply(rc(ch1=2000, ch3=1750, ch4=1000))
-    assert state.stick(params) == (0.5, -1.0, 1.0)
+    assert state.stick(RcInputConfig.from_params(params)) == (0.5, -1.0, 1.0)
 
 
 def test_rc_override_65535_keeps_a_channel_and_0_releases_it_to_centre():
     state, params = RcStickState(), Params()
     state.apply(rc(ch3=2000))
     state.apply(rc(ch1=1250))
-    assert state.stick(params) == (1.0, 0.0, -0.5)
+    assert state.stick(RcInputConfig.from_params(params)) == (1.0, 0.0, -0.5)
     state.apply(rc(ch3=0))
-    assert state.stick(params) == (0.0, 0.0, -0.5)
+    assert state.stick(RcInputConfig.from_params(params)) == (0.0, 0.0, -0.5)
 
 
 def test_rc_override_high_channels_release_with_65534_and_ignore_0():
@@ -167,9 +168,9 @@ def test_rc_override_high_channels_release_with_65534_and_ignore_0():
     state = RcStickState()
     state.apply(rc(ch10=2000))
     state.apply(rc(ch10=0))  # 0 on 9-18: leave alone
-    assert state.stick(params)[1] == 1.0
+    assert state.stick(RcInputConfig.from_params(params))[1] == 1.0
     state.apply(rc(ch10=65534))
-    assert state.stick(params)[1] == 0.0
+    assert state.stick(RcInputConfig.from_params(params))[1] == 0.0
 
 
 def test_rc_override_with_an_absurd_pulse_applies_nothing():
@@ -181,6 +182,6 @@ def test_rc_override_with_an_absurd_pulse_applies_nothing():
 
 def test_only_messages_touching_the_stick_channels_count_as_stick_input():
     state, params = RcStickState(), Params()
-    assert not state.touches_sticks(rc(ch7=1900), params)
-    assert state.touches_sticks(rc(ch4=1500), params)
-    assert state.touches_sticks(rc(ch1=0), params)
+    assert not state.touches_sticks(rc(ch7=1900), RcInputConfig.from_params(params))
+    assert state.touches_sticks(rc(ch4=1500), RcInputConfig.from_params(params))
+    assert state.touches_sticks(rc(ch1=0), RcInputConfig.from_params(params))

@@ -9,11 +9,21 @@ store. Units are in the attribute names where they are not obvious.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 from mecanum_mav.config.params import Params
 
-__all__ = ["FailsafeConfig", "IdentityConfig", "InputConfig", "OutputConfig"]
+__all__ = [
+    "FailsafeConfig",
+    "GuidedConfig",
+    "IdentityConfig",
+    "InputConfig",
+    "MissionConfig",
+    "OdometryConfig",
+    "OutputConfig",
+    "RcInputConfig",
+]
 
 
 @dataclass(frozen=True, slots=True)
@@ -101,3 +111,114 @@ class FailsafeConfig:
         """Read ``FS_INPUT_TMO``, ``FS_GCS_TMO``, ``FS_GCS_ACTION`` and ``FS_FC_TMO``."""
         return cls(float(params["FS_INPUT_TMO"]), float(params["FS_GCS_TMO"]),
                    int(params["FS_GCS_ACTION"]) == 1, float(params["FS_FC_TMO"]))
+
+
+@dataclass(frozen=True, slots=True)
+class RcInputConfig:
+    """A ground station's RC override sticks: which channel is which axis, and the pulses."""
+
+    throttle_ch: int
+    """Channel read as the forward stick (``RCMAP_THROTTLE``)."""
+    lateral_ch: int
+    """Channel read as the right stick (``RCMAP_LATERAL``)."""
+    steer_ch: int
+    """Channel read as the clockwise rotation stick (``RCMAP_STEER``)."""
+    min_us: int
+    """Pulse width of full negative deflection, us (``RCIN_MIN``)."""
+    trim_us: int
+    """Pulse width of the centre, us (``RCIN_TRIM``)."""
+    max_us: int
+    """Pulse width of full positive deflection, us (``RCIN_MAX``)."""
+
+    @property
+    def axes(self) -> tuple[int, int, int]:
+        """The channels of x (forward), y (right) and r (clockwise), in that order."""
+        return self.throttle_ch, self.lateral_ch, self.steer_ch
+
+    @classmethod
+    def from_params(cls, params: Params) -> RcInputConfig:
+        """Read ``RCMAP_THROTTLE``, ``RCMAP_LATERAL``, ``RCMAP_STEER`` and ``RCIN_*``."""
+        return cls(int(params["RCMAP_THROTTLE"]), int(params["RCMAP_LATERAL"]),
+                   int(params["RCMAP_STEER"]), int(params["RCIN_MIN"]),
+                   int(params["RCIN_TRIM"]), int(params["RCIN_MAX"]))
+
+
+@dataclass(frozen=True, slots=True)
+class GuidedConfig:
+    """The GUIDED velocity and heading controller's gains and limits."""
+
+    speed_max_mps: float
+    """Largest translation speed, m/s (``GUID_SPD_MAX``)."""
+    accel_max_mps2: float
+    """Largest change of the commanded velocity, m/s/s (``GUID_ACC_MAX``)."""
+    yaw_rate_max: float
+    """Largest yaw rate, rad/s (``GUID_YAW_RATE`` is in deg/s)."""
+    position_gain: float
+    """Commanded speed per metre of position error, 1/s (``GUID_POS_P``)."""
+    yaw_gain: float
+    """Commanded yaw rate per radian of heading error, 1/s (``GUID_YAW_P``)."""
+    yaw_lead_s: float
+    """How far ahead the heading is taken for the body velocity, s (``GUID_YAW_LEAD``)."""
+    timeout_s: float
+    """Velocity and yaw-rate setpoints older than this lapse, s (``GUID_TIMEOUT``)."""
+
+    @classmethod
+    def from_params(cls, params: Params) -> GuidedConfig:
+        """Read the ``GUID_*`` parameters."""
+        return cls(float(params["GUID_SPD_MAX"]), float(params["GUID_ACC_MAX"]),
+                   math.radians(float(params["GUID_YAW_RATE"])), float(params["GUID_POS_P"]),
+                   float(params["GUID_YAW_P"]), float(params["GUID_YAW_LEAD"]),
+                   float(params["GUID_TIMEOUT"]))
+
+
+@dataclass(frozen=True, slots=True)
+class MissionConfig:
+    """How AUTO drives a mission's legs."""
+
+    speed_mps: float
+    """Cruise speed until a DO_CHANGE_SPEED, m/s (``WP_SPEED``)."""
+    accel_mps2: float
+    """Acceleration and braking along a leg, m/s/s: ``min(WP_ACCEL, GUID_ACC_MAX)``."""
+    radius_m: float
+    """Default acceptance radius, m (``WP_RADIUS``)."""
+    overshoot_m: float
+    """How far past the next leg's line a corner may swing, m (``WP_OVERSHOOT``)."""
+    face_along_legs: bool
+    """Heading follows each leg (``WP_YAW_BEHAVIOR`` 1) or is held (0)."""
+    position_gain: float
+    """Cross-track and along-track gain, 1/s (``GUID_POS_P``)."""
+    speed_limit_mps: float
+    """The fastest a DO_CHANGE_SPEED may ask, m/s (``GUID_SPD_MAX``)."""
+
+    @classmethod
+    def from_params(cls, params: Params) -> MissionConfig:
+        """Read the ``WP_*`` parameters and the GUIDED limits they share."""
+        return cls(float(params["WP_SPEED"]),
+                   min(float(params["WP_ACCEL"]), float(params["GUID_ACC_MAX"])),
+                   float(params["WP_RADIUS"]), float(params["WP_OVERSHOOT"]),
+                   int(params["WP_YAW_BEHAVIOR"]) == 1, float(params["GUID_POS_P"]),
+                   float(params["GUID_SPD_MAX"]))
+
+
+@dataclass(frozen=True, slots=True)
+class OdometryConfig:
+    """Where dead reckoning takes its wheels and its heading from."""
+
+    source: int
+    """0 auto (WHEEL_DISTANCE while fresh, else commanded), 1 wheel distances, 2 commanded
+    speeds (``ODOM_SRC``)."""
+    yaw_from_gyro: bool
+    """Use the flight controller's ATTITUDE yaw while fresh (``ODOM_YAW_SRC`` 0)."""
+    wheel_speed_max_mps: float
+    """Wheel surface speed at full command, m/s (``WHL_MAX_SPD``)."""
+    half_length_m: float
+    """Half the wheelbase, m (``GEO_HALF_LEN``; used from the next start)."""
+    half_width_m: float
+    """Half the track width, m (``GEO_HALF_WID``; used from the next start)."""
+
+    @classmethod
+    def from_params(cls, params: Params) -> OdometryConfig:
+        """Read ``ODOM_SRC``, ``ODOM_YAW_SRC``, ``WHL_MAX_SPD`` and ``GEO_HALF_*``."""
+        return cls(int(params["ODOM_SRC"]), int(params["ODOM_YAW_SRC"]) == 0,
+                   float(params["WHL_MAX_SPD"]), float(params["GEO_HALF_LEN"]),
+                   float(params["GEO_HALF_WID"]))

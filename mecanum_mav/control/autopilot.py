@@ -53,6 +53,11 @@ class Autopilot:
         self._next_tick_s = math.inf
         self._held: Output | None = None
 
+    def reconfigure(self, params: Params) -> None:
+        """Take the ``GUID_*`` and ``WP_*`` parameters from ``params``."""
+        self.guided.reconfigure(params)
+        self.executor.reconfigure(params)
+
     # ------------------------------------------------------------------ mode hooks
 
     def refuse_entry(self, mode: Mode, now_s: float) -> str | None:

@@ -38,7 +38,7 @@ from collections.abc import Callable, Sequence
 from typing import Any, NamedTuple, Protocol
 
 from mecanum_mav.config.params import Params
-from mecanum_mav.config.views import IdentityConfig, InputConfig, OutputConfig
+from mecanum_mav.config.views import IdentityConfig, InputConfig, OutputConfig, RcInputConfig
 from mecanum_mav.control.autopilot import Autopilot
 from mecanum_mav.control.chain import Output, manual_output
 from mecanum_mav.control.estimator import WheelOdometryEstimator
@@ -49,6 +49,23 @@ from mecanum_mav.control.vehicle import Decision, Vehicle
 from mecanum_mav.mecanum.geo import GlobalOrigin
 from mecanum_mav.protocol.dialect import mavlink
 from mecanum_mav.protocol.heartbeat import send_gcs_heartbeat, send_rover_heartbeat
+from mecanum_mav.protocol.messages import (
+    Addressed,
+    AttitudeMsg,
+    CommandMsg,
+    FtpMsg,
+    ManualControlMsg,
+    MissionSetCurrentMsg,
+    OriginMsg,
+    ParamReadMsg,
+    ParamSetMsg,
+    PingMsg,
+    Received,
+    Result,
+    SetModeMsg,
+    SetpointMsg,
+    WheelDistanceMsg,
+)
 from mecanum_mav.protocol.mission import MissionItem
 from mecanum_mav.protocol.missionlink import MISSION_MESSAGES, MissionLink
 from mecanum_mav.protocol.missionservice import MissionService
@@ -115,7 +132,9 @@ def _no_link_errors() -> tuple[int, int]:
 
 
 Handler = Callable[[Any, float], None]
-Command = Callable[[tuple[float, ...], float], int]
+"""A message handler: (the message, its arrival time in s); each declares the fields it
+reads with a protocol of :mod:`mecanum_mav.protocol.messages`."""
+Command = Callable[[tuple[float, ...], float], Result]
 
 
 class RoverCore:
@@ -200,7 +219,7 @@ class RoverCore:
 
     # ================================================================== the interface
 
-    def handle(self, msg: Any, now_s: float, *, from_fc: bool = False) -> Outbox:
+    def handle(self, msg: Received, now_s: float, *, from_fc: bool = False) -> Outbox:
         """One message received on the ground-station link (or the flight controller's, with
         ``from_fc``) at ``now_s``; returns what to send in answer."""
         self._now_s = now_s
@@ -270,7 +289,12 @@ class RoverCore:
         self.identity = IdentityConfig.from_params(p)
         self.input = InputConfig.from_params(p)
         self.output = OutputConfig.from_params(p)
+        self.rc_input = RcInputConfig.from_params(p)
+        lat, lon = float(p["ORIGIN_LAT"]), float(p["ORIGIN_LON"])
+        self._origin_param = None if lat == lon == 0.0 else GlobalOrigin.from_degrees(lat, lon)
         self.vehicle.reconfigure(p)
+        self.estimator.reconfigure(p)
+        self.autopilot.reconfigure(p)
 
     def say(self, severity: Severity, text: str, *, repeat_s: float = 0.0) -> None:
         """A STATUSTEXT to the ground station (and the log); long texts go in chunks.
@@ -291,12 +315,7 @@ class RoverCore:
     @property
     def origin(self) -> GlobalOrigin | None:
         """Where local (0, 0) is on the earth: SET_GPS_GLOBAL_ORIGIN, else ORIGIN_LAT/LON."""
-        if self.origin_set is not None:
-            return self.origin_set
-        lat, lon = float(self.params["ORIGIN_LAT"]), float(self.params["ORIGIN_LON"])
-        if lat == 0.0 and lon == 0.0:
-            return None
-        return GlobalOrigin.from_degrees(lat, lon)
+        return self._origin_param if self.origin_set is None else self.origin_set
 
     # ================================================================== mode hooks
 
@@ -386,19 +405,19 @@ class RoverCore:
 
     # ================================================================== the flight controller
 
-    def _on_fc_heartbeat(self, msg: Any, now_s: float) -> None:
+    def _on_fc_heartbeat(self, msg: Received, now_s: float) -> None:
         self.vehicle.on_fc_heartbeat(now_s)
 
-    def _on_attitude(self, msg: Any, now_s: float) -> None:
+    def _on_attitude(self, msg: AttitudeMsg, now_s: float) -> None:
         self.estimator.on_attitude(msg.yaw, msg.yawspeed, now_s)
 
-    def _on_wheel_distance(self, msg: Any, now_s: float) -> None:
+    def _on_wheel_distance(self, msg: WheelDistanceMsg, now_s: float) -> None:
         if msg.count >= 4:
             self.estimator.on_wheel_distance(msg.distance[:4], now_s)
 
     # ================================================================== sticks and setpoints
 
-    def _on_gcs_heartbeat(self, msg: Any, now_s: float) -> None:
+    def _on_gcs_heartbeat(self, msg: Received, now_s: float) -> None:
         if self._from_pilot(msg):
             self.vehicle.on_gcs_heartbeat(now_s)
 
@@ -408,7 +427,7 @@ class RoverCore:
         self.vehicle.on_stick_input(now_s)
         self._new_input = True
 
-    def _on_manual_control(self, msg: Any, now_s: float) -> None:
+    def _on_manual_control(self, msg: ManualControlMsg, now_s: float) -> None:
         if not (self._for_us(msg.target) and self._from_pilot(msg)):
             return
         try:
@@ -419,7 +438,7 @@ class RoverCore:
             return
         self._take_stick(stick, now_s)
 
-    def _on_rc_override(self, msg: Any, now_s: float) -> None:
+    def _on_rc_override(self, msg: Addressed, now_s: float) -> None:
         if not (self._for_us(msg.target_system, msg.target_component) and self._from_pilot(msg)):
             return
         channels = [getattr(msg, f"chan{i}_raw") for i in range(1, 19)]
@@ -428,10 +447,10 @@ class RoverCore:
         except InputError as exc:
             self._reject_input(str(exc))
             return
-        if self.rc_sticks.touches_sticks(channels, self.params):
-            self._take_stick(self.rc_sticks.stick(self.params), now_s)
+        if self.rc_sticks.touches_sticks(channels, self.rc_input):
+            self._take_stick(self.rc_sticks.stick(self.rc_input), now_s)
 
-    def _on_position_target(self, msg: Any, now_s: float) -> None:
+    def _on_position_target(self, msg: SetpointMsg, now_s: float) -> None:
         if not (self._for_us(msg.target_system, msg.target_component) and self._from_pilot(msg)):
             return
         if self.vehicle.mode is not Mode.GUIDED:
@@ -450,81 +469,81 @@ class RoverCore:
 
     # ================================================================== commands
 
-    def _on_command(self, msg: Any, now_s: float) -> None:
+    def _on_command(self, msg: CommandMsg, now_s: float) -> None:
         if not (self._for_us(msg.target_system, msg.target_component) and self._from_pilot(msg)):
             return
         command = self._commands.get(int(msg.command))
         params = (msg.param1, msg.param2, msg.param3, msg.param4)
-        result = mavlink.MAV_RESULT_UNSUPPORTED if command is None else command(params, now_s)
+        result = Result.UNSUPPORTED if command is None else command(params, now_s)
         self.to_gcs.command_ack_send(msg.command, result, 0, 0, msg.get_srcSystem(),
                                      msg.get_srcComponent())
 
     @staticmethod
-    def _result(decision: Decision) -> int:
-        return mavlink.MAV_RESULT_ACCEPTED if decision.accepted else mavlink.MAV_RESULT_DENIED
+    def _result(decision: Decision) -> Result:
+        return Result.ACCEPTED if decision.accepted else Result.DENIED
 
-    def _cmd_arm_disarm(self, p: tuple[float, ...], now_s: float) -> int:
+    def _cmd_arm_disarm(self, p: tuple[float, ...], now_s: float) -> Result:
         if p[0] == 1.0:
             return self._result(self.vehicle.request_arm(now_s))
         if p[0] == 0.0:
             return self._result(self.vehicle.request_disarm(now_s, "by command"))
         self.say(Severity.WARNING, f"Arm/disarm: param1 must be 0 or 1, got {p[0]}")
-        return mavlink.MAV_RESULT_DENIED
+        return Result.DENIED
 
-    def _cmd_set_mode(self, p: tuple[float, ...], now_s: float) -> int:
+    def _cmd_set_mode(self, p: tuple[float, ...], now_s: float) -> Result:
         return self._set_mode(p[0], p[1], now_s)
 
-    def _cmd_set_message_interval(self, p: tuple[float, ...], now_s: float) -> int:
+    def _cmd_set_message_interval(self, p: tuple[float, ...], now_s: float) -> Result:
         ok = math.isfinite(p[0]) and self.streams.set_interval(int(p[0]), p[1])
-        return mavlink.MAV_RESULT_ACCEPTED if ok else mavlink.MAV_RESULT_DENIED
+        return Result.ACCEPTED if ok else Result.DENIED
 
-    def _cmd_get_message_interval(self, p: tuple[float, ...], now_s: float) -> int:
+    def _cmd_get_message_interval(self, p: tuple[float, ...], now_s: float) -> Result:
         interval = self.streams.get_interval_us(int(p[0])) if math.isfinite(p[0]) else None
         if interval is None:
-            return mavlink.MAV_RESULT_DENIED
+            return Result.DENIED
         self.to_gcs.message_interval_send(int(p[0]), interval)
-        return mavlink.MAV_RESULT_ACCEPTED
+        return Result.ACCEPTED
 
-    def _cmd_request_message(self, p: tuple[float, ...], now_s: float) -> int:
+    def _cmd_request_message(self, p: tuple[float, ...], now_s: float) -> Result:
         name = REQUESTABLE.get(int(p[0])) if math.isfinite(p[0]) else None
         if name is None:
-            return mavlink.MAV_RESULT_DENIED
+            return Result.DENIED
         build(name, self.to_gcs, self._telemetry_state(now_s))
-        return mavlink.MAV_RESULT_ACCEPTED
+        return Result.ACCEPTED
 
-    def _cmd_set_mission_current(self, p: tuple[float, ...], now_s: float) -> int:
+    def _cmd_set_mission_current(self, p: tuple[float, ...], now_s: float) -> Result:
         executor = self.autopilot.executor
         if p[1] == 1.0:  # param2 = 1: reset the mission (DO_JUMP counters, start over)
             executor.restart()
         if not (math.isfinite(p[0]) and p[0] >= -1):
-            return mavlink.MAV_RESULT_DENIED
+            return Result.DENIED
         seq = executor.current if p[0] == -1 else int(p[0])
         return self._set_mission_current(seq, now_s)
 
-    def _cmd_mission_start(self, p: tuple[float, ...], now_s: float) -> int:
+    def _cmd_mission_start(self, p: tuple[float, ...], now_s: float) -> Result:
         if math.isfinite(p[0]) and p[0] >= 1 and self._set_mission_current(
-                int(p[0]), now_s) != mavlink.MAV_RESULT_ACCEPTED:
-            return mavlink.MAV_RESULT_DENIED
+                int(p[0]), now_s) != Result.ACCEPTED:
+            return Result.DENIED
         return self._result(self.vehicle.request_mode(Mode.AUTO, now_s))
 
-    def _cmd_set_home(self, p: tuple[float, ...], now_s: float) -> int:
+    def _cmd_set_home(self, p: tuple[float, ...], now_s: float) -> Result:
         if p[0] != 1.0:
             self.say(Severity.WARNING, "Set home: only 'use current position' (param1=1)")
-            return mavlink.MAV_RESULT_DENIED
+            return Result.DENIED
         self.estimator.reset(now_s=now_s)
         self.say(Severity.INFO, "Home and odometry origin set here")
-        return mavlink.MAV_RESULT_ACCEPTED
+        return Result.ACCEPTED
 
-    def _set_mode(self, base_mode: float, custom_mode: float, now_s: float) -> int:
+    def _set_mode(self, base_mode: float, custom_mode: float, now_s: float) -> Result:
         if not (math.isfinite(base_mode) and math.isfinite(custom_mode)):
             self.say(Severity.WARNING, "Set mode: base and custom mode must be numbers")
-            return mavlink.MAV_RESULT_DENIED
+            return Result.DENIED
         if not int(base_mode) & mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED:
             self.say(Severity.WARNING, "Set mode: only custom (Rover) modes are supported")
-            return mavlink.MAV_RESULT_UNSUPPORTED
+            return Result.UNSUPPORTED
         return self._result(self.vehicle.request_mode(int(custom_mode), now_s))
 
-    def _on_set_mode(self, msg: Any, now_s: float) -> None:
+    def _on_set_mode(self, msg: SetModeMsg, now_s: float) -> None:
         if not (self._for_us(msg.target_system) and self._from_pilot(msg)):
             return
         result = self._set_mode(float(msg.base_mode), float(msg.custom_mode), now_s)
@@ -532,12 +551,12 @@ class RoverCore:
         self.to_gcs.command_ack_send(mavlink.MAVLINK_MSG_ID_SET_MODE, result, 0, 0,
                                      msg.get_srcSystem(), msg.get_srcComponent())
 
-    def _on_ping(self, msg: Any, now_s: float) -> None:
+    def _on_ping(self, msg: PingMsg, now_s: float) -> None:
         if msg.target_system == 0:  # a request (an answer names its target)
             self.to_gcs.ping_send(msg.time_usec, msg.seq, msg.get_srcSystem(),
                                   msg.get_srcComponent())
 
-    def _on_ftp(self, msg: Any, now_s: float) -> None:
+    def _on_ftp(self, msg: FtpMsg, now_s: float) -> None:
         if self._for_us(msg.target_system, msg.target_component):
             self.to_gcs.file_transfer_protocol_send(0, msg.get_srcSystem(),
                                                     msg.get_srcComponent(),
@@ -549,18 +568,18 @@ class RoverCore:
         self.to_gcs.param_value_send(value.param_id, value.param_value, value.param_type,
                                      value.param_count, value.param_index)
 
-    def _on_param_request_list(self, msg: Any, now_s: float) -> None:
+    def _on_param_request_list(self, msg: Addressed, now_s: float) -> None:
         if self._for_us(msg.target_system, msg.target_component):
             for value in self.param_service.all_values():
                 self._send_param(value)
 
-    def _on_param_request_read(self, msg: Any, now_s: float) -> None:
+    def _on_param_request_read(self, msg: ParamReadMsg, now_s: float) -> None:
         if self._for_us(msg.target_system, msg.target_component):
             value = self.param_service.read(msg.param_id, msg.param_index)
             if value is not None:
                 self._send_param(value)
 
-    def _on_param_set(self, msg: Any, now_s: float) -> None:
+    def _on_param_set(self, msg: ParamSetMsg, now_s: float) -> None:
         if not (self._for_us(msg.target_system, msg.target_component) and self._from_pilot(msg)):
             return
         value, problem = self.param_service.set(msg.param_id, msg.param_value)
@@ -582,7 +601,7 @@ class RoverCore:
 
     # ================================================================== missions
 
-    def _on_mission_message(self, msg: Any, now_s: float) -> None:
+    def _on_mission_message(self, msg: Received, now_s: float) -> None:
         if self._from_pilot(msg):
             self.mission_link.handle(msg, now_s)
             self._take_mission_events(now_s)
@@ -613,19 +632,19 @@ class RoverCore:
             except OSError as exc:
                 self.say(Severity.ERROR, f"Mission save failed: {exc.strerror}")
 
-    def _set_mission_current(self, seq: int, now_s: float) -> int:
+    def _set_mission_current(self, seq: int, now_s: float) -> Result:
         reason = self.autopilot.executor.set_current(seq, self.estimator.pose, now_s)
         if reason is not None:
             self.say(Severity.WARNING, f"Set current item refused: {reason}")
-            return mavlink.MAV_RESULT_DENIED
+            return Result.DENIED
         self._take_executor_events(now_s)
-        return mavlink.MAV_RESULT_ACCEPTED
+        return Result.ACCEPTED
 
-    def _on_mission_set_current(self, msg: Any, now_s: float) -> None:
+    def _on_mission_set_current(self, msg: MissionSetCurrentMsg, now_s: float) -> None:
         if self._for_us(msg.target_system, msg.target_component) and self._from_pilot(msg):
             self._set_mission_current(msg.seq, now_s)  # answered by MISSION_CURRENT
 
-    def _on_set_origin(self, msg: Any, now_s: float) -> None:
+    def _on_set_origin(self, msg: OriginMsg, now_s: float) -> None:
         if not (self._for_us(msg.target_system) and self._from_pilot(msg)):
             return
         try:

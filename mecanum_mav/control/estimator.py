@@ -23,6 +23,7 @@ import math
 from collections.abc import Sequence
 
 from mecanum_mav.config.params import Params
+from mecanum_mav.config.views import OdometryConfig
 from mecanum_mav.mecanum.geometry import Pose2d, ned_to_body, wrap_pi
 from mecanum_mav.mecanum.kinematics import MecanumKinematics
 from mecanum_mav.mecanum.odometry import MecanumOdometry
@@ -31,17 +32,25 @@ __all__ = ["FRESH_S", "WheelOdometryEstimator"]
 
 FRESH_S = 0.5
 """A WHEEL_DISTANCE or ATTITUDE older than this no longer counts as a live source (s)."""
+SOURCE_AUTO, SOURCE_WHEEL_DISTANCE, SOURCE_COMMANDED = 0, 1, 2
+"""``ODOM_SRC`` values."""
 COMMANDED_UPDATE_S = 0.02
 """Commanded speeds are integrated every tick but fed to the odometry at most this often."""
 
 
 class WheelOdometryEstimator:
-    """Pose and velocity of the rover from wheel distances, commanded speeds and gyro yaw."""
+    """Pose and velocity of the rover from wheel distances, commanded speeds and gyro yaw.
+
+    Args:
+        params: the ``ODOM_*`` sources and ``WHL_MAX_SPD`` are read from it here and by
+            :meth:`reconfigure`; the geometry (``GEO_HALF_*``) only here, so a live change
+            cannot bend the odometry's history (it takes effect at the next start).
+    """
 
     def __init__(self, params: Params) -> None:
-        self.params = params
-        kinematics = MecanumKinematics.from_half_extents(float(params["GEO_HALF_LEN"]),
-                                                         float(params["GEO_HALF_WID"]))
+        self.config = OdometryConfig.from_params(params)
+        kinematics = MecanumKinematics.from_half_extents(self.config.half_length_m,
+                                                         self.config.half_width_m)
         self.odometry = MecanumOdometry(kinematics)
         self._virtual = [0.0, 0.0, 0.0, 0.0]  # cumulative metres fed to the odometry
         self._measured: list[float] | None = None  # last WHEEL_DISTANCE
@@ -55,6 +64,10 @@ class WheelOdometryEstimator:
         """Body velocity (forward, right) in m/s, from the last update."""
         self.yaw_rate = 0.0
         """Yaw rate in rad/s, clockwise positive."""
+
+    def reconfigure(self, params: Params) -> None:
+        """Take the odometry sources and the wheel speed from ``params``."""
+        self.config = OdometryConfig.from_params(params)
 
     @property
     def pose(self) -> Pose2d:
@@ -72,7 +85,7 @@ class WheelOdometryEstimator:
         return self.odometry.reset_counter
 
     def _yaw_if_used(self, now_s: float) -> float | None:
-        if int(self.params["ODOM_YAW_SRC"]) != 0 or now_s - self._attitude_s > FRESH_S:
+        if not self.config.yaw_from_gyro or now_s - self._attitude_s > FRESH_S:
             return None
         return self._yaw
 
@@ -83,7 +96,8 @@ class WheelOdometryEstimator:
 
     def on_wheel_distance(self, distances_m: Sequence[float], now_s: float) -> None:
         """WHEEL_DISTANCE: cumulative metres FL, FR, RL, RR from the flight controller."""
-        if int(self.params["ODOM_SRC"]) == 2 or not all(math.isfinite(d) for d in distances_m):
+        if self.config.source == SOURCE_COMMANDED or not all(
+                math.isfinite(d) for d in distances_m):
             return
         fresh = now_s - self._measured_s <= FRESH_S
         if self._measured is not None and fresh:
@@ -99,10 +113,11 @@ class WheelOdometryEstimator:
 
         Used when the source is "commanded", or "auto" with no fresh WHEEL_DISTANCE.
         """
-        source = int(self.params["ODOM_SRC"])
-        if source == 1 or (source == 0 and now_s - self._measured_s <= FRESH_S):
+        source = self.config.source
+        if source == SOURCE_WHEEL_DISTANCE or (
+                source == SOURCE_AUTO and now_s - self._measured_s <= FRESH_S):
             return
-        speed = float(self.params["WHL_MAX_SPD"])
+        speed = self.config.wheel_speed_max_mps
         for i in range(4):
             if wheel_commands[i]:
                 self._virtual[i] += wheel_commands[i] * speed * dt_s

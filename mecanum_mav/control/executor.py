@@ -48,6 +48,7 @@ from dataclasses import dataclass
 from typing import NamedTuple
 
 from mecanum_mav.config.params import Params
+from mecanum_mav.config.views import MissionConfig
 from mecanum_mav.control.guided import Setpoint
 from mecanum_mav.control.pathfollow import Leg, LegFollower, corner_speed
 from mecanum_mav.mecanum.geo import GlobalOrigin
@@ -65,6 +66,12 @@ from mecanum_mav.protocol.statustext import Severity
 
 __all__ = ["ExecutorEvent", "MissionExecutor"]
 
+_NO_MISSION: int = mavlink.MISSION_STATE_NO_MISSION
+_NOT_STARTED: int = mavlink.MISSION_STATE_NOT_STARTED
+_ACTIVE: int = mavlink.MISSION_STATE_ACTIVE
+_PAUSED: int = mavlink.MISSION_STATE_PAUSED
+_COMPLETE: int = mavlink.MISSION_STATE_COMPLETE
+"""MAVLink MISSION_STATE values (MISSION_CURRENT.mission_state)."""
 YAW_ACCEPT_RAD = math.radians(2.0)
 MAX_STEPS_PER_UPDATE = 1000  # DO items chained without a navigation item in between
 Vec = tuple[float, float]
@@ -98,11 +105,12 @@ class MissionExecutor:
     """Runs a mission (see the module docstring).
 
     Args:
-        params: the parameter store (``WP_*`` and ``GUID_*`` are read live).
+        params: the ``WP_*`` parameters and the GUIDED limits they share are read from it
+            here and by :meth:`reconfigure` (after a parameter changed).
     """
 
     def __init__(self, params: Params) -> None:
-        self.params = params
+        self.config = MissionConfig.from_params(params)
         self.items: tuple[MissionItem, ...] = ()
         self.current = 0
         self.started = False
@@ -122,6 +130,10 @@ class MissionExecutor:
         self._hold: Vec = (0.0, 0.0)
 
     # ------------------------------------------------------------------ mission and state
+
+    def reconfigure(self, params: Params) -> None:
+        """Take the ``WP_*`` parameters (and the GUIDED limits they share) from ``params``."""
+        self.config = MissionConfig.from_params(params)
 
     def load(self, items: Sequence[MissionItem]) -> None:
         """A new mission (upload, clear, or the file at start-up). The current item stays if
@@ -143,12 +155,12 @@ class MissionExecutor:
     def state(self) -> int:
         """The MAVLink MISSION_STATE to report in MISSION_CURRENT."""
         if not self.has_mission:
-            return mavlink.MISSION_STATE_NO_MISSION
+            return _NO_MISSION
         if self.complete:
-            return mavlink.MISSION_STATE_COMPLETE
+            return _COMPLETE
         if self.running:
-            return mavlink.MISSION_STATE_ACTIVE
-        return mavlink.MISSION_STATE_PAUSED if self.started else mavlink.MISSION_STATE_NOT_STARTED
+            return _ACTIVE
+        return _PAUSED if self.started else _NOT_STARTED
 
     def set_current(self, seq: int, pose: Pose2d, now_s: float) -> str | None:
         """MISSION_SET_CURRENT / DO_SET_MISSION_CURRENT; the reason if refused.
@@ -256,7 +268,7 @@ class MissionExecutor:
             return self._setpoint(None, step.target, pose, now_s)
         velocity = self._follower.velocity_ned(
             step.leg, here, dt, cruise=self._cruise(), accel=self._accel(),
-            exit_speed=step.exit_speed, gain=float(self.params["GUID_POS_P"]))
+            exit_speed=step.exit_speed, gain=self.config.position_gain)
         return self._setpoint(velocity, None, pose, now_s)
 
     def _done(self, step: _Step, pose: Pose2d, here: Vec, now_s: float) -> bool:
@@ -335,17 +347,16 @@ class MissionExecutor:
         waypoint = item.command == mavlink.MAV_CMD_NAV_WAYPOINT
         hold = 0.0 if item.command == mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH else item.param1
         hold = 0.0 if math.isnan(hold) else hold
-        radius = item.param2 if waypoint and item.param2 > 0.0 else float(
-            self.params["WP_RADIUS"])
+        radius = item.param2 if waypoint and item.param2 > 0.0 else self.config.radius_m
         exit_speed = 0.0
         following = self._next_nav(item.seq + 1)
         if waypoint and hold <= 0.0 and following is not None:
             after = Leg(target, self._target(following, target))
             exit_speed = corner_speed(leg, after, self._cruise(), self._accel(),
-                                      float(self.params["WP_OVERSHOOT"]))
+                                      self.config.overshoot_m)
         if waypoint and math.isfinite(item.param4):
             self._yaw, self._yaw_dir = math.radians(item.param4), 0
-        elif int(self.params["WP_YAW_BEHAVIOR"]) == 1 and leg.length_m > 2 * radius:
+        elif self.config.face_along_legs and leg.length_m > 2 * radius:
             self._yaw, self._yaw_dir = math.atan2(*reversed(leg.direction)), 0
         un, ue = leg.direction
         self._follower.reset(velocity_ned[0] * un + velocity_ned[1] * ue)
@@ -365,8 +376,7 @@ class MissionExecutor:
         if following is None:
             return False
         target = self._target(following, here)
-        return math.hypot(target[0] - here[0], target[1] - here[1]) > float(
-            self.params["WP_RADIUS"])
+        return math.hypot(target[0] - here[0], target[1] - here[1]) > self.config.radius_m
 
     def _end(self, pose: Pose2d, here: Vec) -> None:
         if abs(wrap_pi(self._yaw_target(pose) - pose.yaw_rad)) > YAW_ACCEPT_RAD and (
@@ -394,7 +404,7 @@ class MissionExecutor:
         if speed == -2.0:
             self._speed = None
         elif speed > 0.0:
-            limit = float(self.params["GUID_SPD_MAX"])
+            limit = self.config.speed_limit_mps
             if speed > limit:
                 self._emit("say", item.seq, f"Speed {speed:g} limited to GUID_SPD_MAX {limit:g}",
                            Severity.WARNING)
@@ -418,10 +428,10 @@ class MissionExecutor:
     # ------------------------------------------------------------------ outputs
 
     def _cruise(self) -> float:
-        return float(self.params["WP_SPEED"]) if self._speed is None else self._speed
+        return self.config.speed_mps if self._speed is None else self._speed
 
     def _accel(self) -> float:
-        return min(float(self.params["WP_ACCEL"]), float(self.params["GUID_ACC_MAX"]))
+        return self.config.accel_mps2
 
     def _yaw_target(self, pose: Pose2d) -> float:
         """The heading to command; a forced turn direction leads by a quarter turn."""

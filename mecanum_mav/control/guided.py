@@ -30,6 +30,7 @@ import math
 from dataclasses import dataclass
 
 from mecanum_mav.config.params import Params
+from mecanum_mav.config.views import GuidedConfig
 from mecanum_mav.mecanum.geometry import Pose2d, body_to_ned, ned_to_body, wrap_pi
 from mecanum_mav.protocol.limits import (
     MAX_SETPOINT_POSITION_M,
@@ -130,14 +131,23 @@ def decode_setpoint(frame: int, type_mask: int, x: float, y: float, vx: float, v
 
 
 class GuidedController:
-    """Setpoint + pose -> body velocity and yaw rate, with the ``GUID_*`` limits."""
+    """Setpoint + pose -> body velocity and yaw rate, with the ``GUID_*`` limits.
+
+    Args:
+        params: the ``GUID_*`` gains and limits are read from it here and by
+            :meth:`reconfigure` (after a parameter changed).
+    """
 
     def __init__(self, params: Params) -> None:
-        self.params = params
+        self.config = GuidedConfig.from_params(params)
         self.setpoint: Setpoint | None = None
         self.hold_yaw: float | None = None
         self.velocity_ned = (0.0, 0.0)  # last commanded, for the acceleration limit
         self._last_s: float | None = None
+
+    def reconfigure(self, params: Params) -> None:
+        """Take the ``GUID_*`` parameters from ``params``."""
+        self.config = GuidedConfig.from_params(params)
 
     def start(self, pose: Pose2d, now_s: float) -> None:
         """Entering GUIDED: stand still and hold the current heading."""
@@ -162,12 +172,12 @@ class GuidedController:
 
     def update(self, pose: Pose2d, now_s: float) -> tuple[float, float, float]:
         """Body velocity (forward m/s, right m/s) and yaw rate (rad/s, clockwise) now."""
-        p = self.params
+        c = self.config
         dt = 0.0 if self._last_s is None else max(0.0, now_s - self._last_s)
         self._last_s = now_s
-        speed_max, accel_max = float(p["GUID_SPD_MAX"]), float(p["GUID_ACC_MAX"])
+        speed_max, accel_max = c.speed_max_mps, c.accel_max_mps2
         sp = self.setpoint
-        lapsed = sp is not None and now_s - sp.time_s > float(p["GUID_TIMEOUT"])
+        lapsed = sp is not None and now_s - sp.time_s > c.timeout_s
         want = self._translation(sp, pose, lapsed, speed_max, accel_max)
         # Acceleration limit: slew the commanded velocity.
         dvn, dve = want[0] - self.velocity_ned[0], want[1] - self.velocity_ned[1]
@@ -179,7 +189,7 @@ class GuidedController:
         yaw_rate = self._yaw_rate(sp, pose, lapsed)
         # Rotate into the body as it will be one delay from now (motor lag, pose age), so a
         # turn does not bend the path.
-        heading = pose.yaw_rad + yaw_rate * float(p["GUID_YAW_LEAD"])
+        heading = pose.yaw_rad + yaw_rate * c.yaw_lead_s
         vx, vy = ned_to_body(*want, heading)
         return vx, vy, yaw_rate
 
@@ -190,7 +200,7 @@ class GuidedController:
         if sp.position_ned is not None:
             en, ee = sp.position_ned[0] - pose.x_m, sp.position_ned[1] - pose.y_m
             distance = math.hypot(en, ee)
-            gain = float(self.params["GUID_POS_P"])
+            gain = self.config.position_gain
             vn, ve = en * gain, ee * gain
             if sp.velocity_ned is not None and not lapsed:
                 vn, ve = vn + sp.velocity_ned[0], ve + sp.velocity_ned[1]
@@ -207,8 +217,8 @@ class GuidedController:
         return vn, ve
 
     def _yaw_rate(self, sp: Setpoint | None, pose: Pose2d, lapsed: bool) -> float:
-        p = self.params
-        rate_max = math.radians(float(p["GUID_YAW_RATE"]))
+        c = self.config
+        rate_max = c.yaw_rate_max
         if sp is not None and sp.yaw_rate_max is not None:
             rate_max = min(rate_max, sp.yaw_rate_max)
         if sp is not None and sp.yaw is not None:
@@ -218,5 +228,5 @@ class GuidedController:
             return max(-rate_max, min(rate_max, sp.yaw_rate))
         else:
             target = pose.yaw_rad if self.hold_yaw is None else self.hold_yaw
-        rate = float(p["GUID_YAW_P"]) * wrap_pi(target - pose.yaw_rad)
+        rate = c.yaw_gain * wrap_pi(target - pose.yaw_rad)
         return max(-rate_max, min(rate_max, rate))

@@ -91,15 +91,17 @@ class PwmMap:
 
     def __post_init__(self) -> None:
         # Precomputed once: the control loop asks for these on every output.
-        object.__setattr__(self, "channels", tuple(w.channel for w in self.wheels))
-        object.__setattr__(self, "_neutral", tuple(w.trim for w in self.wheels))
+        w = self.wheels
+        object.__setattr__(self, "channels", tuple(x.channel for x in w))
+        object.__setattr__(self, "_neutral", (w[0].trim, w[1].trim, w[2].trim, w[3].trim))
 
     channels: tuple[int, ...] = field(init=False)
     """RC channel numbers (1..18) of FL, FR, RL, RR."""
+    _neutral: tuple[int, int, int, int] = field(init=False, repr=False, compare=False)
 
     def neutral(self) -> tuple[int, int, int, int]:
         """Trim on every wheel, microseconds: the safe output."""
-        return self._neutral  # type: ignore[attr-defined,no-any-return]
+        return self._neutral
 
     def pulses_us(self, wheels: Sequence[float] | NDArray[np.float64]) -> tuple[int, int, int, int]:
         """Pulse widths (us) for one set of four normalized wheel commands FL, FR, RL, RR."""
@@ -116,4 +118,6 @@ class PwmMap:
         down = np.array([w.trim - w.minimum for w in self.wheels], dtype=np.float64)
         finite = np.isfinite(c)
         c = np.clip(np.where(finite, c, 0.0) * sign, -1.0, 1.0)
-        return np.rint(trim + c * np.where(c >= 0.0, up, down)).astype(np.int64)
+        pulses: NDArray[np.int64] = np.rint(trim + c * np.where(c >= 0.0, up, down)).astype(
+            np.int64)
+        return pulses

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from mecanum_mav.config.params import Params
+from mecanum_mav.config.views import RcInputConfig
 from mecanum_mav.protocol.rcoverride import LEAVE, RELEASE, field_action
 
 __all__ = [
@@ -79,7 +79,6 @@ class RcStickState:
     lives here. Pulses are microseconds; :meth:`stick` returns the normalized stick.
     """
 
-    AXES = ("RCMAP_THROTTLE", "RCMAP_LATERAL", "RCMAP_STEER")  # x, y, r
 
     def __init__(self) -> None:
         self.pulses: dict[int, int] = {}
@@ -108,20 +107,16 @@ class RcStickState:
             else:
                 self.pulses[number] = action
 
-    def touches_sticks(self, channels: Sequence[int], params: Params) -> bool:
+    def touches_sticks(self, channels: Sequence[int], config: RcInputConfig) -> bool:
         """Whether a message sets or releases any of the three stick channels."""
-        for name in self.AXES:
-            number = int(params[name])
-            if field_action(number, channels[number - 1]) != LEAVE:
-                return True
-        return False
+        return any(field_action(n, channels[n - 1]) != LEAVE for n in config.axes)
 
-    def stick(self, params: Params) -> Stick:
+    def stick(self, config: RcInputConfig) -> Stick:
         """The normalized stick (x forward, y right, r clockwise) from the held pulses."""
-        low, trim, high = params["RCIN_MIN"], params["RCIN_TRIM"], params["RCIN_MAX"]
+        low, trim, high = config.min_us, config.trim_us, config.max_us
         out = []
-        for name in self.AXES:
-            pulse = self.pulses.get(int(params[name]), trim)
+        for number in config.axes:
+            pulse = self.pulses.get(number, trim)
             span = (high - trim) if pulse >= trim else (trim - low)
             value = (pulse - trim) / span
             out.append(-1.0 if value < -1.0 else (1.0 if value > 1.0 else value))
