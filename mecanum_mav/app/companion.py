@@ -8,7 +8,8 @@ One thread, one loop (:meth:`Companion.run`), top to bottom:
    polls, so an idle companion uses no CPU).
 2. Read everything waiting on a link; each message goes to ``core.handle`` and its answers
    out at once. Under overload this drains the queue and the core acts on the newest stick.
-3. ``core.tick``: its RC_CHANNELS_OVERRIDE goes out first, then telemetry and status.
+3. ``core.tick``: its RC_CHANNELS_OVERRIDE goes out at once; then ``core.housekeeping``:
+   odometry, telemetry, heartbeats and status texts.
 4. On stop (SIGINT, SIGTERM, :meth:`Companion.stop`): neutral, then the channels released.
 
 A send that fails is counted per link, logged at WARNING at most once a second per link, and
@@ -28,7 +29,7 @@ from pathlib import Path
 from typing import BinaryIO
 
 from mecanum_mav.config.params import Params
-from mecanum_mav.control.core import COMPANION_COMPID, Outbox, RoverCore
+from mecanum_mav.control.core import COMPANION_COMPID, NOTHING, Outbox, RoverCore
 from mecanum_mav.io.links import Link, open_link
 from mecanum_mav.io.missionfile import (
     MissionFileError,
@@ -104,6 +105,7 @@ class Companion:
                                    source_component=COMPANION_COMPID, name="gcs")
         self.fc: Link = open_link(fc_url, source_system=self.core.identity.fc_gcs_sysid,
                                   source_component=FC_LINK_COMPID, name="fc")
+        self._fc_mav = self.fc.mav
         if tlog is not None:
             self.gcs.record_to(tlog)
             self.fc.record_to(tlog)
@@ -126,7 +128,9 @@ class Companion:
                         os.read(self._wake_r, 64)
                     else:
                         self._drain(key.data)
-                self._write(core.tick(self.clock()))
+                now = self.clock()
+                self._write(core.tick(now))  # the override first,
+                self._write(core.housekeeping(now))  # then everything else
                 for link, fd in registered.items():  # tcpin swaps its fd on accept
                     if link.fileno() != fd:
                         selector.unregister(fd)
@@ -144,8 +148,10 @@ class Companion:
             self._write(handle(msg, now, from_fc=from_fc))
 
     def _write(self, out: Outbox) -> None:
+        if out is NOTHING:
+            return
         if out.override is not None:  # first: the latency-critical part
-            self.fc.mav.srcSystem = self.core.identity.fc_gcs_sysid  # FC_GCS_SYSID may change
+            self._fc_mav.srcSystem = self.core.identity.fc_gcs_sysid  # FC_GCS_SYSID may change
             self.fc.send_rc_override(*out.override)
         for msg in out.fc:
             self.fc.send(msg)

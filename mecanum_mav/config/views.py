@@ -13,6 +13,7 @@ import math
 from dataclasses import dataclass
 
 from mecanum_mav.config.params import Params
+from mecanum_mav.mecanum.mixing import ALGORITHM_NAMES
 
 __all__ = [
     "FailsafeConfig",
@@ -62,8 +63,8 @@ class InputConfig:
     """Limit the (x, y) stick to the unit circle (``INP_CIRCLE``)."""
     z_scale: bool
     """MANUAL_CONTROL z scales the stick (``MAN_Z_SCALE``)."""
-    algorithm: int
-    """Mixing algorithm index into ``mixing.ALGORITHM_NAMES`` (``MIX_ALGO``)."""
+    algorithm: str
+    """Mixing algorithm name, one of ``mixing.ALGORITHM_NAMES`` (``MIX_ALGO`` is its index)."""
     desaturation: int
     """``mixing.Desaturation`` value (``MIX_DESAT``)."""
 
@@ -72,7 +73,7 @@ class InputConfig:
         """Read ``INP_*``, ``MAN_Z_SCALE`` and ``MIX_*``."""
         return cls(float(params["INP_DEADBAND"]), float(params["INP_EXPO"]),
                    bool(params["INP_CIRCLE"]), bool(params["MAN_Z_SCALE"]),
-                   int(params["MIX_ALGO"]), int(params["MIX_DESAT"]))
+                   ALGORITHM_NAMES[int(params["MIX_ALGO"])], int(params["MIX_DESAT"]))
 
 
 @dataclass(frozen=True, slots=True)

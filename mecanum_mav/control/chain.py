@@ -21,7 +21,6 @@ from mecanum_mav.control.pwm import PwmMap
 from mecanum_mav.mecanum.geometry import Pose2d
 from mecanum_mav.mecanum.kinematics import MecanumKinematics
 from mecanum_mav.mecanum.mixing import (
-    ALGORITHM_NAMES,
     Desaturation,
     desaturate_prioritized,
     wheels_from_stick,
@@ -44,9 +43,7 @@ def manual_output(x: float, y: float, r: float, config: InputConfig, pwm: PwmMap
     """
     x, y, r = shape_stick(x, y, r, deadband_width=config.deadband, expo_weight=config.expo,
                           circle=config.circle)
-    fl, fr, rl, rr = wheels_from_stick(x, y, r, ALGORITHM_NAMES[config.algorithm],
-                                       priority=config.desaturation)
-    wheels = (fl, fr, rl, rr)
+    wheels = wheels_from_stick(x, y, r, config.algorithm, priority=config.desaturation)
     return wheels, pwm.pulses_us(wheels)
 
 

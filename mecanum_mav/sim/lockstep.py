@@ -13,9 +13,9 @@ socket would carry. One step to ``t``:
 
 1. the ground station's HEARTBEAT if due; what it sent reaches the core at ``t``;
 2. what the board sent in the previous step reaches the core at ``t``;
-3. ``core.tick(t)`` if anything arrived or a timer of the core is due (as the companion's
-   loop wakes); the core's overrides and heartbeats reach the board at ``t``, its messages
-   for the ground station reach the ground station at ``t``;
+3. ``core.tick(t)`` and ``core.housekeeping(t)`` if anything arrived or a timer of the core
+   is due (as the companion's loop wakes); the core's overrides and heartbeats reach the
+   board at ``t``, its messages for the ground station reach the ground station at ``t``;
 4. the board steps its physics and sends its telemetry (delivered in the next step).
 
 So a command's answer and an override's effect are exact in virtual time, and a run of
@@ -151,6 +151,7 @@ class Lockstep:
             woke = True
         if woke or now >= core.next_due_s():
             self._write(core.tick(now))
+            self._write(core.housekeeping(now))
         received = self._core_to_fc.deliver()
         if received:
             self._log_fc(received, now)
