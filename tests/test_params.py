@@ -68,7 +68,6 @@ def test_the_schema_has_exactly_the_parameters_the_rest_of_the_code_reads():
         "INP_CIRCLE",
         "GEO_HALF_LEN",
         "GEO_HALF_WID",
-        "GEO_WHEEL_RAD",
         "WHL_MAX_SPD",
         *motor,
         "SYSID_THISMAV", "SYSID_MYGCS", "FC_SYSID", "FC_COMPID", "FC_GCS_SYSID", "OUT_RATE",
@@ -200,10 +199,10 @@ def test_set_stores_ints_as_int_and_floats_float32_canonical():
     assert params.set("MIX_ALGO", 2.0) == 2
     assert type(params["MIX_ALGO"]) is int
     assert params.set("GEO_HALF_LEN", 0.15000000000000002) == 0.15
-    assert params.set("GEO_WHEEL_RAD", to_float32(0.0485)) == 0.0485
+    assert params.set("GUID_YAW_LEAD", to_float32(0.0485)) == 0.0485
     assert params.set("WHL_MAX_SPD", 1) == 1.0
     assert type(params["WHL_MAX_SPD"]) is float
-    assert params.changed() == ["MIX_ALGO", "GEO_WHEEL_RAD"]
+    assert params.changed() == ["MIX_ALGO", "GUID_YAW_LEAD"]
 
 
 @pytest.mark.parametrize(
@@ -306,7 +305,6 @@ def test_the_example_robot_file_loads_and_lists_only_what_differs():
     ]
     assert sorted(params.changed()) == sorted(listed)
     assert (params["GEO_HALF_LEN"], params["GEO_HALF_WID"]) == (0.2, 0.15)
-    assert params["GEO_WHEEL_RAD"] == 0.0485
     assert params["WHL_MAX_SPD"] == 1.2
     assert (params["MOT_FR_REV"], params["MOT_RR_REV"]) == (1, 1)
     assert [params[f"MOT_{w}_CH"] for w in WHEELS] == [1, 3, 2, 4]
@@ -326,7 +324,7 @@ def test_a_file_with_several_mistakes_reports_every_one_with_file_and_line():
             "MIX_ALGO 1",  # 9
             "MIX_ALGO 2",  # 10
             "MIX_DESAT 1 2",  # 11
-            "GEO_WHEEL_RAD 1,5",  # 12
+            "WP_RADIUS 1,5",  # 12
             "INP_CIRCLE 0x1",  # 13
             "MIX_DESAT 7",  # 14
         ]
@@ -341,7 +339,7 @@ def test_a_file_with_several_mistakes_reports_every_one_with_file_and_line():
         "bad.parm:8: WHL_MAX_SPD: missing value",
         "bad.parm:10: MIX_ALGO: duplicate, already set on line 9",
         "bad.parm:11: MIX_DESAT: unexpected text after the value: ['2']",
-        "bad.parm:12: GEO_WHEEL_RAD: unexpected text after the value: ['5']",
+        "bad.parm:12: WP_RADIUS: unexpected text after the value: ['5']",
         "bad.parm:13: INP_CIRCLE: '0x1' is not a number",
         "bad.parm:14: MIX_DESAT: duplicate, already set on line 11",
         "bad.parm:14: MIX_DESAT: 7 is not one of 0 = proportional, 1 = rotation_priority, "
@@ -435,14 +433,14 @@ def test_duplicate_channels_are_caught():
 
 def test_save_writes_every_parameter_as_name_value_lines_mavproxy_can_read(tmp_path):
     path = tmp_path / "robot.parm"
-    save(Params({"GEO_WHEEL_RAD": 0.0485, "MOT_FR_REV": 1}), path, header="My robot\nline two")
+    save(Params({"WP_RADIUS": 0.0485, "MOT_FR_REV": 1}), path, header="My robot\nline two")
     lines = path.read_text().splitlines()
     assert lines[:2] == ["# My robot", "# line two"]
     data = [line.split() for line in lines if line and not line.startswith("#")]
     assert [name for name, _ in data] == list(SPECS)
     assert all(len(fields) == 2 for fields in data)  # no trailing comments: MAVProxy rejects them
     values = dict(data)
-    assert values["GEO_WHEEL_RAD"] == "0.0485"
+    assert values["WP_RADIUS"] == "0.0485"
     assert values["MOT_FR_REV"] == "1"
     assert values["WHL_MAX_SPD"] == "1.0"
     assert values["MOT_FL_TRIM"] == "1500"
@@ -591,3 +589,10 @@ def test_ground_station_stick_channels_must_be_distinct_and_range_ordered():
     errors = file_errors("RCMAP_LATERAL 3\nRCIN_TRIM 2100\n")
     assert any("RCMAP_THROTTLE and RCMAP_LATERAL share RC channel 3" in e for e in errors)
     assert any("RCIN: need MIN < TRIM < MAX" in e for e in errors)
+
+
+def test_a_retired_parameter_in_a_file_is_ignored_with_a_warning_naming_its_line(caplog):
+    with caplog.at_level("WARNING"):
+        params = parse_text("GEO_HALF_LEN 0.2\nGEO_WHEEL_RAD 0.0485\n", source="old.parm")
+    assert params["GEO_HALF_LEN"] == 0.2 and "GEO_WHEEL_RAD" not in params
+    assert "old.parm:2: GEO_WHEEL_RAD is no longer a parameter" in caplog.text

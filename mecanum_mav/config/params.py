@@ -54,6 +54,7 @@ from mecanum_mav.mecanum.wheels import WHEEL_NAMES
 __all__ = [
     "GROUP_TITLES",
     "NAME_MAX_LEN",
+    "RETIRED",
     "RULES",
     "SCHEMA",
     "SPECS",
@@ -361,10 +362,6 @@ SCHEMA: tuple[ParamSpec, ...] = (
         "centre, half the track width.",
     ),
     ParamSpec(
-        "GEO_WHEEL_RAD", float, default=0.04, minimum=0.005, maximum=1.0, units="m",
-        description="Wheel radius from the axle to the rollers' contact with the ground.",
-    ),
-    ParamSpec(
         "WHL_MAX_SPD", float, default=1.0, minimum=0.01, maximum=20.0, units="m/s",
         description="Wheel surface speed at full PWM (MOT_x_MIN or MOT_x_MAX), which maps a "
         "wheel command of 1 to m/s and back.",
@@ -588,6 +585,14 @@ SCHEMA: tuple[ParamSpec, ...] = (
 )
 """Every parameter, in file, table and MAVLink index order."""
 # fmt: on
+
+
+RETIRED: dict[str, str] = {
+    "GEO_WHEEL_RAD": "wheel speeds are WHL_MAX_SPD in m/s and odometry reads WHEEL_DISTANCE in "
+    "metres, so no wheel radius is needed",
+}
+"""Parameters earlier versions had and nothing reads any more: name -> why. A parameter file
+that still sets one loads, with a warning naming the line (:mod:`mecanum_mav.io.paramfile`)."""
 
 
 def _index(schema: Sequence[ParamSpec]) -> dict[str, ParamSpec]:

@@ -18,6 +18,7 @@ defaults file from the schema.
 from __future__ import annotations
 
 import argparse
+import logging
 import os
 import sys
 from collections.abc import Mapping, Sequence
@@ -26,6 +27,7 @@ from pathlib import Path
 from mecanum_mav.config.params import (
     GROUP_TITLES,
     NAME_MAX_LEN,
+    RETIRED,
     SCHEMA,
     SPECS,
     ParamError,
@@ -37,6 +39,8 @@ from mecanum_mav.config.params import (
     unknown_name,
 )
 from mecanum_mav.io.atomicfile import write_atomic
+
+log = logging.getLogger(__name__)
 
 __all__ = [
     "DEFAULTS_FILE_HEADER",
@@ -66,6 +70,10 @@ def parse_text(text: str, source: str = "<string>", base: Params | None = None) 
             continue
         name, rest = fields[0], fields[1:]
         where = f"{source}:{number}: "
+        if name in RETIRED:
+            log.warning("%s%s is no longer a parameter (%s); line ignored", where, name,
+                        RETIRED[name])
+            continue
         if name not in SPECS:
             errors.append(where + unknown_name(name))
             continue
