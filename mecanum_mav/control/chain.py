@@ -26,6 +26,7 @@ from mecanum_mav.mecanum.mixing import (
     wheels_from_stick,
 )
 from mecanum_mav.mecanum.shaping import shape_stick
+from mecanum_mav.mecanum.wheels import WheelQuad
 
 __all__ = ["Output", "autonomous_output", "manual_output"]
 
@@ -66,10 +67,11 @@ def autonomous_output(guided: GuidedController, executor: MissionExecutor | None
     """
     if executor is not None:
         guided.setpoint = executor.update(pose, guided.velocity_ned, now_s)
-    vx, vy, yaw_rate = guided.update(pose, now_s)
-    translation = kinematics.to_wheel_speeds(vx, vy, 0.0) / wheel_speed_max_mps
-    rotation = kinematics.to_wheel_speeds(0.0, 0.0, yaw_rate) / wheel_speed_max_mps
-    fl, fr, rl, rr = (float(w) for w in desaturate_prioritized(translation, rotation,
-                                                               Desaturation(priority)))
-    wheels = (fl, fr, rl, rr)
+    speeds = guided.update(pose, now_s)
+    translation = kinematics.to_wheel_speeds(speeds.vx_mps, speeds.vy_mps, 0.0)
+    rotation = kinematics.to_wheel_speeds(0.0, 0.0, speeds.yaw_rate)
+    fl, fr, rl, rr = (float(w) for w in desaturate_prioritized(
+        translation / wheel_speed_max_mps, rotation / wheel_speed_max_mps,
+        Desaturation(priority)))
+    wheels = WheelQuad(fl, fr, rl, rr)
     return wheels, pwm.pulses_us(wheels)

@@ -31,7 +31,7 @@ from dataclasses import dataclass
 
 from mecanum_mav.config.params import Params
 from mecanum_mav.config.views import GuidedConfig
-from mecanum_mav.mecanum.geometry import Pose2d, body_to_ned, ned_to_body, wrap_pi
+from mecanum_mav.mecanum.geometry import ChassisSpeeds, Pose2d, body_to_ned, ned_to_body, wrap_pi
 from mecanum_mav.protocol.limits import (
     MAX_SETPOINT_POSITION_M,
     MAX_SETPOINT_YAW_RATE_RADPS,
@@ -170,8 +170,8 @@ class GuidedController:
         return math.hypot(sp.position_ned[0] - pose.x_m, sp.position_ned[1] - pose.y_m) <= (
             tolerance_m)
 
-    def update(self, pose: Pose2d, now_s: float) -> tuple[float, float, float]:
-        """Body velocity (forward m/s, right m/s) and yaw rate (rad/s, clockwise) now."""
+    def update(self, pose: Pose2d, now_s: float) -> ChassisSpeeds:
+        """The body velocity to drive now (FRD m/s, yaw rate rad/s clockwise)."""
         c = self.config
         dt = 0.0 if self._last_s is None else max(0.0, now_s - self._last_s)
         self._last_s = now_s
@@ -191,7 +191,7 @@ class GuidedController:
         # turn does not bend the path.
         heading = pose.yaw_rad + yaw_rate * c.yaw_lead_s
         vx, vy = ned_to_body(*want, heading)
-        return vx, vy, yaw_rate
+        return ChassisSpeeds(vx, vy, yaw_rate)
 
     def _translation(self, sp: Setpoint | None, pose: Pose2d, lapsed: bool, speed_max: float,
                      accel_max: float) -> tuple[float, float]:

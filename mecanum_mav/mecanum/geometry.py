@@ -21,6 +21,7 @@ import numpy as np
 import numpy.typing as npt
 
 __all__ = [
+    "ChassisSpeeds",
     "Pose2d",
     "Twist2d",
     "pose_exp",
@@ -46,6 +47,15 @@ class Pose2d(NamedTuple):
     x_m: float
     y_m: float
     yaw_rad: float
+
+
+class ChassisSpeeds(NamedTuple):
+    """A body velocity, FRD: ``vx_mps`` forward, ``vy_mps`` right (m/s), ``yaw_rate``
+    clockwise seen from above (rad/s). WPILib's ChassisSpeeds, in this product's frame."""
+
+    vx_mps: float
+    vy_mps: float
+    yaw_rate: float
 
 
 class Twist2d(NamedTuple):

@@ -18,13 +18,27 @@ re-export :data:`WHEEL_NAMES` without an import cycle.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 __all__ = [
     "CORNER_SIGNS",
     "LATERAL_SIGNS",
     "ROTATION_SIGNS",
     "WHEEL_KEYS",
     "WHEEL_NAMES",
+    "WheelQuad",
 ]
+
+
+class WheelQuad(NamedTuple):
+    """One number per wheel, in wheel order: a normalized command in [-1, 1], a surface speed
+    in m/s or a distance in m, as the name of the value holding it says (``wheels``,
+    ``wheel_speeds_mps``, ``wheel_distances_m``). A tuple, so it unpacks and compares as one."""
+
+    fl: float
+    fr: float
+    rl: float
+    rr: float
 
 WHEEL_NAMES: tuple[str, str, str, str] = ("front_left", "front_right", "rear_left", "rear_right")
 """Wheel order used on the last axis of every wheel array."""
