@@ -1,0 +1,61 @@
+"""Links never raise: failed sends are counted and reported, at most once a second per link."""
+
+from __future__ import annotations
+
+import logging
+
+from mecanum_mav.config.params import Params
+from mecanum_mav.control.core import RoverCore
+from mecanum_mav.io import links
+from mecanum_mav.io.links import open_link
+from mecanum_mav.protocol.dialect import mavlink
+
+
+class FakeClock:
+    def __init__(self) -> None:
+        self.now = 100.0
+
+    def __call__(self) -> float:
+        return self.now
+
+
+def failing_link(monkeypatch):
+    link = open_link("udpout:127.0.0.1:9", source_system=255, source_component=190, name="fc")
+
+    def broken(data):
+        raise OSError(111, "Connection refused")
+
+    monkeypatch.setattr(link.conn, "write", broken)
+    return link
+
+
+def test_a_failing_send_is_counted_and_warned_about_once_a_second_per_link(monkeypatch, caplog):
+    clock = FakeClock()
+    monkeypatch.setattr(links.time, "monotonic", clock)
+    link = failing_link(monkeypatch)
+    try:
+        with caplog.at_level(logging.WARNING, logger="mecanum_mav.io.links"):
+            for _ in range(10):
+                link.send_rc_override(1, 1, [1500] * 4 + [65535] * 4 + [0] * 10)
+                link.send(link.mav.heartbeat_encode(6, 8, 0, 0, 4))
+                clock.now += 0.05  # 20 Hz: one second of failures
+            warnings = [r for r in caplog.records if "send failed" in r.getMessage()]
+            assert link.send_errors == 20
+            assert len(warnings) == 1 and "fc: send failed" in warnings[0].getMessage()
+            clock.now += 1.0
+            link.send(link.mav.heartbeat_encode(6, 8, 0, 0, 4))
+            warnings = [r for r in caplog.records if "send failed" in r.getMessage()]
+            assert len(warnings) == 2 and "(21 so far)" in warnings[1].getMessage()
+    finally:
+        link.close()
+
+
+def test_sys_status_errors_comm_counts_bad_packets_and_failed_sends():
+    core = RoverCore(Params(), now_s=0.0, link_errors=lambda: (3, 4))
+    command = mavlink.MAVLink_command_long_message(
+        1, 1, mavlink.MAV_CMD_REQUEST_MESSAGE, 0, mavlink.MAVLINK_MSG_ID_SYS_STATUS,
+        0, 0, 0, 0, 0, 0)
+    command._header.srcSystem, command._header.srcComponent = 255, 190
+    out = core.handle(command, 1.0)
+    status = [m for m in out.gcs if m.get_type() == "SYS_STATUS"]
+    assert len(status) == 1 and status[0].errors_comm == 7
