@@ -1,15 +1,19 @@
-"""Ground-station side of the mission protocol for tests, hand-rolled on a test Peer so that
-packets can be lost or duplicated on purpose."""
+"""Ground-station side of the mission protocol for tests, hand-rolled on a
+:class:`~mecanum_mav.sim.groundstation.ScriptedGroundStation` (the lockstep harness's, virtual
+time, or one on a real UDP socket) so that packets can be lost or duplicated on purpose.
+
+The helpers use only the ground station's ``mark``, ``messages``, ``pump``, ``wait`` and
+``mav``; their deadlines are in the ground station's own time (``gcs.port.now()``)."""
 
 from __future__ import annotations
 
 import math
-import time
 from collections.abc import Iterable
 from dataclasses import replace
 
 from mecanum_mav.io.links import mavlink
 from mecanum_mav.protocol.mission import MissionItem, float_xy, item_from_fields
+from mecanum_mav.sim.groundstation import ScriptedGroundStation
 
 WP, LOITER, RTL = (mavlink.MAV_CMD_NAV_WAYPOINT, mavlink.MAV_CMD_NAV_LOITER_TIME,
                    mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH)
@@ -48,7 +52,7 @@ def same(a: MissionItem, b: MissionItem) -> bool:
     return True
 
 
-def send_item(gcs, item: MissionItem, *, legacy: bool = False) -> None:
+def send_item(gcs: ScriptedGroundStation, item: MissionItem, *, legacy: bool = False) -> None:
     fields = (item.seq, item.frame, item.command, item.current, item.autocontinue,
               item.param1, item.param2, item.param3, item.param4)
     if legacy:
@@ -58,7 +62,7 @@ def send_item(gcs, item: MissionItem, *, legacy: bool = False) -> None:
         gcs.mav.mission_item_int_send(1, 1, *fields, item.x, item.y, item.z, 0)
 
 
-def upload(gcs, items: list[MissionItem], *, legacy: bool = False,
+def upload(gcs: ScriptedGroundStation, items: list[MissionItem], *, legacy: bool = False,
            ignore_first: frozenset[int] = frozenset(), duplicate: bool = False,
            timeout_s: float = 5.0):
     """Upload ``items``; returns the vehicle's MISSION_ACK (or None).
@@ -70,8 +74,8 @@ def upload(gcs, items: list[MissionItem], *, legacy: bool = False,
     gcs.mav.mission_count_send(1, 1, len(items), 0)
     ignored: set[int] = set()
     index = since
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
+    deadline = gcs.port.now() + timeout_s
+    while gcs.port.now() < deadline:
         while index < len(gcs.messages):
             msg = gcs.messages[index]
             index += 1
@@ -89,7 +93,8 @@ def upload(gcs, items: list[MissionItem], *, legacy: bool = False,
     return None
 
 
-def download(gcs, *, legacy: bool = False, timeout_s: float = 3.0) -> list[MissionItem] | None:
+def download(gcs: ScriptedGroundStation, *, legacy: bool = False,
+             timeout_s: float = 3.0) -> list[MissionItem] | None:
     """Download the mission item by item; None if the vehicle stops answering."""
     since = gcs.mark()
     gcs.mav.mission_request_list_send(1, 1, 0)

@@ -207,9 +207,12 @@ def test_mavsdk_connects_sets_params_arms_and_drives_manual_and_offboard():
 ORIGIN_LAT_DEG, ORIGIN_LON_DEG = 47.375, 8.5
 
 
-def set_origin(params: Params) -> GlobalOrigin:
-    """ORIGIN_LAT/LON on the running rover; the origin the companion converts with."""
+def set_origin(companion) -> GlobalOrigin:
+    """ORIGIN_LAT/LON on the running rover (as a PARAM_SET would: store, then reconfigure);
+    the origin the companion converts with."""
+    params = companion.core.params
     params.update({"ORIGIN_LAT": ORIGIN_LAT_DEG, "ORIGIN_LON": ORIGIN_LON_DEG})
+    companion.core.reconfigure()
     return GlobalOrigin.from_degrees(float(params["ORIGIN_LAT"]), float(params["ORIGIN_LON"]))
 
 
@@ -305,8 +308,8 @@ async def _mavsdk_mission_scenario(port: int, grpc_port: int, sim: SimFlightCont
 def test_mavsdk_uploads_a_mission_downloads_it_and_runs_it_to_the_end():
     pytest.importorskip("mavsdk")
     port, grpc_port = free_udp_port(), free_tcp_port()
-    with rover_for_client(port) as (sim, companion, params):
-        origin = set_origin(params)
+    with rover_for_client(port) as (sim, companion, _params):
+        origin = set_origin(companion)
         asyncio.run(asyncio.wait_for(
             _mavsdk_mission_scenario(port, grpc_port, sim, companion, origin), 90.0))
 
@@ -339,8 +342,8 @@ def test_mavproxy_loads_a_waypoint_file_lists_it_and_clears_it(tmp_path):
     """QGC WPL 110 in a global frame (MAVProxy scales every location command's x/y by 1e7,
     which is right only for global frames). Between list and clear it also runs the mission."""
     port = free_udp_port()
-    with rover_for_client(port) as (sim, companion, params):
-        origin = set_origin(params)
+    with rover_for_client(port) as (sim, companion, _params):
+        origin = set_origin(companion)
         legs = [(0.0, 0.0), (0.8, 0.0), (0.8, 0.5)]  # home, then two waypoints (north, east)
         points = [origin.to_global(n, e) for n, e in legs]
         rows = ["QGC WPL 110"]

@@ -1,137 +1,274 @@
-"""The companion between a real pymavlink ground station and a real flight-controller peer."""
+"""The companion's behaviour towards a ground station and a flight controller, exactly.
+
+Everything here but the last test runs in the lockstep harness (the rover core, a simulated
+ArduPilot board and a scripted ground station in virtual time, every message packed and
+parsed on a virtual wire), so every timing below is exact to one step (``h.dt_s``, 2 ms).
+
+Timing rules of the harness the assertions rely on:
+
+- a message the test sends between steps reaches the core in the next step
+  (:func:`arrival`); one sent by an :meth:`Lockstep.every` action reaches it in that step;
+- the core's answers (COMMAND_ACK, STATUSTEXT, the RC override) go out in the step the
+  message arrived, so an override *at* a stick's arrival time is the answer to that stick;
+- :meth:`ScriptedGroundStation.wait` returns in the step its message arrived
+  (``h.now_s`` is then the arrival time).
+
+One test stays on real UDP sockets: the companion shell's own datagram parsing and link
+counters (:class:`~mecanum_mav.io.links.Link`), which the virtual wire does not exercise.
+"""
 
 from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
+from itertools import pairwise
 
 import pytest
-from conftest import Rig
+from conftest import Rig, lockstep
 from mavpeers import channels
 
-from mecanum_mav.config.params import Params
+from mecanum_mav.control.core import SAID_MEMORY
 from mecanum_mav.io.links import mavlink
+from mecanum_mav.protocol.modes import Mode
+from mecanum_mav.protocol.rcoverride import override_fields, release_fields
+from mecanum_mav.protocol.statustext import Severity
+from mecanum_mav.sim.lockstep import Lockstep, OverrideSeen
 
 ARM = mavlink.MAV_CMD_COMPONENT_ARM_DISARM
 SET_MODE = mavlink.MAV_CMD_DO_SET_MODE
 CUSTOM = mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
+ARMED_FLAG = mavlink.MAV_MODE_FLAG_SAFETY_ARMED
+ACCEPTED, DENIED = mavlink.MAV_RESULT_ACCEPTED, mavlink.MAV_RESULT_DENIED
+WHEELS = (1, 2, 3, 4)
+"""RC channels of FL, FR, RL, RR (the default MOT_*_CH)."""
 NEUTRAL = [1500, 1500, 1500, 1500]
+FORWARD = [2000, 2000, 2000, 2000]
+PERIOD_S = 1.0 / 20.0
+"""The override refresh period at the default OUT_RATE (20 Hz)."""
+EPS = 1e-9
+"""Float slack on virtual times (sums of steps)."""
+STICK_PERIOD_S = 0.05
+"""A ground station streaming MANUAL_CONTROL at 20 Hz."""
+HEARTBEAT_WAIT_S = 1.1
+"""Long enough for the next 1 Hz heartbeat."""
+
+JUNK_SETS = 5
+"""How many times each kind of junk is sent."""
 
 
-def heartbeat(rig: Rig, predicate=lambda m: True, timeout_s: float = 3.0):
-    return rig.gcs.wait("HEARTBEAT", predicate, timeout_s, rig.gcs.mark())
+# --------------------------------------------------------------------------- helpers
 
 
-def statustext(rig: Rig, fragment: str, since: int = 0, timeout_s: float = 3.0):
-    return rig.gcs.wait("STATUSTEXT", lambda m: fragment in m.text, timeout_s, since)
+def arrival(h: Lockstep) -> float:
+    """The virtual time at which a message sent now (between steps) reaches the core."""
+    return h.now_s + h.dt_s
 
 
-def params(**values: float) -> Params:
-    p = Params()
-    p.update(values)
-    return p
+def stick(h: Lockstep, x: int = 0, y: int = 0, r: int = 0, target: int | None = None) -> float:
+    """Send one MANUAL_CONTROL now; the time it reaches the core."""
+    h.gcs.sticks(x, y, r, target=target)
+    return arrival(h)
 
 
-def drive(rig: Rig, x: int = 0, y: int = 0, r: int = 0, want=None, timeout_s: float = 2.0):
-    """Send sticks until the flight controller sees the wanted wheel PWM (first 4 channels)."""
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        since = rig.sticks(x, y, r)
-        msg = rig.wait_override(lambda ch: want is None or ch[:4] == want, since, 0.1)
-        if msg is not None:
-            return msg
-    return None
+def answer_at(h: Lockstep, t: float) -> OverrideSeen | None:
+    """The override the board received at exactly ``t`` (at most one), or None."""
+    at = [o for o in h.overrides_since(t) if o.time_s == t]
+    assert len(at) <= 1, at
+    return at[0] if at else None
+
+
+def drive(h: Lockstep, x: int = 0, y: int = 0, r: int = 0, target: int | None = None
+          ) -> OverrideSeen | None:
+    """Send one MANUAL_CONTROL and step once: the override sent in answer to it (in the step
+    it reached the core), or None if none went out in that step."""
+    t = stick(h, x, y, r, target)
+    h.step()
+    return answer_at(h, t)
+
+
+def stream(h: Lockstep, x: int = 0, y: int = 0, r: int = 0, target: int = 1
+           ) -> tuple[list[float], Callable[[], None]]:
+    """Stream MANUAL_CONTROL at 20 Hz from now on; (the times they reached the core, stop)."""
+    sent: list[float] = []
+
+    def send(now_s: float) -> None:
+        h.gcs.mav.manual_control_send(target, x, y, 500, r, 0)
+        # the first goes out now, between steps (it arrives in the next step); the rest at
+        # the start of a step, and arrive in it
+        sent.append(now_s if sent else arrival(h))
+
+    stop = h.every(STICK_PERIOD_S, send)
+    return sent, stop
+
+
+def wheels(o: OverrideSeen) -> list[int]:
+    return o.channels[:4]
+
+
+def gaps(seen: list[OverrideSeen]) -> list[float]:
+    """Virtual seconds between consecutive overrides."""
+    return [b.time_s - a.time_s for a, b in pairwise(seen)]
+
+
+def command(h: Lockstep, cmd: int, *params: float, target: tuple[int, int] = (1, 1)) -> int:
+    """COMMAND_LONG now; the index of the ground station's messages from before it."""
+    p = [*params, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0][:7]
+    since = h.gcs.mark()
+    h.gcs.mav.command_long_send(*target, cmd, 0, *p)
+    return since
+
+
+def texts(h: Lockstep, since: int) -> list[str]:
+    """The STATUSTEXTs received from index ``since`` until now."""
+    h.gcs.mark()
+    return [m.text for m in h.gcs.received("STATUSTEXT", since)]
+
+
+def statustext(h: Lockstep, fragment: str, since: int, timeout_s: float = 1.0):
+    """The first STATUSTEXT containing ``fragment`` from index ``since``, waiting up to
+    ``timeout_s``; ``h.now_s`` is then the step it arrived in (if it arrived while waiting)."""
+    return h.gcs.wait("STATUSTEXT", lambda m: fragment in m.text, timeout_s, since)
+
+
+def heartbeat(h: Lockstep, predicate=lambda m: True, timeout_s: float = HEARTBEAT_WAIT_S):
+    """The next HEARTBEAT matching ``predicate`` sent from now on (``mark`` first: a wait
+    from "now" would also take what arrived earlier and is still in the port's inbox)."""
+    return h.gcs.wait("HEARTBEAT", predicate, timeout_s, h.gcs.mark())
+
+
+def armed(h: Lockstep) -> Lockstep:
+    h.gcs.arm()
+    assert h.core.vehicle.armed
+    return h
+
+
+def junk(h: Lockstep) -> list[bytes]:
+    """Random bytes and truncated packets (one datagram each), as a broken radio delivers."""
+    good = h.gcs.mav.command_long_encode(1, 1, ARM, 0, 1, 0, 0, 0, 0, 0, 0)
+    packet = bytes(good.pack(h.gcs.mav))
+    return [bytes(range(256)), b"\xfd" * 300, packet[:7], packet[:-3], b"\xfd\x09\x00\x00",
+            packet[:10] + b"\x00" * 50] * JUNK_SETS
+
+
+def full(pulses: list[int]) -> list[int]:
+    """All 18 override fields for pulses on the default wheel channels."""
+    return override_fields(WHEELS, pulses)
 
 
 # --------------------------------------------------------------------------- identity
 
 
-def test_heartbeat_shows_a_disarmed_ardupilot_rover_in_manual(rig):
-    hb = heartbeat(rig)
+def test_heartbeat_shows_a_disarmed_ardupilot_rover_in_manual(harness):
+    hb = heartbeat(harness)
     assert hb.get_srcSystem() == 1 and hb.get_srcComponent() == 1
     assert hb.type == mavlink.MAV_TYPE_GROUND_ROVER
     assert hb.autopilot == mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA
-    assert hb.base_mode & CUSTOM and not hb.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED
+    assert hb.base_mode & CUSTOM and not hb.base_mode & ARMED_FLAG
     assert hb.custom_mode == 0 and hb.system_status == mavlink.MAV_STATE_STANDBY
     assert hb.get_msgbuf()[0] == 0xFD  # MAVLink 2
 
 
-def test_companion_heartbeats_the_flight_controller_as_a_ground_station(rig):
-    hb = rig.fc.wait("HEARTBEAT", timeout_s=3.0)
-    assert hb.type == mavlink.MAV_TYPE_GCS and hb.get_srcSystem() == 255
+def test_companion_heartbeats_the_flight_controller_as_a_ground_station(harness):
+    h = harness
+    before = len(h.fc_received)
+    h.run_for(2.5)
+    beats = [m for m in h.fc_received[before:] if m.get_type() == "HEARTBEAT"]
+    assert len(beats) >= 2  # 1 Hz
+    for hb in beats:
+        assert hb.type == mavlink.MAV_TYPE_GCS
+        assert (hb.get_srcSystem(), hb.get_srcComponent()) == (255, 190)
 
 
 # --------------------------------------------------------------------------- commands
 
 
-def test_arm_is_acknowledged_within_half_a_second_and_reported(rig):
-    since = rig.gcs.mark()
-    start = time.monotonic()
-    ack = rig.command(ARM, 1)
-    assert ack.result == mavlink.MAV_RESULT_ACCEPTED
-    assert time.monotonic() - start < 0.5
-    assert ack.target_system == 255 and ack.target_component == 190
-    assert statustext(rig, "Armed", since)
-    hb = heartbeat(rig, lambda m: m.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED)
+def test_arm_is_acknowledged_in_the_step_it_arrives_and_reported(harness):
+    h = harness
+    since = command(h, ARM, 1)
+    h.step()  # the command reaches the core in this step: the answer goes out in it too
+    h.gcs.mark()
+    acks = h.gcs.received("COMMAND_ACK", since)
+    assert len(acks) == 1
+    ack = acks[0]
+    assert (ack.command, ack.result) == (ARM, ACCEPTED)
+    assert (ack.target_system, ack.target_component) == (255, 190)
+    assert any(t.startswith("Armed") for t in texts(h, since))  # reported in the same step
+    hb = heartbeat(h, lambda m: m.base_mode & ARMED_FLAG)
     assert hb.system_status == mavlink.MAV_STATE_ACTIVE
     assert hb.base_mode & mavlink.MAV_MODE_FLAG_MANUAL_INPUT_ENABLED
+    h.run_for(1.0)
+    assert len(h.gcs.received("COMMAND_ACK", since)) == 1  # one command, one answer
 
 
-def test_repeated_arm_and_disarm_commands_are_harmless(rig):
+def test_repeated_arm_and_disarm_commands_are_harmless(harness):
+    h = harness
     for _ in range(2):
-        assert rig.command(ARM, 1).result == mavlink.MAV_RESULT_ACCEPTED
+        assert h.gcs.command(ARM, 1).result == ACCEPTED
+        assert h.core.vehicle.armed
     for _ in range(2):
-        assert rig.command(ARM, 0).result == mavlink.MAV_RESULT_ACCEPTED
-    assert heartbeat(rig, lambda m: not m.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED)
+        assert h.gcs.command(ARM, 0).result == ACCEPTED
+        assert not h.core.vehicle.armed
+    assert heartbeat(h, lambda m: not m.base_mode & ARMED_FLAG)
 
 
-def test_nan_in_unused_command_params_is_accepted(rig):
-    ack = rig.command(ARM, 1, math.nan, math.nan, math.nan, math.nan, math.nan, math.nan)
-    assert ack.result == mavlink.MAV_RESULT_ACCEPTED
+def test_nan_in_unused_command_params_is_accepted(harness):
+    ack = harness.gcs.command(ARM, 1, math.nan, math.nan, math.nan, math.nan, math.nan, math.nan)
+    assert ack.result == ACCEPTED and harness.core.vehicle.armed
 
 
-def test_broadcast_target_is_accepted(rig):
-    since = rig.gcs.mark()
-    rig.gcs.mav.command_long_send(0, 0, ARM, 0, 1, 0, 0, 0, 0, 0, 0)
-    assert rig.gcs.wait("COMMAND_ACK", lambda m: m.command == ARM, 1.0, since).result == 0
+def test_broadcast_target_is_accepted(harness):
+    h = harness
+    since = command(h, ARM, 1, target=(0, 0))
+    assert h.gcs.wait("COMMAND_ACK", lambda m: m.command == ARM, 1.0, since).result == ACCEPTED
+    assert h.core.vehicle.armed
 
 
-def test_commands_for_another_system_get_no_answer(rig):
-    since = rig.gcs.mark()
-    rig.gcs.mav.command_long_send(7, 1, ARM, 0, 1, 0, 0, 0, 0, 0, 0)
-    assert rig.gcs.wait("COMMAND_ACK", timeout_s=0.5, since=since) is None
+def test_commands_for_another_system_get_no_answer(harness):
+    h = harness
+    since = command(h, ARM, 1, target=(7, 1))
+    h.run_for(1.0)
+    h.gcs.mark()
+    assert h.gcs.received("COMMAND_ACK", since) == []
+    assert not h.core.vehicle.armed
 
 
-def test_command_int_arms_too(rig):
-    since = rig.gcs.mark()
-    rig.gcs.mav.command_int_send(1, 1, 0, ARM, 0, 0, 1, 0, 0, 0, 0, 0, 0)
-    assert rig.gcs.wait("COMMAND_ACK", lambda m: m.command == ARM, 1.0, since).result == 0
+def test_command_int_arms_too(harness):
+    h = harness
+    since = h.gcs.mark()
+    h.gcs.mav.command_int_send(1, 1, 0, ARM, 0, 0, 1, 0, 0, 0, 0, 0, 0)
+    assert h.gcs.wait("COMMAND_ACK", lambda m: m.command == ARM, 1.0, since).result == ACCEPTED
+    assert h.core.vehicle.armed
 
 
-def test_set_mode_hold_by_command_and_by_message(rig):
-    assert rig.command(SET_MODE, CUSTOM, 4).result == mavlink.MAV_RESULT_ACCEPTED
-    assert heartbeat(rig, lambda m: m.custom_mode == 4)
-    since = rig.gcs.mark()
-    rig.gcs.mav.set_mode_send(1, CUSTOM, 0)
-    ack = rig.gcs.wait("COMMAND_ACK", lambda m: m.command == mavlink.MAVLINK_MSG_ID_SET_MODE,
-                       0.5, since)
-    assert ack is not None and ack.result == mavlink.MAV_RESULT_ACCEPTED
-    assert heartbeat(rig, lambda m: m.custom_mode == 0)
+def test_set_mode_hold_by_command_and_by_message(harness):
+    h = harness
+    assert h.gcs.set_mode(Mode.HOLD) == ACCEPTED
+    assert heartbeat(h, lambda m: m.custom_mode == Mode.HOLD)
+    since = h.gcs.mark()
+    h.gcs.mav.set_mode_send(1, CUSTOM, int(Mode.MANUAL))
+    ack = h.gcs.wait("COMMAND_ACK", lambda m: m.command == mavlink.MAVLINK_MSG_ID_SET_MODE,
+                     1.0, since)
+    assert ack is not None and ack.result == ACCEPTED
+    assert heartbeat(h, lambda m: m.custom_mode == Mode.MANUAL)
 
 
-@pytest.mark.parametrize(("mode", "name"), [(10, "AUTO"), (3, "3")])
-def test_auto_without_a_mission_and_unknown_modes_are_denied_with_a_reason(rig, mode, name):
-    since = rig.gcs.mark()
-    assert rig.command(SET_MODE, CUSTOM, mode).result == mavlink.MAV_RESULT_DENIED
-    assert statustext(rig, name, since)
+@pytest.mark.parametrize(("mode", "name"), [(int(Mode.AUTO), "AUTO"), (3, "3")])
+def test_auto_without_a_mission_and_unknown_modes_are_denied_with_a_reason(harness, mode, name):
+    h = harness
+    since = h.gcs.mark()
+    assert h.gcs.command(SET_MODE, CUSTOM, mode).result == DENIED
+    assert any(name in t for t in texts(h, since))
+    assert h.core.vehicle.mode is Mode.MANUAL
 
 
-def test_unknown_command_is_unsupported(rig):
-    assert rig.command(31999).result == mavlink.MAV_RESULT_UNSUPPORTED
+def test_unknown_command_is_unsupported(harness):
+    assert harness.gcs.command(31999).result == mavlink.MAV_RESULT_UNSUPPORTED
 
 
-def test_arm_with_a_bad_param1_is_denied(rig):
-    assert rig.command(ARM, math.nan).result == mavlink.MAV_RESULT_DENIED
+def test_arm_with_a_bad_param1_is_denied(harness):
+    assert harness.gcs.command(ARM, math.nan).result == DENIED
+    assert not harness.core.vehicle.armed
 
 
 # --------------------------------------------------------------------------- manual driving
@@ -145,205 +282,430 @@ def test_arm_with_a_bad_param1_is_denied(rig):
      (1000, 1000, 0, [2000, 1500, 1500, 2000]),    # diagonal forward-right
      (-1000, 0, 0, [1000, 1000, 1000, 1000])],     # backward
 )
-def test_sticks_drive_the_right_pwm_pattern_on_the_right_channels(rig, x, y, r, pwm):
-    rig.arm()
-    msg = drive(rig, x, y, r, pwm)
-    assert msg is not None, f"never saw {pwm}"
-    assert msg.get_srcSystem() == 255, "ArduPilot drops overrides not from its GCS id"
-    assert (msg.target_system, msg.target_component) == (1, 1)
-    assert channels(msg)[4:8] == [65535] * 4  # channels it does not own: left alone
-    assert channels(msg)[8:] == [0] * 10
+def test_sticks_drive_the_right_pwm_pattern_on_the_right_channels(harness, x, y, r, pwm):
+    h = armed(harness)
+    o = drive(h, x, y, r)
+    assert o is not None, "no override in answer to the stick"
+    assert o.source_system == 255, "ArduPilot drops overrides not from its GCS id"
+    assert o.channels[:4] == pwm
+    assert o.channels[4:8] == [65535] * 4  # channels it does not own: left alone
+    assert o.channels[8:] == [0] * 10
+    board = h.truth()  # the board obeyed it (right target, right sender)
+    assert board.overrides_ignored == 0
+    assert board.channel_pwm == dict(zip(WHEELS, pwm, strict=True))
 
 
-def test_sticks_while_disarmed_leave_the_wheels_at_neutral(rig):
-    since = rig.sticks(1000, 0, 0)
-    msg = rig.wait_override(lambda ch: True, since)
-    assert channels(msg)[:4] == NEUTRAL
-    time.sleep(0)  # nothing to wait for: a second override must be neutral as well
-    assert all(channels(m)[:4] == NEUTRAL for m in rig.fc.overrides(since))
+def test_sticks_while_disarmed_leave_the_wheels_at_neutral(harness):
+    h = harness
+    t0 = arrival(h)
+    sent, stop = stream(h, 1000)
+    h.run_for(1.0)
+    stop()
+    seen = h.overrides_since(t0)
+    assert len(sent) >= 20
+    for t in sent:  # every stick was answered at once, with neutral
+        o = answer_at(h, t)
+        assert o is not None and wheels(o) == NEUTRAL, (t, o)
+    assert all(wheels(o) == NEUTRAL for o in seen)
+    assert h.truth().wheel_commands == (0.0, 0.0, 0.0, 0.0)
 
 
-def test_hold_mode_keeps_neutral_while_armed(rig):
-    rig.arm()
-    assert rig.command(SET_MODE, CUSTOM, 4).result == 0
-    since = rig.sticks(1000)
-    assert rig.wait_override(lambda ch: True, since) is not None
-    assert all(channels(m)[:4] == NEUTRAL for m in rig.fc.overrides(since))
+def test_hold_mode_keeps_neutral_while_armed(harness):
+    h = armed(harness)
+    assert h.gcs.set_mode(Mode.HOLD) == ACCEPTED
+    t0 = arrival(h)
+    sent, stop = stream(h, 1000)
+    h.run_for(1.0)
+    stop()
+    for t in sent:
+        o = answer_at(h, t)
+        assert o is not None and wheels(o) == NEUTRAL, (t, o)
+    assert all(wheels(o) == NEUTRAL for o in h.overrides_since(t0))
+    assert h.truth().wheel_commands == (0.0, 0.0, 0.0, 0.0)
 
 
-def test_reverse_and_channel_map_parameters_move_the_output(rig_factory):
-    rig = rig_factory(params(MOT_FR_REV=1, MOT_FL_CH=6, MOT_RR_CH=12))
-    rig.arm()
-    msg = drive(rig, 1000, 0, 0, None)
-    ok = rig.wait_override(lambda ch: ch[5] == 2000, rig.sticks(1000))
-    assert ok is not None and msg is not None
-    ch = channels(ok)
-    assert ch[5] == 2000 and ch[1] == 1000 and ch[2] == 2000 and ch[11] == 2000
-    assert ch[0] == 65535 and ch[3] == 65535  # FL moved to 6, RR moved to 12
+def test_reverse_and_channel_map_parameters_move_the_output():
+    h = armed(lockstep({"MOT_FR_REV": 1, "MOT_FL_CH": 6, "MOT_RR_CH": 12}))
+    o = drive(h, 1000)
+    assert o is not None
+    # FL on 6, FR reversed on 2, RL on 3, RR on 12; 1 and 4 now free: left alone
+    want = [65535, 1000, 2000, 65535, 65535, 2000, 65535, 65535] + [0] * 10
+    want[11] = 2000
+    assert o.channels == want
 
 
-def test_invalid_axis_reads_as_zero(rig):
-    rig.arm()
-    assert drive(rig, 0x7FFF, 1000, 0x7FFF, [2000, 1000, 1000, 2000]) is not None
+def test_invalid_axis_reads_as_zero(harness):
+    h = armed(harness)
+    o = drive(h, 0x7FFF, 1000, 0x7FFF)
+    assert o is not None and wheels(o) == [2000, 1000, 1000, 2000]  # a pure strafe
 
 
-def test_out_of_range_stick_is_rejected_and_never_moves_the_robot(rig):
-    rig.arm()
-    since = rig.gcs.mark()
-    fc_since = rig.sticks(1500, 0, 0)
-    assert statustext(rig, "x=1500 not in +-1000", since)
-    assert all(channels(m)[:4] == NEUTRAL for m in rig.fc.overrides(fc_since))
+def test_out_of_range_stick_is_rejected_and_never_moves_the_robot(harness):
+    h = armed(harness)
+    since = h.gcs.mark()
+    t0 = arrival(h)
+    _, stop = stream(h, 1500)
+    h.run_for(1.0)
+    stop()
+    said = texts(h, since)
+    assert said.count("Rejected: MANUAL_CONTROL x=1500 not in +-1000") == 1  # once a second
+    seen = h.overrides_since(t0)
+    assert seen and all(wheels(o) == NEUTRAL for o in seen)
+    # rejected whole: none of them was even answered (only the 20 Hz refresh went out)
+    assert all(g > PERIOD_S - EPS for g in gaps(seen))
+    assert h.truth().wheel_commands == (0.0, 0.0, 0.0, 0.0)
+    assert h.truth().pose.x_m == 0.0
 
 
-def test_manual_control_for_another_system_is_ignored(rig):
-    rig.arm()
-    since = rig.fc.mark()
-    for _ in range(5):
-        rig.sticks(1000, target=9)
-    rig.fc.pump(0.3)
-    assert all(channels(m)[:4] == NEUTRAL for m in rig.fc.overrides(since))
+def test_manual_control_for_another_system_is_ignored(harness):
+    h = armed(harness)
+    t0 = arrival(h)
+    _, stop = stream(h, 1000, target=9)
+    h.run_for(1.0)
+    stop()
+    seen = h.overrides_since(t0)
+    assert seen and all(wheels(o) == NEUTRAL for o in seen)
+    assert all(g > PERIOD_S - EPS for g in gaps(seen))
+    assert h.core.stick == (0.0, 0.0, 0.0)
 
 
-def test_a_restricted_ground_station_id_ignores_other_senders(rig_factory):
-    rig = rig_factory(params(SYSID_MYGCS=200))
-    since = rig.gcs.mark()
-    rig.gcs.mav.command_long_send(1, 1, ARM, 0, 1, 0, 0, 0, 0, 0, 0)
-    assert rig.gcs.wait("COMMAND_ACK", timeout_s=0.5, since=since) is None
+def test_a_restricted_ground_station_id_ignores_other_senders():
+    h = lockstep({"SYSID_MYGCS": 200})
+    since = command(h, ARM, 1)  # from 255
+    h.run_for(1.0)
+    h.gcs.mark()
+    assert h.gcs.received("COMMAND_ACK", since) == []
+    assert not h.core.vehicle.armed
+    h.gcs.mav.srcSystem = 200  # the permitted ground station is obeyed
+    assert h.gcs.command(ARM, 1).result == ACCEPTED
 
 
-def test_ground_station_rc_override_drives_like_a_stick(rig):
-    rig.arm()
-    deadline = time.monotonic() + 2.0
-    msg = None
-    while msg is None and time.monotonic() < deadline:
-        since = rig.fc.mark()
-        # MAVProxy "rc 3 2000": throttle (forward) channel 3, everything else left alone.
-        rig.gcs.mav.rc_channels_override_send(1, 1, 65535, 65535, 2000, 65535, 65535, 65535,
-                                              65535, 65535)
-        msg = rig.wait_override(lambda ch: ch[:4] == [2000] * 4, since, 0.1)
-    assert msg is not None
-    since = rig.fc.mark()
-    rig.gcs.mav.rc_channels_override_send(1, 1, 65535, 65535, 0, 65535, 65535, 65535, 65535,
-                                          65535)  # release throttle -> centre
-    assert rig.wait_override(lambda ch: ch[:4] == NEUTRAL, since) is not None
+def test_ground_station_rc_override_drives_like_a_stick(harness):
+    h = armed(harness)
+    t = arrival(h)
+    # MAVProxy "rc 3 2000": throttle (forward) channel 3, everything else left alone.
+    h.gcs.mav.rc_channels_override_send(1, 1, 65535, 65535, 2000, 65535, 65535, 65535, 65535,
+                                        65535)
+    h.step()
+    o = answer_at(h, t)
+    assert o is not None and wheels(o) == FORWARD
+    t = arrival(h)
+    h.gcs.mav.rc_channels_override_send(1, 1, 65535, 65535, 0, 65535, 65535, 65535, 65535,
+                                        65535)  # release throttle -> centre
+    h.step()
+    o = answer_at(h, t)
+    assert o is not None and wheels(o) == NEUTRAL
 
 
-def test_ground_station_rc_override_with_an_absurd_pulse_is_rejected(rig):
-    rig.arm()
-    since = rig.gcs.mark()
-    rig.gcs.mav.rc_channels_override_send(1, 1, 65535, 65535, 40000, 65535, 65535, 65535,
-                                          65535, 65535)
-    assert statustext(rig, "ch3=40000 not in 800..2200", since)
+def test_ground_station_rc_override_with_an_absurd_pulse_is_rejected(harness):
+    h = armed(harness)
+    since = h.gcs.mark()
+    t0 = arrival(h)
+    h.gcs.mav.rc_channels_override_send(1, 1, 65535, 65535, 40000, 65535, 65535, 65535,
+                                        65535, 65535)
+    h.step()
+    assert texts(h, since) == ["Rejected: RC ch3=40000 not in 800..2200 us"]
+    assert answer_at(h, t0) is None  # nothing applied
+    h.run_for(0.5)
+    assert all(wheels(o) == NEUTRAL for o in h.overrides_since(t0))
 
 
 # --------------------------------------------------------------------------- output timing
 
 
-def test_overrides_are_refreshed_while_idle_so_the_fc_timeout_never_lapses(rig):
-    since = rig.fc.mark()
-    deadline = time.monotonic() + 0.5
-    while time.monotonic() < deadline:
-        rig.fc.pump(deadline - time.monotonic())
-    count = len(rig.fc.overrides(since))
-    assert 6 <= count <= 14, count  # 20 Hz for 0.5 s
+def test_overrides_are_refreshed_at_out_rate_while_idle_so_the_fc_timeout_never_lapses(harness):
+    h = harness
+    t0 = h.now_s
+    h.run_for(10.0)
+    seen = h.overrides_since(t0)
+    # every 50 ms, late by at most one step (float virtual time: a deadline ``now + period``
+    # may fall a hair after the 25th step and cost one more)
+    assert all(PERIOD_S - EPS <= g <= PERIOD_S + h.dt_s + EPS for g in gaps(seen))
+    for second in range(10):
+        start = t0 + second
+        count = sum(1 for o in seen if start <= o.time_s < start + 1.0)
+        assert count in (19, 20), (second, count)
+    assert all(o.channels == full(NEUTRAL) for o in seen)
+    # the board's own override timeout (SIM_RC_TMO 3 s) never lapsed
+    assert h.truth().channel_pwm == dict.fromkeys(WHEELS, 1500)
+
+
+def test_overrides_are_refreshed_exactly_every_period_when_the_step_divides_it(harness_exact):
+    h = harness_exact
+    t0 = h.now_s
+    h.run_for(10.0)
+    seen = h.overrides_since(t0)
+    assert set(gaps(seen)) == {1.0 / 16.0}
+    for second in range(10):
+        assert sum(1 for o in seen if t0 + second <= o.time_s < t0 + second + 1.0) == 16
+
+
+@pytest.fixture
+def harness_exact() -> Lockstep:
+    """OUT_RATE 16 Hz and a step of 2**-9 s: every virtual time is a binary fraction, so the
+    float sums are exact and a period is exactly 32 steps."""
+    return lockstep({"OUT_RATE": 16.0}, dt_s=2.0 ** -9)
 
 
 # --------------------------------------------------------------------------- failsafes
 
 
-def test_stale_manual_control_returns_wheels_to_neutral_and_resumes(rig_factory):
-    rig = rig_factory(params(FS_INPUT_TMO=0.3))
-    rig.arm()
-    assert drive(rig, 1000, 0, 0, [2000] * 4) is not None
-    stopped_at = time.monotonic()
-    since = rig.gcs.mark()
-    msg = rig.wait_override(lambda ch: ch[:4] == NEUTRAL, rig.fc.mark(), 2.0)
-    elapsed = time.monotonic() - stopped_at
-    assert msg is not None and 0.2 <= elapsed <= 1.0, elapsed
-    assert statustext(rig, "Manual input lost", since)
-    assert drive(rig, 1000, 0, 0, [2000] * 4) is not None
-    assert statustext(rig, "Manual input resumed", since)
+def test_stale_manual_control_returns_wheels_to_neutral_at_the_timeout_and_resumes():
+    timeout_s = 0.3
+    h = armed(lockstep({"FS_INPUT_TMO": timeout_s}))
+    since = h.gcs.mark()
+    sent, stop = stream(h, 1000)
+    h.run_for(0.5)
+    stop()
+    last = sent[-1]
+    assert wheels(answer_at(h, last)) == FORWARD
+
+    def first_neutral():
+        return next((o for o in h.overrides_since(last) if wheels(o) == NEUTRAL), None)
+
+    o = h.run_until(first_neutral, 2.0)
+    assert o is not None
+    assert timeout_s < o.time_s - last <= timeout_s + PERIOD_S + h.dt_s + EPS, o.time_s - last
+    assert all(wheels(d) == FORWARD for d in h.overrides_since(last) if d.time_s < o.time_s)
+    lost = statustext(h, "Manual input lost", since)
+    assert lost is not None and lost.severity == Severity.WARNING
+    resumed = drive(h, 1000)
+    assert resumed is not None and wheels(resumed) == FORWARD
+    assert "Manual input resumed" in texts(h, since)
 
 
 @pytest.mark.parametrize(("action", "armed_after"), [(0, True), (1, False)])
-def test_ground_station_loss_triggers_the_failsafe_action(rig_factory, action, armed_after):
-    rig = rig_factory(params(FS_GCS_TMO=1.0, FS_GCS_ACTION=action))
-    rig.arm()
-    assert drive(rig, 1000, 0, 0, [2000] * 4) is not None
-    rig.gcs.beating.clear()
-    lost_at = time.monotonic()
-    since = rig.gcs.mark()
-    text = statustext(rig, "GCS link lost", since, 4.0)
+def test_ground_station_loss_triggers_the_failsafe_action_at_the_timeout(action, armed_after):
+    timeout_s = 1.0
+    h = armed(lockstep({"FS_GCS_TMO": timeout_s, "FS_GCS_ACTION": action}))
+    sent, stop = stream(h, 1000)
+    h.run_for(0.2)
+    assert wheels(answer_at(h, sent[-1])) == FORWARD
+    h.gcs.beating = False
+    last_beat = h.core.vehicle.gcs_seen_s
+    since = h.gcs.mark()
+    text = statustext(h, "GCS link lost", since, 3.0)
+    fired = h.now_s  # the step the text arrived in
     assert text is not None and text.severity == mavlink.MAV_SEVERITY_CRITICAL
-    assert time.monotonic() - lost_at <= 2.5
-    hb = heartbeat(rig)
+    assert timeout_s < fired - last_beat <= timeout_s + PERIOD_S + h.dt_s + EPS
+    before = [o for o in h.overrides if o.time_s < fired]
+    assert wheels(before[-1]) == FORWARD  # driving until then
+    assert wheels(answer_at(h, fired)) == NEUTRAL  # neutral in the same step
+    # the sticks keep coming: each is answered at once, with neutral, for the next second
+    h.run_for(1.0)
+    stop()
+    after = [t for t in sent if t > fired]
+    assert len(after) >= 19
+    for t in after:
+        o = answer_at(h, t)
+        assert o is not None and wheels(o) == NEUTRAL, (t, o)
+    assert all(wheels(o) == NEUTRAL for o in h.overrides_since(fired))
+    hb = heartbeat(h)
     assert hb.system_status == mavlink.MAV_STATE_CRITICAL
-    assert bool(hb.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED) == armed_after
+    assert bool(hb.base_mode & ARMED_FLAG) == armed_after
     if armed_after:
-        assert hb.custom_mode == 4  # HOLD
-    since = rig.sticks(1000)  # sticks keep coming, the wheels stay neutral
-    assert rig.wait_override(lambda ch: True, since) is not None
-    assert all(channels(m)[:4] == NEUTRAL for m in rig.fc.overrides(since))
+        assert hb.custom_mode == Mode.HOLD
 
 
-def test_flight_controller_loss_disarms_reports_and_refuses_to_arm(rig_factory):
-    rig = rig_factory(params(FS_FC_TMO=1.0))
-    rig.arm()
-    since = rig.gcs.mark()
-    rig.fc.beating.clear()
-    assert statustext(rig, "Flight controller link lost", since, 4.0)
-    assert statustext(rig, "Disarmed", since)
-    assert heartbeat(rig).system_status == mavlink.MAV_STATE_CRITICAL
-    since = rig.gcs.mark()
-    assert rig.command(ARM, 1).result == mavlink.MAV_RESULT_DENIED
-    assert statustext(rig, "flight controller link down", since)
-    rig.fc.beating.set()
-    assert statustext(rig, "Flight controller link up", since, 4.0)
-    assert rig.command(ARM, 1).result == mavlink.MAV_RESULT_ACCEPTED
+def test_flight_controller_loss_disarms_reports_and_refuses_to_arm():
+    timeout_s = 1.0
+    h = armed(lockstep({"FS_FC_TMO": timeout_s}))
+    since = h.gcs.mark()
+    h.board.beating = False
+    last_beat = h.core.vehicle.fc_seen_s
+    assert statustext(h, "Flight controller link lost", since, 3.0)
+    fired = h.now_s
+    assert timeout_s < fired - last_beat <= timeout_s + PERIOD_S + h.dt_s + EPS
+    assert "Disarmed: flight controller link lost" in texts(h, since)  # in the same step
+    assert not h.core.vehicle.armed
+    assert heartbeat(h).system_status == mavlink.MAV_STATE_CRITICAL
+    since = h.gcs.mark()
+    assert h.gcs.command(ARM, 1).result == DENIED
+    assert any("flight controller link down" in t for t in texts(h, since))
+    h.board.beating = True
+    assert statustext(h, "Flight controller link up", since, 1.0 + 2 * h.dt_s)
+    assert h.gcs.command(ARM, 1).result == ACCEPTED
 
 
 # --------------------------------------------------------------------------- robustness
 
 
-def test_random_bytes_and_truncated_packets_on_both_links_do_not_crash_it(rig):
+def test_random_bytes_and_truncated_packets_on_both_links_do_not_crash_it(harness):
+    h = harness
+    blobs = junk(h)
+    for from_fc in (False, True):
+        before = h.core.link_errors()[0]
+        for blob in blobs:
+            h.inject(blob, from_fc=from_fc)
+        h.step()
+        # each datagram counted at least once (a truncated packet, bad bytes, a bad CRC)
+        assert h.core.link_errors()[0] - before >= len(blobs), from_fc
+    assert not h.core.faulted
+    assert h.gcs.command(ARM, 1).result == ACCEPTED
+    o = drive(h, 1000)
+    assert o is not None and wheels(o) == FORWARD
+
+
+def test_clean_shutdown_sends_neutral_then_releases_the_channels(harness):
+    h = armed(harness)
+    assert wheels(drive(h, 1000)) == FORWARD
+    last = h.core.shutdown()
+    assert len(last) == 3
+    hold, again, release = last
+    for o in (hold, again):
+        assert (o.target_system, o.target_component) == (1, 1)
+        assert o.channels == full(NEUTRAL)
+    assert (release.target_system, release.target_component) == (1, 1)
+    assert release.channels == release_fields(WHEELS)
+    assert release.channels[:4] == [0, 0, 0, 0] and release.channels[4:8] == [65535] * 4
+    assert release.channels[8:] == [0] * 10
+    assert h.core.pulses_us == tuple(NEUTRAL)
+
+
+def broken(*args, **kwargs):
+    raise RuntimeError("bug")
+
+
+def test_an_exception_in_the_control_path_ends_at_neutral_and_latches(monkeypatch):
+    h = armed(lockstep({"FS_INPUT_TMO": 5.0}))  # the stick stays fresh: only the latch holds
+    assert wheels(drive(h, 1000)) == FORWARD
+    with monkeypatch.context() as patch:
+        patch.setattr("mecanum_mav.control.chain.wheels_from_stick", broken)
+        since = h.gcs.mark()
+        o = drive(h, 1000)
+        assert o is not None and wheels(o) == NEUTRAL  # in answer to the stick
+        h.gcs.mark()
+        error = [m for m in h.gcs.received("STATUSTEXT", since) if m.text.startswith("Error")]
+        assert [m.text for m in error] == ["Error computing output: neutral"]
+        assert error[0].severity == Severity.ERROR
+        assert h.core.faulted
+    # The mixer works again, but the output stays neutral (latched) until a valid stick.
+    t0 = arrival(h)
+    h.run_for(1.0)
+    seen = h.overrides_since(t0)
+    assert len(seen) >= 19 and all(wheels(o) == NEUTRAL for o in seen)
+    o = drive(h, 1000)
+    assert o is not None and wheels(o) == FORWARD
+    assert not h.core.faulted
+
+
+def test_an_exception_in_a_message_handler_latches_neutral_until_the_next_valid_stick(
+        monkeypatch):
+    from mecanum_mav.control import core
+
+    h = armed(lockstep({"FS_INPUT_TMO": 5.0}))
+    assert wheels(drive(h, 1000)) == FORWARD
+    real = core.stick_from_manual_control
+    calls = []
+
+    def once(*args, **kwargs):
+        calls.append(args)
+        if len(calls) == 1:
+            raise RuntimeError("bug")
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(core, "stick_from_manual_control", once)
+    since = h.gcs.mark()
+    o = drive(h, 1000)
+    assert o is not None and wheels(o) == NEUTRAL  # at once, in the step it arrived
+    h.gcs.mark()
+    error = [m for m in h.gcs.received("STATUSTEXT", since) if m.text.startswith("Error")]
+    assert [m.text for m in error] == ["Error handling MANUAL_CONTROL: neutral"]
+    assert error[0].severity == Severity.ERROR
+    assert h.core.faulted
+    t0 = arrival(h)
+    h.run_for(1.0)  # the earlier stick is still fresh (5 s), but the latch holds
+    seen = h.overrides_since(t0)
+    assert len(seen) >= 19 and all(wheels(o) == NEUTRAL for o in seen)
+    o = drive(h, 1000)
+    assert o is not None and wheels(o) == FORWARD
+    assert not h.core.faulted and len(calls) == 2
+
+
+def test_a_mode_change_clears_the_exception_latch(monkeypatch):
+    h = armed(lockstep({"FS_INPUT_TMO": 5.0}))
+    assert wheels(drive(h, 1000)) == FORWARD
+    with monkeypatch.context() as patch:
+        patch.setattr("mecanum_mav.control.chain.wheels_from_stick", broken)
+        assert wheels(drive(h, 1000)) == NEUTRAL
+    h.run_for(0.5)
+    assert h.core.faulted and all(wheels(o) == NEUTRAL for o in h.overrides[-5:])
+    assert h.gcs.set_mode(Mode.HOLD) == ACCEPTED
+    assert not h.core.faulted
+    t = arrival(h)
+    assert h.gcs.set_mode(Mode.MANUAL) == ACCEPTED
+    # no new stick: back in MANUAL the last (still fresh) stick drives again at once
+    o = answer_at(h, t)
+    assert o is not None and wheels(o) == FORWARD
+
+
+def test_status_text_memory_is_bounded():
+    h = armed(lockstep())
+    since = h.gcs.mark()
+    xs = range(1001, 1251)  # 250 distinct rejections
+    for x in xs:
+        h.gcs.mav.manual_control_send(1, x, 0, 500, 0, 0)
+        if x % 10 == 0:
+            h.step()
+    h.step()
+    said = texts(h, since)
+    assert [t for t in said if t.startswith("Rejected")] == [
+        f"Rejected: MANUAL_CONTROL x={x} not in +-1000" for x in xs]
+    assert len(h.core._said) <= SAID_MEMORY
+    # the most recent ones are still remembered: repeated within a second, not said again
+    since = h.gcs.mark()
+    h.gcs.mav.manual_control_send(1, 1250, 0, 500, 0, 0)
+    h.run_for(0.1)
+    assert texts(h, since) == []
+
+
+def test_sys_status_errors_comm_counts_malformed_packets(harness):
+    h = harness
+    blobs = junk(h)
+    for blob in blobs:
+        h.inject(blob)
+        h.inject(blob, from_fc=True)
+    h.step()
+    bad = h.core.link_errors()[0]
+    assert bad >= 2 * len(blobs)
+    since = command(h, mavlink.MAV_CMD_REQUEST_MESSAGE, mavlink.MAVLINK_MSG_ID_SYS_STATUS)
+    h.step()
+    h.gcs.mark()
+    assert [a.result for a in h.gcs.received("COMMAND_ACK", since)] == [ACCEPTED]
+    status = h.gcs.received("SYS_STATUS", since)  # answered in the same step
+    assert len(status) == 1 and status[0].errors_comm == bad
+    streamed = h.gcs.wait("SYS_STATUS", timeout_s=1.0)  # TLM_EXT_RATE 2 Hz
+    assert streamed is not None and streamed.errors_comm == bad
+
+
+# --------------------------------------------------------------------------- real sockets
+
+
+def test_the_companion_shell_counts_junk_datagrams_per_link_and_keeps_driving(rig: Rig):
+    """The shell's own I/O: real datagrams through Link.read, counted per link, in SYS_STATUS."""
     rig.gcs.mav.heartbeat_send(6, 8, 0, 0, 4)
     good = rig.gcs.link.conn.mav.command_long_encode(1, 1, ARM, 0, 1, 0, 0, 0, 0, 0, 0)
     packet = bytes(good.pack(rig.gcs.link.conn.mav))
-    junk = [bytes(range(256)), b"\xfd" * 300, packet[:7], packet[:-3], b"\xfd\x09\x00\x00",
-            packet[:10] + b"\x00" * 50]
+    blobs = [bytes(range(256)), b"\xfd" * 300, packet[:7], packet[:-3], b"\xfd\x09\x00\x00",
+             packet[:10] + b"\x00" * 50] * JUNK_SETS
     for peer in (rig.gcs, rig.fc):
         for address in list(peer.link.conn.clients):
-            for blob in junk * 5:
+            for blob in blobs:
                 peer.link.conn.port.sendto(blob, address)
     c = rig.companion
     deadline = time.monotonic() + 5.0
-    while (c.gcs.bad < 30 or c.fc.bad < 30) and time.monotonic() < deadline:
+    while (c.gcs.bad < len(blobs) or c.fc.bad < len(blobs)) and time.monotonic() < deadline:
         rig.gcs.pump(0.05)
-    assert c.gcs.bad >= 30 and c.fc.bad >= 30, (c.gcs.bad, c.fc.bad)
-    assert rig.command(ARM, 1).result == mavlink.MAV_RESULT_ACCEPTED
-    assert drive(rig, 1000, 0, 0, [2000] * 4) is not None
-
-
-def test_clean_shutdown_sends_neutral_then_releases_the_channels(rig):
-    rig.arm()
-    assert drive(rig, 1000, 0, 0, [2000] * 4) is not None
-    since = rig.fc.mark()
-    rig.companion.stop()
-    release = rig.wait_override(lambda ch: ch[:4] == [0, 0, 0, 0], since)
-    assert release is not None
-    ordered = [channels(m)[:4] for m in rig.fc.overrides(since)]
-    assert NEUTRAL in ordered and ordered.index(NEUTRAL) < ordered.index([0, 0, 0, 0])
-    assert channels(release)[4:8] == [65535] * 4
-
-
-def test_an_exception_in_the_control_path_ends_at_neutral(rig, monkeypatch):
-    rig.arm()
-    assert drive(rig, 1000, 0, 0, [2000] * 4) is not None
-
-    def broken(*args, **kwargs):
-        raise RuntimeError("mixer bug")
-
-    monkeypatch.setattr("mecanum_mav.control.chain.wheels_from_stick", broken)
+    assert c.gcs.bad >= len(blobs) and c.fc.bad >= len(blobs), (c.gcs.bad, c.fc.bad)
     since = rig.gcs.mark()
-    assert drive(rig, 1000, 0, 0, NEUTRAL) is not None
-    assert statustext(rig, "Error computing output: neutral", since)
+    ack = rig.command(mavlink.MAV_CMD_REQUEST_MESSAGE, mavlink.MAVLINK_MSG_ID_SYS_STATUS)
+    assert ack.result == ACCEPTED
+    status = rig.gcs.wait("SYS_STATUS", timeout_s=1.0, since=since)
+    # both links' counters, through the shell's link_errors
+    assert status.errors_comm == c.gcs.bad + c.fc.bad + c.gcs.send_errors + c.fc.send_errors
+    rig.arm()
+    deadline = time.monotonic() + 2.0
+    msg = None
+    while msg is None and time.monotonic() < deadline:
+        msg = rig.wait_override(lambda ch: ch[:4] == FORWARD, rig.sticks(1000), 0.1)
+    assert msg is not None and channels(msg)[:4] == FORWARD

@@ -1,7 +1,10 @@
-"""The whole product on loopback: ground station -> companion -> simulated flight controller.
+"""The whole product: ground station -> companion -> simulated flight controller.
 
-Ground truth comes from the simulator (its true pose) or, across processes, from the
-simulated flight controller's own telemetry recorded in the companion's tlog.
+Behaviour runs in the lockstep harness (core + simulated board + scripted ground station in
+virtual time: exact and fast). What only real I/O can show stays on real sockets: the
+``mecanum-mav sim`` and ``mecanum-mav simfc`` processes and the serial flight-controller
+link. There, ground truth comes from the simulated flight controller's own telemetry, in the
+companion's tlog or relayed by its odometry.
 """
 
 from __future__ import annotations
@@ -13,72 +16,127 @@ import struct
 import subprocess
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any, TypeVar
 
 import pytest
-from conftest import simulated_rover
-from mavpeers import channels, ground_station
 
 from mecanum_mav.app.companion import Companion
 from mecanum_mav.config.params import Params
 from mecanum_mav.io.links import mavlink, mavutil
+from mecanum_mav.protocol.rcoverride import override_fields, release_fields
+from mecanum_mav.sim.groundstation import ScriptedGroundStation, udp_ground_station
+from mecanum_mav.sim.lockstep import Lockstep
 
 ARM = mavlink.MAV_CMD_COMPONENT_ARM_DISARM
+STICK_PERIOD_S = 0.02
+"""A ground station sends MANUAL_CONTROL at 50 Hz."""
+WHEELS = (1, 2, 3, 4)
+"""RC channels of FL, FR, RL, RR (the default MOT_*_CH)."""
+NEUTRAL = override_fields(WHEELS, [1500] * 4)
+RELEASE = release_fields(WHEELS)
+T = TypeVar("T")
 
 
-def arm(gcs, timeout_s: float = 5.0) -> None:
-    """Arm once the companion accepts it (it waits for the flight controller's heartbeat)."""
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        since = gcs.mark()
-        gcs.mav.command_long_send(1, 1, ARM, 0, 1, 0, 0, 0, 0, 0, 0)
-        ack = gcs.wait("COMMAND_ACK", lambda m: m.command == ARM, 0.5, since)
-        if ack is not None and ack.result == mavlink.MAV_RESULT_ACCEPTED:
-            return
-        gcs.pump(0.2)
-    raise AssertionError("the companion never accepted arming")
+def fc_link_up(gcs: ScriptedGroundStation, timeout_s: float = 5.0) -> bool:
+    """Whether the companion said its flight-controller link is up (from its first message
+    on): it accepts arming only then."""
+    return gcs.wait("STATUSTEXT", lambda m: m.text == "Flight controller link up", timeout_s,
+                    since=0) is not None
 
 
-def stream_sticks(gcs, until, x: int = 0, y: int = 0, r: int = 0, timeout_s: float = 5.0):
-    """Send MANUAL_CONTROL at 50 Hz until ``until()`` returns something truthy."""
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        gcs.mav.manual_control_send(1, x, y, 500, r, 0)
-        gcs.pump(0.02)
-        result = until()
-        if result:
-            return result
-    return None
+def channels(msg: Any) -> list[int]:
+    """The 18 chanN_raw fields of an RC_CHANNELS_OVERRIDE."""
+    return [getattr(msg, f"chan{i}_raw") for i in range(1, 19)]
 
 
-@pytest.fixture
-def in_process():
-    """Companion and simulator in this process, on a real UDP link between them."""
-    with simulated_rover() as rover:
-        yield rover
+# --------------------------------------------------------------------------- virtual time
+
+
+def stream_sticks(h: Lockstep, until: Callable[[], T], x: int = 0, y: int = 0, r: int = 0,
+                  timeout_s: float = 5.0) -> T | None:
+    """MANUAL_CONTROL at 50 Hz of virtual time until ``until()`` returns something truthy
+    (returned), or None after ``timeout_s``; the stream stops either way."""
+    stop = h.every(STICK_PERIOD_S, lambda now_s: h.gcs.mav.manual_control_send(1, x, y, 500, r,
+                                                                               0))
+    try:
+        return h.run_until(until, timeout_s)
+    finally:
+        stop()
+
+
+def sticks_for(h: Lockstep, seconds: float, x: int = 0, y: int = 0, r: int = 0) -> float:
+    """MANUAL_CONTROL at 50 Hz for ``seconds`` of virtual time; the time of the last one."""
+    sent = [h.now_s]
+
+    def send(now_s: float) -> None:
+        h.gcs.mav.manual_control_send(1, x, y, 500, r, 0)
+        sent.append(now_s)
+
+    stop = h.every(STICK_PERIOD_S, send)
+    h.run_for(seconds)
+    stop()
+    return sent[-1]
 
 
 @pytest.mark.parametrize(
-    ("x", "y", "r", "moved"),
-    [(1000, 0, 0, lambda s: s.pose.x_m > 0.3 and abs(s.pose.y_m) < 0.01),
-     (0, 1000, 0, lambda s: s.pose.y_m > 0.3 and abs(s.pose.x_m) < 0.01),
-     (0, 0, 1000, lambda s: s.pose.yaw_rad > 0.5 and abs(s.pose.x_m) < 0.01)],
+    ("x", "y", "r", "moved", "pulses"),
+    [(1000, 0, 0, lambda s: s.pose.x_m > 0.3 and abs(s.pose.y_m) < 1e-3
+      and abs(s.pose.yaw_rad) < 1e-3, [2000, 2000, 2000, 2000]),
+     (0, 1000, 0, lambda s: s.pose.y_m > 0.3 and abs(s.pose.x_m) < 1e-3
+      and abs(s.pose.yaw_rad) < 1e-3, [2000, 1000, 1000, 2000]),
+     (0, 0, 1000, lambda s: s.pose.yaw_rad > 0.5 and abs(s.pose.x_m) < 1e-3
+      and abs(s.pose.y_m) < 1e-3, [2000, 1000, 2000, 1000])],
     ids=["forward-goes-north", "strafe-right-goes-east", "clockwise-turns-clockwise"],
 )
-def test_sticks_move_the_simulated_chassis_the_commanded_way(in_process, x, y, r, moved):
-    sim, gcs, _ = in_process
-    arm(gcs)
-    state = stream_sticks(gcs, lambda: moved(sim.snapshot()) and sim.snapshot(), x, y, r)
-    assert state is not None, sim.snapshot().pose
+def test_sticks_move_the_simulated_chassis_the_commanded_way(harness, x, y, r, moved, pulses):
+    h = harness
+    h.gcs.arm()
+    start_s = h.now_s
+    state = stream_sticks(h, lambda: moved(h.truth()) and h.truth(), x, y, r, timeout_s=2.0)
+    assert state is not None, h.truth().pose
     assert state.overrides_ignored == 0
+    driving = [o.channels for o in h.overrides_since(start_s)]
+    # FL = x + y + r, FR = x - y - r, RL = x - y + r, RR = x + y - r, full stick = 500 us
+    assert driving[-1] == override_fields(WHEELS, pulses)
+    assert all(o.source_system == 255 for o in h.overrides)
 
 
-def test_stopping_the_sticks_stops_the_simulated_chassis(in_process):
-    sim, gcs, _ = in_process
-    arm(gcs)
-    assert stream_sticks(gcs, lambda: sim.snapshot().velocity_body[0] > 0.5, 1000)
-    stopped = sim.wait_for(lambda s: abs(s.velocity_body[0]) < 0.01, timeout_s=3.0)
-    assert stopped is not None  # input timeout (0.5 s) -> neutral -> motors spin down
+def test_stopping_the_sticks_stops_the_simulated_chassis(harness):
+    h = harness
+    h.gcs.arm()
+    assert stream_sticks(h, lambda: h.truth().velocity_body[0] > 0.5, 1000)
+    last_stick_s = h.now_s  # the stream stopped here
+    stopped = h.run_until(lambda: abs(h.truth().velocity_body[0]) < 0.01 and h.truth(), 3.0)
+    assert stopped is not None
+    # FS_INPUT_TMO (0.5 s) without input -> neutral -> the motors spin down
+    first_neutral = next(o for o in h.overrides_since(last_stick_s) if o.channels == NEUTRAL)
+    # at the first output refresh (OUT_RATE, 20 Hz) after the timeout
+    assert 0.5 - 1e-9 <= first_neutral.time_s - last_stick_s <= 0.5 + 0.05 + h.dt_s
+    assert all(o.channels == NEUTRAL for o in h.overrides_since(first_neutral.time_s))
+    assert stopped.time_s - first_neutral.time_s < 1.0
+
+
+# --------------------------------------------------------------------------- real sockets
+
+
+def stream_real(gcs: ScriptedGroundStation, until: Callable[[], T], x: int = 0, y: int = 0,
+                r: int = 0, timeout_s: float = 5.0) -> T | None:
+    """MANUAL_CONTROL at 50 Hz of wall-clock time on a real link until ``until()`` returns
+    something truthy (returned), or None after ``timeout_s``."""
+    now = time.monotonic()
+    deadline, next_s = now + timeout_s, now
+    while now < deadline:
+        if now >= next_s:
+            gcs.mav.manual_control_send(1, x, y, 500, r, 0)
+            next_s += STICK_PERIOD_S
+        gcs.pump(max(0.0, min(next_s, deadline) - now))
+        result = until()
+        if result:
+            return result
+        now = time.monotonic()
+    return None
 
 
 def read_tlog(path: Path) -> list:
@@ -96,46 +154,68 @@ def start_cli(*args: str) -> subprocess.Popen:
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
-def test_mecanum_mav_sim_drives_the_simulated_chassis_forward(tmp_path):
-    gcs = ground_station()
+def test_mecanum_mav_sim_drives_forward_and_sigterm_ends_with_neutral_then_release(tmp_path):
+    gcs, port = udp_ground_station()
     tlog = tmp_path / "sim.tlog"
-    proc = start_cli("sim", "--gcs", gcs.url, "--tlog", str(tlog))
+    proc = start_cli("sim", "--gcs", port.url, "--tlog", str(tlog))
     try:
         assert gcs.wait("HEARTBEAT", timeout_s=10.0), proc.stderr
-        arm(gcs)
-        assert stream_sticks(gcs, lambda: False, 1000, timeout_s=1.5) is None  # 1.5 s forward
-    finally:
+        assert fc_link_up(gcs)
+        gcs.arm()
+        forward = time.monotonic() + 1.5
+        assert stream_real(gcs, lambda: time.monotonic() > forward, 1000, timeout_s=3.0)
+        # SIGTERM while driving, and the pilot keeps pushing the stick until the process is
+        # gone: the shutdown sequence must still be the last word.
         proc.send_signal(signal.SIGTERM)
+        stream_real(gcs, lambda: proc.poll() is not None, 1000, timeout_s=10.0)
         out, err = proc.communicate(timeout=10)
-        gcs.close()
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+        port.close()
     assert proc.returncode == 0, err
     assert "point a ground station at UDP" in out
     messages = read_tlog(tlog)
     distances = [m.distance[:4] for m in messages if m.get_type() == "WHEEL_DISTANCE"]
     assert distances and min(distances[-1]) > 0.3, distances[-1:]  # every wheel rolled forward
-    overrides = [channels(m)[:4] for m in messages if m.get_type() == "RC_CHANNELS_OVERRIDE"]
-    assert [2000] * 4 in overrides
-    assert overrides[-1] == [0, 0, 0, 0] and overrides[-2] == [1500] * 4  # neutral, release
+    overrides = [channels(m) for m in messages if m.get_type() == "RC_CHANNELS_OVERRIDE"]
+    assert overrides[-4] == override_fields(WHEELS, [2000] * 4)  # driving when it was stopped
+    # then exactly: neutral, neutral, release, and nothing at all after them
+    assert [channels(m) if m.get_type() == "RC_CHANNELS_OVERRIDE" else m.get_type()
+            for m in messages[-3:]] == [NEUTRAL, NEUTRAL, RELEASE]
 
 
 def test_simfc_runs_as_its_own_process_behind_a_real_udp_link():
     proc = start_cli("simfc", "--listen", "udpin:127.0.0.1:0")
-    gcs = ground_station()
+    gcs, port = udp_ground_station()
     companion = None
+    params = Params()
+    params.update({"ODOM_SRC": 1})  # odometry from the flight controller's WHEEL_DISTANCE only
     try:
         line = proc.stdout.readline()
-        port = int(line.rsplit("port ", 1)[1].rstrip(")\n"))
-        companion = Companion(Params(), gcs.url, f"udpout:127.0.0.1:{port}")
+        fc_port = int(line.rsplit("port ", 1)[1].rstrip(")\n"))
+        companion = Companion(params, port.url, f"udpout:127.0.0.1:{fc_port}")
         companion.start()
-        arm(gcs)
-        moved = stream_sticks(gcs, lambda: companion.fc.received > 50, 1000)
-        assert moved
+        assert fc_link_up(gcs)
+        gcs.arm()
+        since = gcs.mark()
+
+        def rolled():  # the simulated board's encoders, relayed by the companion's odometry
+            return next((m for m in gcs.received("WHEEL_DISTANCE", since)
+                         if min(m.distance[:4]) > 0.3), None)
+
+        wheels = stream_real(gcs, rolled, 1000, timeout_s=5.0)
+        assert wheels is not None, gcs.received("WHEEL_DISTANCE", since)[-1:]
+        assert max(wheels.distance[:4]) - min(wheels.distance[:4]) < 0.01  # all alike: straight
+        local = gcs.wait("LOCAL_POSITION_NED", lambda m: m.x > 0.3, 1.0, since)
+        assert local is not None and abs(local.y) < 0.01
     finally:
         if companion is not None:
             companion.close()
         proc.send_signal(signal.SIGINT)
         proc.communicate(timeout=10)
-        gcs.close()
+        port.close()
     assert proc.returncode == 0
 
 
@@ -167,8 +247,8 @@ class SerialFlightController:
 
 def test_flight_controller_link_works_over_a_serial_device():
     fc = SerialFlightController()
-    gcs = ground_station()
-    companion = Companion(Params(), gcs.url, f"{fc.path},115200")
+    gcs, port = udp_ground_station()
+    companion = Companion(Params(), port.url, f"{fc.path},115200")
     companion.start()
     try:
         assert gcs.wait("HEARTBEAT", timeout_s=3.0)
@@ -177,8 +257,7 @@ def test_flight_controller_link_works_over_a_serial_device():
         while not armed and time.monotonic() < deadline:
             fc.heartbeat()
             fc.pump(0.05)
-            gcs.mav.command_long_send(1, 1, ARM, 0, 1, 0, 0, 0, 0, 0, 0)
-            ack = gcs.wait("COMMAND_ACK", lambda m: m.command == ARM, 0.2, gcs.mark())
+            ack = gcs.command(ARM, 1, timeout_s=0.2)
             armed = ack is not None and ack.result == 0
         assert armed, "no arming: the companion never heard the serial heartbeat"
         seen = None
@@ -192,5 +271,5 @@ def test_flight_controller_link_works_over_a_serial_device():
         assert struct.unpack("<B", seen.get_msgbuf()[:1])[0] == 0xFD
     finally:
         companion.close()
-        gcs.close()
+        port.close()
         fc.close()

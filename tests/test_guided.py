@@ -1,107 +1,133 @@
-"""GUIDED: SET_POSITION_TARGET_LOCAL_NED drives the simulated rover holonomically."""
+"""GUIDED: SET_POSITION_TARGET_LOCAL_NED drives the simulated rover holonomically.
+
+The rover runs in the lockstep harness (core + simulated board + scripted ground station in
+virtual time), so every figure below is exact and repeatable."""
 
 from __future__ import annotations
 
 import math
-import time
 
 import pytest
-from conftest import simulated_rover
-from test_end_to_end import arm
+from conftest import lockstep
 
-from mecanum_mav.config.params import Params
 from mecanum_mav.control.guided import SetpointError, decode_setpoint
 from mecanum_mav.io.links import mavlink
 from mecanum_mav.mecanum.geometry import Pose2d
+from mecanum_mav.protocol.modes import Mode
+from mecanum_mav.sim.lockstep import Lockstep
 
 IGNORE_POS, IGNORE_VEL, IGNORE_ACC = 1 | 2 | 4, 8 | 16 | 32, 64 | 128 | 256
 IGNORE_YAW, IGNORE_RATE = 1024, 2048
 VELOCITY_ONLY = IGNORE_POS | IGNORE_ACC | IGNORE_YAW | IGNORE_RATE
 NED, BODY = mavlink.MAV_FRAME_LOCAL_NED, mavlink.MAV_FRAME_BODY_FRD
+SETPOINT_PERIOD_S = 0.05
+"""A ground station streaming setpoints at 20 Hz."""
 
 
-def guided(gcs) -> None:
-    arm(gcs)
-    since = gcs.mark()
-    gcs.mav.command_long_send(1, 1, mavlink.MAV_CMD_DO_SET_MODE, 0, 1, 15, 0, 0, 0, 0, 0)
-    ack = gcs.wait("COMMAND_ACK", lambda m: m.command == mavlink.MAV_CMD_DO_SET_MODE, 1, since)
-    assert ack is not None and ack.result == 0
+def target(h: Lockstep, frame=NED, mask=VELOCITY_ONLY, x=0.0, y=0.0, vx=0.0, vy=0.0, yaw=0.0,
+           rate=0.0) -> None:
+    h.gcs.mav.set_position_target_local_ned_send(0, 1, 1, frame, mask, x, y, 0.0, vx, vy, 0.0,
+                                                 0.0, 0.0, 0.0, yaw, rate)
 
 
-def target(gcs, frame=NED, mask=VELOCITY_ONLY, x=0.0, y=0.0, vx=0.0, vy=0.0, yaw=0.0, rate=0.0):
-    gcs.mav.set_position_target_local_ned_send(0, 1, 1, frame, mask, x, y, 0.0, vx, vy, 0.0,
-                                               0.0, 0.0, 0.0, yaw, rate)
+def stream(h: Lockstep, seconds: float, **kwargs) -> list[float]:
+    """Send the setpoint at 20 Hz for ``seconds`` of virtual time; the times it was sent."""
+    sent: list[float] = []
+
+    def send(now_s: float) -> None:
+        target(h, **kwargs)
+        sent.append(now_s)
+
+    stop = h.every(SETPOINT_PERIOD_S, send)
+    h.run_for(seconds)
+    stop()
+    return sent
 
 
-def stream(gcs, seconds: float, **kwargs) -> None:
-    end = time.monotonic() + seconds
-    while time.monotonic() < end:
-        target(gcs, **kwargs)
-        gcs.pump(0.05)
+def texts(h: Lockstep, since: int) -> list[str]:
+    """The STATUSTEXTs received from index ``since`` until now."""
+    h.gcs.mark()  # collect what has arrived
+    return [m.text for m in h.gcs.received("STATUSTEXT", since)]
+
+
+def moved_m(h: Lockstep) -> float:
+    pose = h.truth().pose
+    return math.hypot(pose.x_m, pose.y_m) + abs(pose.yaw_rad)
 
 
 @pytest.fixture
-def rover(request):
-    params = Params()
-    params.update(getattr(request, "param", {}))
-    with simulated_rover(params) as parts:
-        guided(parts[1])
-        yield parts
+def rover(request) -> Lockstep:
+    """A harness armed in GUIDED; parametrize indirectly with a dict of parameter values."""
+    h = lockstep(getattr(request, "param", None))
+    h.gcs.arm()
+    assert h.gcs.set_mode(Mode.GUIDED) == mavlink.MAV_RESULT_ACCEPTED
+    return h
 
 
 def test_velocity_north_moves_north_without_turning(rover):
-    sim, gcs, _ = rover
-    stream(gcs, 1.5, vx=0.5)
-    pose = sim.snapshot().pose
-    assert pose.x_m > 0.4 and abs(pose.y_m) < 0.02
-    assert abs(math.degrees(pose.yaw_rad)) < 1.0
+    stream(rover, 1.5, vx=0.5)
+    s = rover.truth()
+    assert s.velocity_body == pytest.approx((0.5, 0.0), abs=0.005)
+    # a 0.5 s ramp (GUID_ACC_MAX 1 m/s/s) and the motors' 80 ms lag: 0.5 * (1.5 - 0.25 - 0.08)
+    assert s.pose.x_m == pytest.approx(0.58, abs=0.02)
+    assert abs(s.pose.y_m) < 1e-3 and abs(math.degrees(s.pose.yaw_rad)) < 0.1
 
 
 def test_body_frame_velocity_right_strafes_without_turning(rover):
-    sim, gcs, _ = rover
-    stream(gcs, 1.5, frame=BODY, vy=0.5)
-    pose = sim.snapshot().pose
-    assert pose.y_m > 0.4 and abs(pose.x_m) < 0.02 and abs(math.degrees(pose.yaw_rad)) < 1.0
+    stream(rover, 1.5, frame=BODY, vy=0.5)
+    s = rover.truth()
+    assert s.velocity_body == pytest.approx((0.0, 0.5), abs=0.005)
+    assert s.pose.y_m == pytest.approx(0.58, abs=0.02)
+    assert abs(s.pose.x_m) < 1e-3 and abs(math.degrees(s.pose.yaw_rad)) < 0.1
 
 
 def test_turning_to_a_yaw_target_does_not_disturb_the_translation(rover):
-    sim, gcs, _ = rover
-    stream(gcs, 2.5, mask=IGNORE_POS | IGNORE_ACC | IGNORE_RATE, vx=0.4, yaw=math.pi / 2)
-    pose = sim.snapshot().pose
-    assert math.degrees(pose.yaw_rad) == pytest.approx(90.0, abs=2.0)
-    assert pose.x_m > 0.6 and abs(pose.y_m) < 0.03  # straight north while it turned
+    stream(rover, 2.5, mask=IGNORE_POS | IGNORE_ACC | IGNORE_RATE, vx=0.4, yaw=math.pi / 2)
+    s = rover.truth()
+    assert math.degrees(s.pose.yaw_rad) == pytest.approx(90.0, abs=0.5)
+    assert abs(s.yaw_rate) < math.radians(0.5)  # settled on the target
+    assert s.pose.x_m > 0.8 and abs(s.pose.y_m) < 0.02  # straight north while it turned
+    assert s.velocity_body == pytest.approx((0.0, -0.4), abs=0.005)  # facing east: left
 
 
-def test_a_position_target_is_reached_within_5cm_and_2deg_without_overshoot(rover):
-    sim, gcs, companion = rover
-    goal = (1.2, 0.8)
-    target(gcs, mask=IGNORE_VEL | IGNORE_ACC | IGNORE_RATE, x=goal[0], y=goal[1],
+def test_a_position_target_is_reached_within_1cm_and_half_a_degree_without_overshoot(rover):
+    h, goal = rover, (1.2, 0.8)
+    target(h, mask=IGNORE_VEL | IGNORE_ACC | IGNORE_RATE, x=goal[0], y=goal[1],
            yaw=math.radians(45))
-    direction = (goal[0] / math.hypot(*goal), goal[1] / math.hypot(*goal))
-    overshoot = 0.0
-    deadline = time.monotonic() + 8.0
-    while time.monotonic() < deadline:
-        s = sim.snapshot()
+    distance = math.hypot(*goal)
+    direction = (goal[0] / distance, goal[1] / distance)
+    overshoot = [0.0]
+
+    def arrived():
+        s = h.truth()
         along = s.pose.x_m * direction[0] + s.pose.y_m * direction[1]
-        overshoot = max(overshoot, along - math.hypot(*goal))
-        core = companion.core
-        if s.time_s > 0 and math.hypot(*s.velocity_body) < 0.005 and (
-                core.autopilot.guided.arrived(core.estimator.pose, 0.03)):
-            break
-        gcs.pump(0.02)
-    final = sim.snapshot().pose
-    assert math.hypot(final.x_m - goal[0], final.y_m - goal[1]) < 0.05
-    assert abs(math.degrees(final.yaw_rad) - 45.0) < 2.0
-    assert overshoot < 0.05
+        overshoot[0] = max(overshoot[0], along - distance)
+        core = h.core
+        return (math.hypot(*s.velocity_body) < 0.005
+                and core.autopilot.guided.arrived(core.estimator.pose, 0.03) and s)
+
+    final = h.run_until(arrived, 8.0)
+    assert final is not None, h.truth()
+    assert math.hypot(final.pose.x_m - goal[0], final.pose.y_m - goal[1]) < 0.01
+    assert abs(math.degrees(final.pose.yaw_rad) - 45.0) < 0.5
+    assert overshoot[0] < 0.005
+    h.run_for(2.0)  # and it stays there
+    pose = h.truth().pose
+    assert math.hypot(pose.x_m - goal[0], pose.y_m - goal[1]) < 0.01
 
 
 @pytest.mark.parametrize("rover", [{"GUID_TIMEOUT": 0.5}], indirect=True)
 def test_a_velocity_setpoint_lapses_and_the_rover_stops(rover):
-    sim, gcs, _ = rover
-    stream(gcs, 0.6, vx=0.5)
-    assert sim.snapshot().velocity_body[0] > 0.3
-    stopped = sim.wait_for(lambda s: abs(s.velocity_body[0]) < 0.01, timeout_s=3.0)
-    assert stopped is not None and stopped.pose.x_m < 1.0
+    h = rover
+    last = stream(h, 0.6, vx=0.5)[-1]
+    assert h.truth().velocity_body[0] > 0.45
+    h.run_until(lambda: h.now_s >= last + 0.5 - 1e-9, 1.0)
+    assert h.truth().velocity_body[0] > 0.49  # still driving until the setpoint is 0.5 s old
+    stopped = h.run_until(lambda: abs(h.truth().velocity_body[0]) < 0.01 and h.truth(), 3.0)
+    assert stopped is not None
+    assert 0.5 < stopped.time_s - last < 0.5 + 1.0  # lapsed, then braked at GUID_ACC_MAX
+    assert stopped.pose.x_m < 0.6
+    assert all(o.channels[:4] == [1500] * 4 for o in h.overrides_since(stopped.time_s + 0.2))
 
 
 @pytest.mark.parametrize(
@@ -111,20 +137,25 @@ def test_a_velocity_setpoint_lapses_and_the_rover_stops(rover):
      ({"mask": 0xFFF}, "nothing usable")],
 )
 def test_bad_setpoints_are_rejected_with_a_reason_and_never_move_it(rover, fields, reason):
-    sim, gcs, _ = rover
-    since = gcs.mark()
-    stream(gcs, 0.4, **{"vx": 0.5, **fields})
-    assert gcs.wait("STATUSTEXT", lambda m: reason in m.text, 1.0, since) is not None
-    assert abs(sim.snapshot().pose.x_m) < 0.005
+    h = rover
+    since, start_s = h.gcs.mark(), h.now_s
+    stream(h, 0.4, **{"vx": 0.5, **fields})
+    # Nine setpoints rejected, said once (the same rejection at most once a second).
+    said = texts(h, since)
+    assert said[0].startswith("Rejected: setpoint: ")
+    assert sum(reason in t for t in said) == 1
+    assert moved_m(h) == 0.0
+    assert all(o.channels[:4] == [1500] * 4 for o in h.overrides_since(start_s))
 
 
 def test_setpoints_outside_guided_are_refused_with_a_reason():
-    with simulated_rover() as (sim, gcs, _):
-        arm(gcs)
-        since = gcs.mark()
-        stream(gcs, 0.3, vx=0.5)
-        assert gcs.wait("STATUSTEXT", lambda m: "not in GUIDED" in m.text, 1.0, since)
-        assert abs(sim.snapshot().pose.x_m) < 0.005
+    h = lockstep()
+    h.gcs.arm()
+    since, start_s = h.gcs.mark(), h.now_s
+    stream(h, 0.3, vx=0.5)
+    assert texts(h, since) == ["Rejected: setpoint: not in GUIDED"]  # said once
+    assert moved_m(h) == 0.0
+    assert all(o.channels[:4] == [1500] * 4 for o in h.overrides_since(start_s))
 
 
 # --------------------------------------------------------------------------- decoding

@@ -1,102 +1,212 @@
-"""Telemetry streams, message intervals, REQUEST_MESSAGE, PING, FTP refusal, home reset."""
+"""Telemetry streams, message intervals, REQUEST_MESSAGE, PING, FTP refusal, home reset.
+
+In the lockstep harness (virtual time, see tests/test_companion.py): counts and times are
+exact. A stream is scheduled on a fixed grid of slots ``interval`` apart; each message rides the
+core's nearest wake-up, so it goes out at most half an output period (25 ms at OUT_RATE 20 Hz)
+before its slot and at most one step after it: exactly one message per slot.
+"""
 
 from __future__ import annotations
 
-import time
+import math
+from typing import Any
+
+import pytest
+from conftest import lockstep
 
 from mecanum_mav.io.links import mavlink
+from mecanum_mav.sim.lockstep import Lockstep
 
 CMD = mavlink
+ACCEPTED, DENIED = CMD.MAV_RESULT_ACCEPTED, CMD.MAV_RESULT_DENIED
+EPS = 1e-9
+EARLY_S = 0.5 / 20.0
+"""How early a message may ride a wake-up before its slot: half the output period."""
+EDGE_S = 0.01
+"""Count windows start this long after a slot: no message is sent near that instant."""
 
 
-def count_over(rig, mtype: str, seconds: float) -> int:
-    since = rig.gcs.mark()
-    end = time.monotonic() + seconds
-    while time.monotonic() < end:
-        rig.gcs.pump(end - time.monotonic())
-    return sum(1 for m in rig.gcs.messages[since:] if m.get_type() == mtype)
+def collect(h: Lockstep, seconds: float) -> list[tuple[float, Any]]:
+    """Step for ``seconds``: every message that reached the ground station meanwhile, with
+    the virtual time it arrived."""
+    start = len(h.gcs.messages)
+    h.run_for(seconds)
+    return list(zip(h.gcs.arrived_s[start:], h.gcs.messages[start:], strict=True))
 
 
-def test_default_streams_arrive_at_their_parameter_rates(rig):
-    assert 7 <= count_over(rig, "ODOMETRY", 1.0) <= 13  # TLM_POS_RATE 10 Hz
-    assert 1 <= count_over(rig, "SYS_STATUS", 1.0) <= 4  # TLM_EXT_RATE 2 Hz
+def arrivals(h: Lockstep, kind: str, seconds: float) -> list[tuple[float, Any]]:
+    """Step for ``seconds``: the ``kind`` messages that arrived, with their arrival times."""
+    return [(t, m) for t, m in collect(h, seconds) if m.get_type() == kind]
 
 
-def test_set_message_interval_changes_one_stream_and_get_reports_it(rig):
-    ack = rig.command(CMD.MAV_CMD_SET_MESSAGE_INTERVAL, CMD.MAVLINK_MSG_ID_WHEEL_DISTANCE, 50000)
-    assert ack.result == CMD.MAV_RESULT_ACCEPTED
-    assert 14 <= count_over(rig, "WHEEL_DISTANCE", 1.0) <= 26  # 20 Hz
-    since = rig.gcs.mark()
-    ack = rig.command(CMD.MAV_CMD_GET_MESSAGE_INTERVAL, CMD.MAVLINK_MSG_ID_WHEEL_DISTANCE)
-    assert ack.result == CMD.MAV_RESULT_ACCEPTED
-    reply = rig.gcs.wait("MESSAGE_INTERVAL", timeout_s=1.0, since=since)
-    assert reply.interval_us == 50000
-    rig.command(CMD.MAV_CMD_SET_MESSAGE_INTERVAL, CMD.MAVLINK_MSG_ID_WHEEL_DISTANCE, -1)
-    rig.gcs.pump(0.2)
-    assert count_over(rig, "WHEEL_DISTANCE", 0.6) == 0
+def run_to(h: Lockstep, t: float) -> None:
+    h.run_for(t - h.now_s)
 
 
-def test_message_interval_for_a_message_we_do_not_stream_is_denied(rig):
-    ack = rig.command(CMD.MAV_CMD_SET_MESSAGE_INTERVAL, CMD.MAVLINK_MSG_ID_GPS_RAW_INT, 100000)
-    assert ack.result == CMD.MAV_RESULT_DENIED
+def assert_one_per_slot(h: Lockstep, times: list[float], origin: float, interval: float) -> None:
+    """Each time belongs to its own slot ``origin + k * interval``, k consecutive, and lies
+    between EARLY_S before the slot and one step after it."""
+    slots = [math.floor((t - origin + EARLY_S + EPS) / interval) for t in times]
+    assert slots == list(range(slots[0], slots[0] + len(slots))), slots
+    for t, k in zip(times, slots, strict=True):
+        slot = origin + k * interval
+        assert slot - EARLY_S - EPS <= t <= slot + h.dt_s + EPS, (t, slot)
 
 
-def test_request_message_answers_autopilot_version_and_home_position(rig):
+def per_second(times: list[float], start: float, seconds: int) -> list[int]:
+    return [sum(1 for t in times if start + n <= t < start + n + 1.0) for n in range(seconds)]
+
+
+# --------------------------------------------------------------------------- streams
+
+
+@pytest.mark.parametrize(
+    ("values", "pos_hz", "ext_hz"),
+    [({}, 10, 2),  # the defaults: TLM_POS_RATE 10 Hz, TLM_EXT_RATE 2 Hz
+     ({"TLM_POS_RATE": 4.0, "TLM_EXT_RATE": 5.0}, 4, 5),
+     ({"TLM_POS_RATE": 20.0, "TLM_EXT_RATE": 0.0}, 20, 0)],
+)
+def test_default_streams_arrive_at_their_parameter_rates(values, pos_hz, ext_hz):
+    h = lockstep(values)
+    run_to(h, 1.0 + EDGE_S)  # the grids start at boot (t = 0): start on a clear edge
+    start = h.now_s
+    seconds = 5
+    streams = {"ODOMETRY": pos_hz, "LOCAL_POSITION_NED": pos_hz, "ATTITUDE": pos_hz,
+               "SYS_STATUS": ext_hz, "SERVO_OUTPUT_RAW": ext_hz, "WHEEL_DISTANCE": ext_hz}
+    got = collect(h, seconds)
+    for name, hz in streams.items():
+        times = [t for t, m in got if m.get_type() == name]
+        assert per_second(times, start, seconds) == [hz] * seconds, name
+        if hz:
+            assert_one_per_slot(h, times, 0.0, 1.0 / hz)
+    # no global origin: nothing to put on a map
+    assert [m for _, m in got if m.get_type() == "GLOBAL_POSITION_INT"] == []
+
+
+def test_set_message_interval_changes_one_stream_and_get_reports_it(harness):
+    h = harness
+    h.run_for(1.0)
+    since = h.gcs.mark()
+    ack = h.gcs.command(CMD.MAV_CMD_SET_MESSAGE_INTERVAL, CMD.MAVLINK_MSG_ID_WHEEL_DISTANCE,
+                        50000)
+    assert ack.result == ACCEPTED
+    origin = h.now_s  # the new grid starts in the step the command arrived, with a message
+    assert len(h.gcs.received("WHEEL_DISTANCE", since)) == 1
+    run_to(h, origin + EDGE_S)
+    got = arrivals(h, "WHEEL_DISTANCE", 3.0)
+    times = [t for t, _ in got]
+    assert per_second(times, origin + EDGE_S, 3) == [20, 20, 20]
+    assert_one_per_slot(h, times, origin, 0.05)
+    run_to(h, math.ceil(h.now_s) + EDGE_S)
+    others = arrivals(h, "SYS_STATUS", 2.0)  # the other streams keep their rates (2 Hz)
+    assert len(others) == 4
+
+    since = h.gcs.mark()
+    ack = h.gcs.command(CMD.MAV_CMD_GET_MESSAGE_INTERVAL, CMD.MAVLINK_MSG_ID_WHEEL_DISTANCE)
+    assert ack.result == ACCEPTED
+    reply = h.gcs.received("MESSAGE_INTERVAL", since)  # with the ACK, in the same step
+    assert len(reply) == 1 and reply[0].message_id == CMD.MAVLINK_MSG_ID_WHEEL_DISTANCE
+    assert reply[0].interval_us == 50000
+
+    since = h.gcs.mark()
+    ack = h.gcs.command(CMD.MAV_CMD_SET_MESSAGE_INTERVAL, CMD.MAVLINK_MSG_ID_WHEEL_DISTANCE, -1)
+    assert ack.result == ACCEPTED
+    assert h.gcs.received("WHEEL_DISTANCE", since) == []  # none from the command's step on
+    assert arrivals(h, "WHEEL_DISTANCE", 2.0) == []
+    since = h.gcs.mark()
+    h.gcs.command(CMD.MAV_CMD_GET_MESSAGE_INTERVAL, CMD.MAVLINK_MSG_ID_WHEEL_DISTANCE)
+    assert [m.interval_us for m in h.gcs.received("MESSAGE_INTERVAL", since)] == [-1]
+
+    # interval 0: back to the parameter's rate (TLM_EXT_RATE 2 Hz)
+    assert h.gcs.command(CMD.MAV_CMD_SET_MESSAGE_INTERVAL, CMD.MAVLINK_MSG_ID_WHEEL_DISTANCE,
+                         0).result == ACCEPTED
+    since = h.gcs.mark()
+    h.gcs.command(CMD.MAV_CMD_GET_MESSAGE_INTERVAL, CMD.MAVLINK_MSG_ID_WHEEL_DISTANCE)
+    assert [m.interval_us for m in h.gcs.received("MESSAGE_INTERVAL", since)] == [500000]
+
+
+def test_message_interval_for_a_message_we_do_not_stream_is_denied(harness):
+    h = harness
+    ack = h.gcs.command(CMD.MAV_CMD_SET_MESSAGE_INTERVAL, CMD.MAVLINK_MSG_ID_GPS_RAW_INT, 100000)
+    assert ack.result == DENIED
+    assert arrivals(h, "GPS_RAW_INT", 1.0) == []
+
+
+def test_request_message_answers_autopilot_version_and_home_position(harness):
+    h = harness
     for msg_id, mtype in ((CMD.MAVLINK_MSG_ID_AUTOPILOT_VERSION, "AUTOPILOT_VERSION"),
                           (CMD.MAVLINK_MSG_ID_HOME_POSITION, "HOME_POSITION")):
-        since = rig.gcs.mark()
-        assert rig.command(CMD.MAV_CMD_REQUEST_MESSAGE, msg_id).result == 0
-        msg = rig.gcs.wait(mtype, timeout_s=1.0, since=since)
-        assert msg is not None
-    since = rig.gcs.mark()
-    rig.command(CMD.MAV_CMD_REQUEST_MESSAGE, CMD.MAVLINK_MSG_ID_AUTOPILOT_VERSION)
-    version = rig.gcs.wait("AUTOPILOT_VERSION", timeout_s=1.0, since=since)
+        since = h.gcs.mark()
+        assert h.gcs.command(CMD.MAV_CMD_REQUEST_MESSAGE, msg_id).result == ACCEPTED
+        assert len(h.gcs.received(mtype, since)) == 1  # with the ACK, in the same step
+    since = h.gcs.mark()
+    h.gcs.command(CMD.MAV_CMD_REQUEST_MESSAGE, CMD.MAVLINK_MSG_ID_AUTOPILOT_VERSION)
+    version = h.gcs.received("AUTOPILOT_VERSION", since)[0]
     assert version.capabilities & CMD.MAV_PROTOCOL_CAPABILITY_MAVLINK2
     assert version.capabilities & CMD.MAV_PROTOCOL_CAPABILITY_PARAM_FLOAT
 
 
-def test_request_message_for_an_unknown_message_is_denied(rig):
-    assert rig.command(CMD.MAV_CMD_REQUEST_MESSAGE, 99999).result == CMD.MAV_RESULT_DENIED
+def test_request_message_for_an_unknown_message_is_denied(harness):
+    assert harness.gcs.command(CMD.MAV_CMD_REQUEST_MESSAGE, 99999).result == DENIED
 
 
-def test_ping_is_answered_to_its_sender(rig):
-    since = rig.gcs.mark()
-    rig.gcs.mav.ping_send(123456, 42, 0, 0)
-    reply = rig.gcs.wait("PING", lambda m: m.seq == 42, 1.0, since)
-    assert reply is not None and reply.time_usec == 123456
+def test_ping_is_answered_to_its_sender(harness):
+    h = harness
+    since = h.gcs.mark()
+    h.gcs.mav.ping_send(123456, 42, 0, 0)
+    h.step()  # answered in the step it arrives
+    h.gcs.mark()
+    replies = h.gcs.received("PING", since)
+    assert len(replies) == 1
+    reply = replies[0]
+    assert (reply.seq, reply.time_usec) == (42, 123456)
     assert (reply.target_system, reply.target_component) == (255, 190)
 
 
-def test_file_transfer_requests_are_refused_as_file_not_found(rig):
-    since = rig.gcs.mark()
+def test_file_transfer_requests_are_refused_as_file_not_found(harness):
+    h = harness
+    since = h.gcs.mark()
     request = [7, 0, 0, 4, 12, 0, 0, 0, 0, 0, 0, 0, *b"@PARAM/param.pck"]  # seq 7 OpenFileRO
-    rig.gcs.mav.file_transfer_protocol_send(0, 1, 1, request + [0] * (251 - len(request)))
-    reply = rig.gcs.wait("FILE_TRANSFER_PROTOCOL", timeout_s=1.0, since=since)
-    assert reply is not None
+    h.gcs.mav.file_transfer_protocol_send(0, 1, 1, request + [0] * (251 - len(request)))
+    h.step()  # answered in the step it arrives
+    h.gcs.mark()
+    replies = h.gcs.received("FILE_TRANSFER_PROTOCOL", since)
+    assert len(replies) == 1
+    reply = replies[0]
+    assert (reply.target_system, reply.target_component) == (255, 190)
     payload = bytes(reply.payload)
     assert payload[0] | payload[1] << 8 == 8  # seq + 1
     assert (payload[3], payload[4], payload[5], payload[12]) == (129, 1, 4, 10)
 
 
-def test_set_home_to_here_resets_the_odometry_origin_and_counter(rig):
-    before = rig.companion.core.estimator.reset_counter
-    ack = rig.command(CMD.MAV_CMD_DO_SET_HOME, 1)
-    assert ack.result == CMD.MAV_RESULT_ACCEPTED
-    assert rig.companion.core.estimator.reset_counter == before + 1
-    since = rig.gcs.mark()
-    odom = rig.gcs.wait("ODOMETRY", lambda m: m.reset_counter == before + 1, 1.0, since)
-    assert odom is not None and (odom.x, odom.y) == (0.0, 0.0)
-    assert rig.command(CMD.MAV_CMD_DO_SET_HOME, 0).result == CMD.MAV_RESULT_DENIED
+def test_set_home_to_here_resets_the_odometry_origin_and_counter(harness):
+    h = harness
+    h.gcs.arm()
+    stop = h.every(0.05, lambda now_s: h.gcs.mav.manual_control_send(1, 1000, 0, 500, 0, 0))
+    h.run_for(1.0)
+    stop()
+    h.run_for(2.0)  # input timeout: neutral; the rover stops
+    assert h.core.estimator.pose.x_m > 1.0  # it went somewhere
+    before = h.core.estimator.reset_counter
+    ack = h.gcs.command(CMD.MAV_CMD_DO_SET_HOME, 1)
+    assert ack.result == ACCEPTED
+    assert h.core.estimator.reset_counter == before + 1
+    since = h.gcs.mark()
+    odom = h.gcs.wait("ODOMETRY", timeout_s=0.1 + h.dt_s, since=since)  # the next one
+    assert odom is not None and odom.reset_counter == before + 1
+    assert (odom.x, odom.y) == (0.0, 0.0)
+    assert h.gcs.command(CMD.MAV_CMD_DO_SET_HOME, 0).result == DENIED
+    assert h.core.estimator.reset_counter == before + 1
 
 
-def test_servo_output_raw_shows_the_commanded_pwm(rig):
-    rig.arm()
-    deadline = time.monotonic() + 3.0
-    seen = None
-    while seen is None and time.monotonic() < deadline:
-        since = rig.gcs.mark()
-        rig.gcs.mav.manual_control_send(1, 1000, 0, 500, 0, 0)
-        seen = rig.gcs.wait("SERVO_OUTPUT_RAW", lambda m: m.servo1_raw == 2000, 0.1, since)
+def test_servo_output_raw_shows_the_commanded_pwm(harness):
+    h = harness
+    h.gcs.arm()
+    stop = h.every(0.05, lambda now_s: h.gcs.mav.manual_control_send(1, 1000, 0, 500, 0, 0))
+    h.step()  # the first stick reaches the core: the wheels are at 2000 from here on
+    since = h.gcs.mark()
+    seen = h.gcs.wait("SERVO_OUTPUT_RAW", timeout_s=0.5 + h.dt_s, since=since)  # 2 Hz: next
+    stop()
     assert seen is not None
-    assert (seen.servo2_raw, seen.servo3_raw, seen.servo4_raw, seen.servo5_raw) == (
-        2000, 2000, 2000, 0)
+    assert (seen.servo1_raw, seen.servo2_raw, seen.servo3_raw, seen.servo4_raw,
+            seen.servo5_raw) == (2000, 2000, 2000, 2000, 0)

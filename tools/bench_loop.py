@@ -2,8 +2,9 @@
 """Benchmark the companion's GUIDED control-loop timing and what telemetry costs.
 
 The companion runs in its own process (so its CPU time is exact and its loop is timed where it
-runs); the simulated flight controller and a pymavlink ground station run in this process,
-all on 127.0.0.1 with OS-assigned ports. Phases, one after the other:
+runs); the simulated flight controller and the scripted ground station
+(:func:`mecanum_mav.sim.groundstation.udp_ground_station`, HEARTBEAT at 1 Hz) run in this
+process, all on 127.0.0.1 with OS-assigned ports. Phases, one after the other:
 
 1. idle, disarmed, telemetry off (``TLM_POS_RATE`` = ``TLM_EXT_RATE`` = 0, set over PARAM_SET):
    the baseline, measured in the same run;
@@ -22,7 +23,6 @@ from __future__ import annotations
 
 import argparse
 import multiprocessing as mp
-import selectors
 import sys
 import time
 from multiprocessing.connection import Connection
@@ -31,7 +31,9 @@ from typing import Any
 import numpy as np
 
 from mecanum_mav.config.params import Params
-from mecanum_mav.io.links import Link, mavlink, open_link
+from mecanum_mav.io.links import mavlink
+from mecanum_mav.protocol.modes import Mode
+from mecanum_mav.sim.groundstation import ScriptedGroundStation, udp_ground_station
 from mecanum_mav.sim.simfc import SimFlightController
 
 VELOCITY_ONLY = 1 | 2 | 4 | 32 | 64 | 128 | 256 | 1024 | 2048
@@ -65,43 +67,11 @@ def companion_main(gcs_url: str, fc_url: str, ctl: Connection) -> None:
             return
 
 
-class Ground:
-    """The ground station: a udpin link and a reader that keeps its socket drained."""
-
-    def __init__(self) -> None:
-        self.link: Link = open_link("udpin:127.0.0.1:0", source_system=255,
-                                    source_component=190, name="gcs")
-        self.selector = selectors.DefaultSelector()
-        self.selector.register(self.link.fileno(), selectors.EVENT_READ)
-        self.messages: list[Any] = []
-
-    def pump(self, seconds: float) -> None:
-        end = time.monotonic() + seconds
-        while (left := end - time.monotonic()) > 0:
-            if self.selector.select(left):
-                self.messages.extend(self.link.read())
-
-    def beat(self) -> None:
-        self.link.mav.heartbeat_send(mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID, 0, 0,
-                                     4)
-
-    def command(self, command: int, *params: float) -> bool:
-        for _ in range(20):
-            start = len(self.messages)
-            self.beat()
-            self.link.mav.command_long_send(1, 1, command, 0, *params,
-                                            *([0.0] * (7 - len(params))))
-            self.pump(0.25)
-            if any(m.get_type() == "COMMAND_ACK" and m.command == command and m.result == 0
-                   for m in self.messages[start:]):
-                return True
-        return False
-
-    def idle(self, seconds: float) -> None:
-        end = time.monotonic() + seconds
-        while time.monotonic() < end:
-            self.beat()
-            self.pump(min(0.5, max(0.0, end - time.monotonic())))
+def idle(gcs: ScriptedGroundStation, seconds: float) -> None:
+    """Receive (and send the 1 Hz HEARTBEAT) for ``seconds`` of wall-clock time."""
+    end = time.monotonic() + seconds
+    while (left := end - time.monotonic()) > 0:
+        gcs.pump(left)
 
 
 def main() -> int:
@@ -110,11 +80,11 @@ def main() -> int:
     args = parser.parse_args()
     sim = SimFlightController("udpin:127.0.0.1:0", Params())
     sim.start()
-    ground = Ground()
+    gcs, port = udp_ground_station()
     parent, child = mp.get_context("spawn").Pipe()
     proc = mp.get_context("spawn").Process(
-        target=companion_main, args=(f"udpout:127.0.0.1:{ground.link.local_port}",
-                                     f"udpout:127.0.0.1:{sim.local_port}", child), daemon=True)
+        target=companion_main, args=(port.url, f"udpout:127.0.0.1:{sim.local_port}", child),
+        daemon=True)
     proc.start()
 
     def cpu() -> float:
@@ -122,25 +92,30 @@ def main() -> int:
         return float(parent.recv())
 
     try:
-        while not ground.messages:
-            ground.pump(0.1)
-        ground.idle(1.0)
+        if gcs.wait("HEARTBEAT", timeout_s=30.0) is None:
+            print("ERROR: no heartbeat from the companion", file=sys.stderr)
+            return 1
+        idle(gcs, 1.0)
         results: dict[str, float] = {}
         streamed: dict[str, int] = {}
         for phase, rate_pos, rate_ext in (("telemetry off", 0.0, 0.0),
                                           ("telemetry default", 10.0, 2.0)):
             for name, value in (("TLM_POS_RATE", rate_pos), ("TLM_EXT_RATE", rate_ext)):
-                ground.link.mav.param_set_send(1, 1, name.encode(), value,
-                                               mavlink.MAV_PARAM_TYPE_REAL32)
-            ground.idle(1.0)
-            c0, t0, first = cpu(), time.monotonic(), len(ground.messages)
-            ground.idle(args.seconds)
+                gcs.mav.param_set_send(1, 1, name.encode(), value,
+                                       mavlink.MAV_PARAM_TYPE_REAL32)
+            idle(gcs, 1.0)
+            c0, t0, first = cpu(), time.monotonic(), len(gcs.messages)
+            idle(gcs, args.seconds)
             results[phase] = 100.0 * (cpu() - c0) / (time.monotonic() - t0)
-            streamed[phase] = sum(1 for m in ground.messages[first:]
+            streamed[phase] = sum(1 for m in gcs.messages[first:]
                                   if m.get_type() not in ("HEARTBEAT", "PARAM_VALUE"))
-        if not (ground.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 1)
-                and ground.command(mavlink.MAV_CMD_DO_SET_MODE, 1, 15)):
-            print("ERROR: could not arm and enter GUIDED", file=sys.stderr)
+        try:
+            gcs.arm()
+        except RuntimeError:
+            print("ERROR: could not arm", file=sys.stderr)
+            return 1
+        if gcs.set_mode(Mode.GUIDED) != mavlink.MAV_RESULT_ACCEPTED:
+            print("ERROR: could not enter GUIDED", file=sys.stderr)
             return 1
         parent.send("ticks")
         parent.recv()
@@ -149,11 +124,10 @@ def main() -> int:
         heading = 1.0
         while time.monotonic() < end:
             heading = -heading if int(time.monotonic() - t0) % 2 else heading
-            ground.beat()
-            ground.link.mav.set_position_target_local_ned_send(
+            gcs.mav.set_position_target_local_ned_send(
                 0, 1, 1, mavlink.MAV_FRAME_BODY_FRD, VELOCITY_ONLY, 0, 0, 0, 0.4 * heading,
                 0.2, 0, 0, 0, 0, 0, 0)
-            ground.pump(0.1)
+            idle(gcs, 0.1)
         driving_cpu = 100.0 * (cpu() - c0) / (time.monotonic() - t0)
         parent.send("ticks")
         ticks = np.array(parent.recv())
@@ -162,6 +136,7 @@ def main() -> int:
         parent.recv()
         proc.join(5)
         sim.stop()
+        port.close()
     periods_ms = np.diff(ticks) * 1e3
     nominal = 1e3 / float(Params()["CTL_RATE"])
     p50, p90, p99 = np.percentile(periods_ms, [50, 90, 99])

@@ -2,12 +2,14 @@
 """Drive a square in GUIDED in the simulator and compare the companion's odometry with the
 simulator's true pose.
 
-The companion and the simulated flight controller run in this process with a real UDP link
-between them; a pymavlink ground station arms, switches to GUIDED and sends the four corners
-as position targets (heading held north). At the end it prints, per run, the distance
-driven, the odometry's position error (metres and % of distance), its yaw error, and how close
-the rover itself came to the last corner. Runs: no slip, and wheel slip noise
-(``SIM_SLIP``) of 2 % and 5 %.
+The rover core, the simulated flight controller and a scripted ground station run in the
+lockstep harness (:class:`mecanum_mav.sim.Lockstep`): virtual time, every message packed and
+parsed as on a real link, so a 10 m square takes well under a second and gives the same figures
+every run. The ground station arms, switches to GUIDED and sends the four corners as position
+targets at 10 Hz (heading held north). At the end it prints, per run, the distance driven, the
+odometry's position error (metres and % of distance), its yaw error, how close the rover
+itself came to the last corner, and how long the square took (simulated seconds). Runs: no
+slip, and wheel slip noise (``SIM_SLIP``) of 2 % and 5 %.
 
     python tools/odometry_square.py [--side 10] [--speed 2.5] [--slip 0 0.02 0.05]
 """
@@ -16,17 +18,17 @@ from __future__ import annotations
 
 import argparse
 import math
-import selectors
 import sys
-import time
 from dataclasses import dataclass
 
-from mecanum_mav.app.companion import Companion
 from mecanum_mav.config.params import Params
-from mecanum_mav.io.links import Link, mavlink, open_link
-from mecanum_mav.sim.simfc import SimFlightController
+from mecanum_mav.io.links import mavlink
+from mecanum_mav.protocol.modes import Mode
+from mecanum_mav.sim.lockstep import Lockstep
 
 POSITION_ONLY = 8 | 16 | 32 | 64 | 128 | 256 | 2048  # ignore velocity, accel, yaw rate
+SETPOINT_PERIOD_S = 0.1
+"""The ground station sends the corner at 10 Hz."""
 
 
 @dataclass
@@ -39,81 +41,61 @@ class SquareResult:
     odom_yaw_error_deg: float
     final_error_m: float
     seconds: float
+    """Simulated seconds from entering GUIDED to standing at the last corner."""
 
     @property
     def odom_error_pct(self) -> float:
         return 100.0 * self.odom_error_m / self.distance_m
 
 
-def _command(gcs: Link, selector: selectors.BaseSelector, command: int, *params: float
-             ) -> bool:
-    deadline = time.monotonic() + 5.0
-    while time.monotonic() < deadline:
-        gcs.mav.command_long_send(1, 1, command, 0, *params, *([0.0] * (7 - len(params))))
-        end = time.monotonic() + 0.3
-        while time.monotonic() < end:
-            if selector.select(0.05):
-                for msg in gcs.read():
-                    if (msg.get_type() == "COMMAND_ACK" and msg.command == command
-                            and msg.result == mavlink.MAV_RESULT_ACCEPTED):
-                        return True
-    return False
-
-
 def run_square(side_m: float = 10.0, speed_mps: float = 2.5, slip: float = 0.0,
-               seed: int = 1) -> SquareResult:
-    """Drive one square of ``side_m`` metres at up to ``speed_mps`` and measure."""
+               seed: int = 1, dt_s: float = 0.002) -> SquareResult:
+    """Drive one square of ``side_m`` metres at up to ``speed_mps`` and measure (in the
+    lockstep harness, time step ``dt_s``).
+
+    Raises:
+        RuntimeError: no flight-controller link, arming or GUIDED refused, or a corner not
+            reached in time.
+    """
     params = Params()
     params.update({"WHL_MAX_SPD": max(speed_mps * 1.3, 1.0), "GUID_SPD_MAX": speed_mps,
                    "GUID_ACC_MAX": 3.0, "SIM_SLIP": slip, "SIM_SEED": seed})
-    sim = SimFlightController("udpin:127.0.0.1:0", params)
-    sim.start()
-    gcs = open_link("udpin:127.0.0.1:0", source_system=255, source_component=190, name="gcs")
-    companion = Companion(params, f"udpout:127.0.0.1:{gcs.local_port}",
-                          f"udpout:127.0.0.1:{sim.local_port}")
-    companion.start()
-    selector = selectors.DefaultSelector()
-    selector.register(gcs.fileno(), selectors.EVENT_READ)
-    try:
-        while not selector.select(0.1):  # the companion's first heartbeat tells us its address
-            pass
-        gcs.read()
-        gcs.mav.heartbeat_send(mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID, 0, 0, 4)
-        if not (_command(gcs, selector, mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 1)
-                and _command(gcs, selector, mavlink.MAV_CMD_DO_SET_MODE, 1, 15)):
-            raise RuntimeError("could not arm and enter GUIDED")
-        start = time.monotonic()
-        corner = (0.0, 0.0)
-        for corner in ((side_m, 0.0), (side_m, side_m), (0.0, side_m), (0.0, 0.0)):
-            deadline = time.monotonic() + 4.0 * side_m / speed_mps + 10.0
-            while time.monotonic() < deadline:
-                gcs.mav.heartbeat_send(mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID, 0,
-                                       0, 4)
-                gcs.mav.set_position_target_local_ned_send(
-                    0, 1, 1, mavlink.MAV_FRAME_LOCAL_NED, POSITION_ONLY, corner[0], corner[1],
-                    0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
-                if selector.select(0.1):
-                    gcs.read()
-                truth = sim.snapshot()
-                active = companion.core.autopilot.guided.setpoint
-                if (active is not None and active.position_ned == corner
-                        and companion.core.autopilot.guided.arrived(
-                            companion.core.estimator.pose, 0.03)
-                        and math.hypot(*truth.velocity_body) < 0.01):
-                    break
-        truth = sim.snapshot().pose
-        odom = companion.core.estimator.pose
-        yaw_error = (odom.yaw_rad - truth.yaw_rad + math.pi) % (2 * math.pi) - math.pi
-        return SquareResult(slip, 4.0 * side_m,
-                            math.hypot(odom.x_m - truth.x_m, odom.y_m - truth.y_m),
-                            abs(math.degrees(yaw_error)),
-                            math.hypot(truth.x_m - corner[0], truth.y_m - corner[1]),
-                            time.monotonic() - start)
-    finally:
-        selector.close()
-        companion.close()
-        sim.stop()
-        gcs.close()
+    h = Lockstep(params, dt_s=dt_s)
+    core, gcs = h.core, h.gcs
+    if not h.run_until(lambda: not core.vehicle.fc_lost, 3.0):
+        raise RuntimeError("no heartbeat from the simulated flight controller")
+    gcs.arm()
+    if gcs.set_mode(Mode.GUIDED) != mavlink.MAV_RESULT_ACCEPTED:
+        raise RuntimeError("could not enter GUIDED")
+    start_s = h.now_s
+    corner = (0.0, 0.0)
+    for corner in ((side_m, 0.0), (side_m, side_m), (0.0, side_m), (0.0, 0.0)):
+
+        def send(now_s: float, corner: tuple[float, float] = corner) -> None:
+            gcs.mav.set_position_target_local_ned_send(
+                0, 1, 1, mavlink.MAV_FRAME_LOCAL_NED, POSITION_ONLY, corner[0], corner[1],
+                0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+
+        def there(corner: tuple[float, float] = corner) -> bool:
+            guided = core.autopilot.guided
+            active = guided.setpoint
+            return (active is not None and active.position_ned == corner
+                    and guided.arrived(core.estimator.pose, 0.03)
+                    and math.hypot(*h.truth().velocity_body) < 0.01)
+
+        stop = h.every(SETPOINT_PERIOD_S, send)
+        arrived = h.run_until(there, 4.0 * side_m / speed_mps + 10.0)
+        stop()
+        if not arrived:
+            raise RuntimeError(f"corner {corner} not reached")
+    truth = h.truth().pose
+    odom = core.estimator.pose
+    yaw_error = (odom.yaw_rad - truth.yaw_rad + math.pi) % (2 * math.pi) - math.pi
+    return SquareResult(slip, 4.0 * side_m,
+                        math.hypot(odom.x_m - truth.x_m, odom.y_m - truth.y_m),
+                        abs(math.degrees(yaw_error)),
+                        math.hypot(truth.x_m - corner[0], truth.y_m - corner[1]),
+                        h.now_s - start_s)
 
 
 def main() -> int:

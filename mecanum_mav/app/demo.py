@@ -1,38 +1,47 @@
 """``mecanum-mav demo``: the whole product in one command.
 
 It starts the simulated flight controller and chassis, the companion, and a scripted ground
-station, all in this process on UDP loopback. The ground station uploads a mission over the
-MAVLink mission protocol (a square with a diagonal, the rover facing north all the way), arms,
-switches to AUTO and watches MISSION_ITEM_REACHED and the odometry until the rover holds at the
-end. Then it prints one row per leg (time, largest cross-track error, arrival error; from the
-simulator's true pose) and draws the planned path, the true path and the odometry to a PNG.
+station (:class:`~mecanum_mav.sim.groundstation.ScriptedGroundStation`), all in this process
+on UDP loopback, in real time. The ground station uploads a mission over the MAVLink mission
+protocol (a square with a diagonal, the rover facing north all the way), arms, switches to AUTO
+and watches MISSION_ITEM_REACHED and the odometry until the rover holds at the end. Then it
+prints one row per leg (time, largest cross-track error, arrival error; from the simulator's
+true pose) and draws the planned path, the true path and the odometry to a PNG.
+
+``run_demo(..., virtual=True)`` runs the same script in the lockstep harness
+(:class:`~mecanum_mav.sim.lockstep.Lockstep`: the rover core, the simulated board and the same
+ground station in virtual time, no sockets): the same mission in a fraction of a second, with
+the same figures every run.
 
 Errors are measured against the simulator's ground truth: cross-track is the distance from the
 true position to the leg (a segment) while that leg is current; arrival is the distance to the
-waypoint when its MISSION_ITEM_REACHED arrives.
+waypoint when its MISSION_ITEM_REACHED arrives. Times are the ground station's: wall-clock
+seconds in real time, simulated seconds in virtual time.
 """
 
 from __future__ import annotations
 
 import math
-import selectors
-import time
-from collections.abc import Sequence
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 from mecanum_mav.app.companion import Companion
 from mecanum_mav.config.params import Params
 from mecanum_mav.control.pathfollow import Leg
-from mecanum_mav.io.links import Link, mavlink, open_link
+from mecanum_mav.io.links import mavlink
 from mecanum_mav.protocol.mission import MissionItem
 from mecanum_mav.protocol.modes import Mode
+from mecanum_mav.sim.board import SimState
+from mecanum_mav.sim.groundstation import ScriptedGroundStation, udp_ground_station
+from mecanum_mav.sim.lockstep import Lockstep
 from mecanum_mav.sim.simfc import SimFlightController
 
-__all__ = ["DemoResult", "LegReport", "ScriptedGroundStation", "demo_mission", "run_demo"]
+__all__ = ["DemoResult", "LegReport", "demo_mission", "plot_demo", "run_demo"]
 
 Vec = tuple[float, float]
+WATCH_PERIOD_S = 0.02
+"""The ground station looks at the rover at least this often while the mission runs."""
 
 
 def demo_mission(side_m: float) -> tuple[list[MissionItem], list[Vec]]:
@@ -49,81 +58,6 @@ def demo_mission(side_m: float) -> tuple[list[MissionItem], list[Vec]]:
                                  mavlink.MAV_CMD_NAV_WAYPOINT, param4=math.nan,
                                  x=round(n * 1e4), y=round(e * 1e4)))
     return items, points
-
-
-class ScriptedGroundStation:
-    """A minimal ground station on a pymavlink link: mission upload, arming, modes.
-
-    The client side of the mission protocol: it answers each request the vehicle sends (also
-    re-requests) and, when the vehicle falls silent for the protocol's 1.5 s, starts again
-    with MISSION_COUNT.
-    """
-
-    def __init__(self, url: str = "udpin:127.0.0.1:0") -> None:
-        self.link: Link = open_link(url, source_system=255, source_component=190, name="gcs")
-        self._selector = selectors.DefaultSelector()
-        self._selector.register(self.link.fileno(), selectors.EVENT_READ)
-        self.inbox: list[Any] = []
-        self._next_beat = 0.0
-
-    @property
-    def url(self) -> str:
-        """The URL a vehicle uses to reach this ground station."""
-        return f"udpout:127.0.0.1:{self.link.local_port}"
-
-    def pump(self, timeout_s: float) -> list[Any]:
-        """Receive for up to ``timeout_s``; sends its own HEARTBEAT at 1 Hz."""
-        now = time.monotonic()
-        if now >= self._next_beat:
-            self.link.mav.heartbeat_send(mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID,
-                                         0, 0, mavlink.MAV_STATE_ACTIVE)
-            self._next_beat = now + 1.0
-        got = self.link.read() if self._selector.select(timeout_s) else []
-        self.inbox.extend(got)
-        return got
-
-    def wait(self, kind: str, timeout_s: float, predicate: Any = None) -> Any | None:
-        """The next message of ``kind`` (matching ``predicate``) within ``timeout_s``."""
-        deadline = time.monotonic() + timeout_s
-        while time.monotonic() < deadline:
-            for msg in self.pump(min(0.05, max(0.0, deadline - time.monotonic()))):
-                if msg.get_type() == kind and (predicate is None or predicate(msg)):
-                    return msg
-        return None
-
-    def upload(self, items: Sequence[MissionItem], timeout_s: float = 10.0) -> int:
-        """Upload a mission; returns the MISSION_ACK type (MAV_MISSION_ACCEPTED = 0)."""
-        mav = self.link.mav
-        mav.mission_count_send(1, 1, len(items), 0)
-        deadline = time.monotonic() + timeout_s
-        quiet_since = time.monotonic()
-        while time.monotonic() < deadline:
-            for msg in self.pump(0.05):
-                kind = msg.get_type()
-                if kind == "MISSION_ACK":
-                    return int(msg.type)
-                if kind in ("MISSION_REQUEST_INT", "MISSION_REQUEST") and msg.seq < len(items):
-                    it = items[msg.seq]
-                    mav.mission_item_int_send(1, 1, it.seq, it.frame, it.command, it.current,
-                                              it.autocontinue, it.param1, it.param2,
-                                              it.param3, it.param4, it.x, it.y, it.z, 0)
-                    quiet_since = time.monotonic()
-            if time.monotonic() - quiet_since > 1.5:  # the protocol's default timeout
-                mav.mission_count_send(1, 1, len(items), 0)
-                quiet_since = time.monotonic()
-        raise TimeoutError("mission upload: no MISSION_ACK")
-
-    def command(self, command: int, *params: float, timeout_s: float = 1.0) -> int | None:
-        """COMMAND_LONG to system 1; the COMMAND_ACK result, or None."""
-        p = [*params, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0][:7]
-        self.link.mav.command_long_send(1, 1, command, 0, *p)
-        ack = self.wait("COMMAND_ACK", timeout_s, lambda m: m.command == command)
-        return None if ack is None else int(ack.result)
-
-    def close(self) -> None:
-        """Close the link."""
-        self._selector.close()
-        self.link.close()
 
 
 @dataclass
@@ -165,51 +99,73 @@ class DemoResult:
         return "\n".join(rows)
 
 
-def run_demo(params: Params | None = None, side_m: float = 2.0,
-             timeout_s: float = 120.0) -> DemoResult:
+def run_demo(params: Params | None = None, side_m: float = 2.0, timeout_s: float = 120.0,
+             *, virtual: bool = False, dt_s: float = 0.002) -> DemoResult:
     """Run the demo mission in the simulator; returns the measurements.
+
+    Args:
+        params: parameters for the companion and the simulator (defaults if None).
+        side_m: side of the square, metres.
+        timeout_s: the mission must end within this long (the ground station's time).
+        virtual: run in the lockstep harness (virtual time, no sockets) instead of real time
+            on UDP loopback.
+        dt_s: the harness's time step with ``virtual``.
 
     Raises:
         RuntimeError: a step failed (upload refused, arming refused, mission not finished).
     """
     params = params or Params()
     items, points = demo_mission(side_m)
+    if virtual:
+        harness = Lockstep(params, dt_s=dt_s)
+        return _fly(harness.gcs, harness.truth, items, points, timeout_s)
     sim = SimFlightController("udpin:127.0.0.1:0", params)
     sim.start()
-    gcs = ScriptedGroundStation()
-    companion = Companion(params, gcs.url, f"udpout:127.0.0.1:{sim.local_port}")
+    gcs, port = udp_ground_station()
+    companion = Companion(params, port.url, f"udpout:127.0.0.1:{sim.local_port}")
     companion.start()
     try:
-        if gcs.wait("HEARTBEAT", 5.0, lambda m: m.get_srcSystem() == 1) is None:
-            raise RuntimeError("no heartbeat from the companion")
-        result = gcs.upload(items)
-        if result != mavlink.MAV_MISSION_ACCEPTED:
-            raise RuntimeError(f"mission upload refused (MISSION_ACK {result})")
-        deadline = time.monotonic() + 5.0
-        while gcs.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 1) != 0:
-            if time.monotonic() > deadline:
-                raise RuntimeError("arming refused")
-            gcs.pump(0.25)  # the flight controller's first heartbeat may be on its way
-        if gcs.command(mavlink.MAV_CMD_DO_SET_MODE, 1, Mode.AUTO) != 0:
-            raise RuntimeError("AUTO refused")
-        return _watch(sim, gcs, points, timeout_s)
+        return _fly(gcs, sim.snapshot, items, points, timeout_s)
     finally:
         companion.close()
         sim.stop()
-        gcs.close()
+        port.close()
 
 
-def _watch(sim: SimFlightController, gcs: ScriptedGroundStation, points: list[Vec],
+def _fly(gcs: ScriptedGroundStation, truth: Callable[[], SimState], items: list[MissionItem],
+         points: list[Vec], timeout_s: float) -> DemoResult:
+    """The ground station's script: upload, arm, AUTO, watch until HOLD."""
+    if gcs.wait("HEARTBEAT", lambda m: m.get_srcSystem() == 1, 5.0) is None:
+        raise RuntimeError("no heartbeat from the companion")
+    result = gcs.upload(items)
+    if result != mavlink.MAV_MISSION_ACCEPTED:
+        raise RuntimeError(f"mission upload refused (MISSION_ACK {result})")
+    # The companion arms once it hears the flight controller (its first heartbeat may still
+    # be on its way): wait for that rather than retry into a refusal.
+    if gcs.wait("STATUSTEXT", lambda m: m.text == "Flight controller link up", 5.0,
+                since=0) is None:
+        raise RuntimeError("no flight controller link")
+    try:
+        gcs.arm()
+    except RuntimeError:
+        raise RuntimeError("arming refused") from None
+    if gcs.set_mode(Mode.AUTO) != mavlink.MAV_RESULT_ACCEPTED:
+        raise RuntimeError("AUTO refused")
+    return _watch(gcs, truth, points, timeout_s)
+
+
+def _watch(gcs: ScriptedGroundStation, truth: Callable[[], SimState], points: list[Vec],
            timeout_s: float) -> DemoResult:
     planned = [(0.0, 0.0), *points]
     out = DemoResult([], planned)
     first_leg_seq = 2  # item 1 is the CONDITION_YAW
-    start_s = time.monotonic()
+    clock = gcs.port.now
+    start_s = clock()
     leg_start_s, leg_cross = start_s, 0.0
     deadline = start_s + timeout_s
-    while time.monotonic() < deadline:
-        messages = gcs.pump(0.02)
-        pose = sim.snapshot().pose
+    while clock() < deadline:
+        messages = gcs.pump(WATCH_PERIOD_S)
+        pose = truth().pose
         here = (pose.x_m, pose.y_m)
         out.true_path.append((pose.x_m, pose.y_m, pose.yaw_rad))
         out.max_yaw_deg = max(out.max_yaw_deg, abs(math.degrees(pose.yaw_rad)))
@@ -222,13 +178,13 @@ def _watch(sim: SimFlightController, gcs: ScriptedGroundStation, points: list[Ve
                 out.odometry_path.append((msg.x, msg.y))
             elif kind == "MISSION_ITEM_REACHED" and msg.seq >= first_leg_seq:
                 k = len(out.legs)
-                now = time.monotonic()
+                now = clock()
                 out.legs.append(LegReport(msg.seq, planned[k], planned[k + 1], now - leg_start_s,
                                           leg_cross, math.dist(here, planned[k + 1])))
                 leg_start_s, leg_cross = now, 0.0
             elif kind == "HEARTBEAT" and msg.get_srcSystem() == 1 and msg.custom_mode == Mode.HOLD:
                 if len(out.legs) == len(points):
-                    out.total_s = time.monotonic() - start_s
+                    out.total_s = clock() - start_s
                     return out
                 raise RuntimeError(f"the rover stopped after {len(out.legs)} legs")
     raise RuntimeError("the mission did not finish in time")

@@ -32,6 +32,8 @@ from mecanum_mav.protocol.modes import Mode
 __all__ = ["Autopilot"]
 
 _CONTROLLED = (Mode.GUIDED, Mode.AUTO)
+TIMER_SLACK_S = 1e-6
+"""A control tick due within this much counts as due (floating-point clocks)."""
 
 
 class Autopilot:
@@ -101,7 +103,7 @@ class Autopilot:
     def output(self, auto: bool, now_s: float, config: OutputConfig, priority: int,
                pwm: PwmMap) -> Output:
         """The wheel output in GUIDED (``auto`` False) or AUTO, ticked on the control grid."""
-        if self._held is not None and now_s < self._next_tick_s:
+        if self._held is not None and now_s < self._next_tick_s - TIMER_SLACK_S:
             return self._held  # between control ticks: hold
         period = config.control_period_s
         if self._held is None:  # a new grid starts now
@@ -121,4 +123,4 @@ class Autopilot:
 
     def next_due_s(self) -> float:
         """When the next control tick is due (inf while idle), monotonic seconds."""
-        return self._next_tick_s
+        return self._next_tick_s - TIMER_SLACK_S

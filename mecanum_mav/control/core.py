@@ -35,6 +35,7 @@ import logging
 import math
 from collections import OrderedDict
 from collections.abc import Callable, Sequence
+from dataclasses import replace
 from functools import partial
 from typing import Any, NamedTuple, Protocol
 
@@ -90,6 +91,8 @@ __all__ = ["COMPANION_COMPID", "NOTHING", "Outbox", "RcOverride", "RoverCore", "
 COMPANION_COMPID = 1
 """The companion's component id on the ground-station link (MAVSDK talks to component 1 only)."""
 HEARTBEAT_PERIOD_S = 1.0
+TIMER_SLACK_S = 1e-6
+"""Timers fall due this much early, so that a period is never missed by a rounding error."""
 STATUSTEXT_REPEAT_S = 1.0
 """The same rejection is reported at most once a second."""
 SAID_MEMORY = 64
@@ -162,6 +165,7 @@ class RoverCore:
                  storage: Storage | None = None,
                  link_errors: Callable[[], tuple[int, int]] = _no_link_errors) -> None:
         self.params = params
+        self._boot_sysid = int(params["SYSID_THISMAV"])
         self.storage = storage
         self.link_errors = link_errors
         self.boot_s = now_s
@@ -274,6 +278,8 @@ class RoverCore:
             wheels, pulses = _NEUTRAL_WHEELS, self.pwm.neutral()
         self._output_wheels = wheels
         if self._new_input or pulses != self.pulses_us or now_s >= self._next_output_s:
+            # (timers are set TIMER_SLACK_S early: a clock that adds in floating point,
+            # like the lockstep harness's, must not miss a period by 1e-17 s)
             return self._take(self._override(pulses, now_s))
         return self._take(None)
 
@@ -296,7 +302,7 @@ class RoverCore:
                                  failsafe=vehicle.failsafe)
             send_gcs_heartbeat(self.to_fc)
             self._send_mission_current()  # MISSION_CURRENT at 1 Hz, as ArduPilot
-            self._next_heartbeat_s = now_s + HEARTBEAT_PERIOD_S
+            self._next_heartbeat_s = now_s + HEARTBEAT_PERIOD_S - TIMER_SLACK_S
         if now_s >= self.mission.next_due_s():
             self.mission_link.tick(now_s)
             self._take_mission_events(now_s)
@@ -325,7 +331,8 @@ class RoverCore:
         """Re-read the parameter views the loop uses (after a parameter changed)."""
         p = self.params
         self.pwm = PwmMap.from_params(p)
-        self.identity = IdentityConfig.from_params(p)
+        # SYSID_THISMAV is reboot_required: the links keep the id they were opened with.
+        self.identity = replace(IdentityConfig.from_params(p), sysid=self._boot_sysid)
         self.input = InputConfig.from_params(p)
         self.output = OutputConfig.from_params(p)
         self.rc_input = RcInputConfig.from_params(p)
@@ -391,7 +398,7 @@ class RoverCore:
         self.pulses_us = pulses
         self._new_input = False
         self._autopilot_active = False
-        self._next_output_s = now_s + self.output.refresh_period_s
+        self._next_output_s = now_s + self.output.refresh_period_s - TIMER_SLACK_S
         identity = self.identity
         return _new_override((identity.fc_sysid, identity.fc_compid,
                               override_fields(self.pwm.channels, pulses)))

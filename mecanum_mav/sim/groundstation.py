@@ -62,6 +62,8 @@ class ScriptedGroundStation:
         self.target = target
         self.messages: list[Any] = []
         """Everything received, oldest first (index it with :meth:`mark`)."""
+        self.arrived_s: list[float] = []
+        """When each of :attr:`messages` was received, in the port's time (s)."""
         self.beating = True
         """Whether the HEARTBEAT goes out (clear it to test the vehicle's GCS failsafe)."""
         self._next_beat_s = -1.0
@@ -79,10 +81,17 @@ class ScriptedGroundStation:
             self._next_beat_s = now_s + HEARTBEAT_PERIOD_S
 
     def pump(self, timeout_s: float) -> list[Any]:
-        """Let up to ``timeout_s`` pass; returns (and records) what arrived."""
-        got = self.port.pump(timeout_s)
-        self.messages += got
-        return got
+        """Let up to ``timeout_s`` pass (less if something arrives); returns (and records)
+        what arrived."""
+        before = len(self.messages)
+        self.receive(self.port.pump(timeout_s), self.port.now())
+        return self.messages[before:]
+
+    def receive(self, messages: Sequence[Any], now_s: float) -> None:
+        """Record messages that arrived at ``now_s`` (ports that deliver call this)."""
+        if messages:
+            self.messages += messages
+            self.arrived_s += [now_s] * len(messages)
 
     def mark(self) -> int:
         """An index into :attr:`messages`: wait only for what arrives after this point."""
@@ -97,7 +106,7 @@ class ScriptedGroundStation:
              since: int | None = None) -> Any | None:
         """The first message of ``kind`` matching ``predicate`` from index ``since`` (default:
         from now on), waiting up to ``timeout_s`` of the port's time; None if none came."""
-        index = len(self.messages) if since is None else since
+        index = self.mark() if since is None else since
         deadline = self.port.now() + timeout_s
         while True:
             while index < len(self.messages):
@@ -107,6 +116,8 @@ class ScriptedGroundStation:
                     return msg
             remaining = deadline - self.port.now()
             if remaining <= 0.0:
+                if index < len(self.messages) or self.pump(0.0):
+                    continue  # arrived by the deadline: look at it first
                 return None
             self.pump(min(remaining, 0.05))
 
@@ -130,7 +141,9 @@ class ScriptedGroundStation:
             ack = self.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 1, timeout_s=0.5)
             if ack is not None and ack.result == mavlink.MAV_RESULT_ACCEPTED:
                 return
-            self.pump(0.2)
+            retry_s = self.port.now() + 0.2
+            while self.port.now() < retry_s:  # wait out the interval, not the first message
+                self.pump(retry_s - self.port.now())
         raise RuntimeError("the vehicle never accepted arming")
 
     def set_mode(self, mode: Mode, timeout_s: float = 1.0) -> int | None:

@@ -90,14 +90,14 @@ class _GcsPort:
         return self._harness.now_s
 
     def pump(self, timeout_s: float) -> list[Any]:
-        """Step until something reaches the ground station or ``timeout_s`` has passed."""
+        """Step until something reaches the ground station or ``timeout_s`` has passed (the
+        harness delivers into ``gcs.messages`` itself, so nothing is returned here)."""
         h = self._harness
         end = h.now_s + timeout_s
-        got = h._take_gcs_inbox()
-        while not got and h.now_s < end - 1e-12:
+        count = len(h.gcs.messages)
+        while len(h.gcs.messages) == count and h.now_s < end - 1e-12:
             h.step()
-            got = h._take_gcs_inbox()
-        return got
+        return []
 
 
 class Lockstep:
@@ -131,7 +131,6 @@ class Lockstep:
         """Everything else the board received from the core (its HEARTBEATs)."""
         self.on_step: list[Callable[[float], None]] = []
         """Called with the time at the start of every step (a test's periodic sender)."""
-        self._gcs_inbox: list[Any] = []
 
     # ------------------------------------------------------------------ time
 
@@ -226,12 +225,8 @@ class Lockstep:
             self._core_to_fc.sender.send(msg)
         for msg in out.gcs:
             self._core_to_gcs.sender.send(msg)
-        if out.gcs:
-            self._gcs_inbox += self._core_to_gcs.deliver()
-
-    def _take_gcs_inbox(self) -> list[Any]:
-        got, self._gcs_inbox = self._gcs_inbox, []
-        return got
+        if out.gcs:  # the ground station has it at once (gcs.messages, gcs.arrived_s)
+            self.gcs.receive(self._core_to_gcs.deliver(), self.now_s)
 
     def _log_fc(self, messages: list[Any], now: float) -> None:
         for msg in messages:
