@@ -20,20 +20,24 @@ counters (:class:`~mecanum_mav.io.links.Link`), which the virtual wire does not 
 from __future__ import annotations
 
 import math
+import socket
 import time
 from collections.abc import Callable
 from itertools import pairwise
 
 import pytest
-from conftest import Rig, lockstep
-from mavpeers import channels
+from conftest import lockstep
 
+from mecanum_mav.app.companion import Companion
+from mecanum_mav.config.params import Params
 from mecanum_mav.control.core import SAID_MEMORY
 from mecanum_mav.io.links import mavlink
 from mecanum_mav.protocol.modes import Mode
 from mecanum_mav.protocol.rcoverride import override_fields, release_fields
 from mecanum_mav.protocol.statustext import Severity
+from mecanum_mav.sim.groundstation import udp_ground_station
 from mecanum_mav.sim.lockstep import Lockstep, OverrideSeen
+from mecanum_mav.sim.simfc import SimFlightController
 
 ARM = mavlink.MAV_CMD_COMPONENT_ARM_DISARM
 SET_MODE = mavlink.MAV_CMD_DO_SET_MODE
@@ -681,31 +685,44 @@ def test_sys_status_errors_comm_counts_malformed_packets(harness):
 # --------------------------------------------------------------------------- real sockets
 
 
-def test_the_companion_shell_counts_junk_datagrams_per_link_and_keeps_driving(rig: Rig):
+def test_the_companion_shell_counts_junk_datagrams_per_link_and_keeps_driving():
     """The shell's own I/O: real datagrams through Link.read, counted per link, in SYS_STATUS."""
-    rig.gcs.mav.heartbeat_send(6, 8, 0, 0, 4)
-    good = rig.gcs.link.conn.mav.command_long_encode(1, 1, ARM, 0, 1, 0, 0, 0, 0, 0, 0)
-    packet = bytes(good.pack(rig.gcs.link.conn.mav))
-    blobs = [bytes(range(256)), b"\xfd" * 300, packet[:7], packet[:-3], b"\xfd\x09\x00\x00",
-             packet[:10] + b"\x00" * 50] * JUNK_SETS
-    for peer in (rig.gcs, rig.fc):
-        for address in list(peer.link.conn.clients):
+    gcs, port = udp_ground_station()
+    sim = SimFlightController("udpin:127.0.0.1:0", Params())
+    sim.start()
+    companion = Companion(Params(), port.url, f"udpout:127.0.0.1:{sim.local_port}")
+    companion.start()
+    junk = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    try:
+        assert gcs.wait("STATUSTEXT", lambda m: "Flight controller link up" in m.text, 5.0)
+        good = gcs.mav.command_long_encode(1, 1, ARM, 0, 1, 0, 0, 0, 0, 0, 0)
+        packet = bytes(good.pack(mavlink.MAVLink(None, 255, 190)))
+        blobs = [bytes(range(256)), b"\xfd" * 300, packet[:7], packet[:-3], b"\xfd\x09\x00\x00",
+                 packet[:10] + b"\x00" * 50] * JUNK_SETS
+        for link in (companion.gcs, companion.fc):
             for blob in blobs:
-                peer.link.conn.port.sendto(blob, address)
-    c = rig.companion
-    deadline = time.monotonic() + 5.0
-    while (c.gcs.bad < len(blobs) or c.fc.bad < len(blobs)) and time.monotonic() < deadline:
-        rig.gcs.pump(0.05)
-    assert c.gcs.bad >= len(blobs) and c.fc.bad >= len(blobs), (c.gcs.bad, c.fc.bad)
-    since = rig.gcs.mark()
-    ack = rig.command(mavlink.MAV_CMD_REQUEST_MESSAGE, mavlink.MAVLINK_MSG_ID_SYS_STATUS)
-    assert ack.result == ACCEPTED
-    status = rig.gcs.wait("SYS_STATUS", timeout_s=1.0, since=since)
-    # both links' counters, through the shell's link_errors
-    assert status.errors_comm == c.gcs.bad + c.fc.bad + c.gcs.send_errors + c.fc.send_errors
-    rig.arm()
-    deadline = time.monotonic() + 2.0
-    msg = None
-    while msg is None and time.monotonic() < deadline:
-        msg = rig.wait_override(lambda ch: ch[:4] == FORWARD, rig.sticks(1000), 0.1)
-    assert msg is not None and channels(msg)[:4] == FORWARD
+                junk.sendto(blob, ("127.0.0.1", link.local_port))
+        c = companion
+        deadline = time.monotonic() + 5.0
+        while (c.gcs.bad < len(blobs) or c.fc.bad < len(blobs)) and time.monotonic() < deadline:
+            gcs.pump(0.05)
+        assert c.gcs.bad >= len(blobs) and c.fc.bad >= len(blobs), (c.gcs.bad, c.fc.bad)
+        since = gcs.mark()
+        ack = gcs.command(mavlink.MAV_CMD_REQUEST_MESSAGE, mavlink.MAVLINK_MSG_ID_SYS_STATUS)
+        assert ack is not None and ack.result == ACCEPTED
+        status = gcs.wait("SYS_STATUS", timeout_s=1.0, since=since)
+        # both links' counters, through the shell's link_errors
+        assert status.errors_comm == c.gcs.bad + c.fc.bad + c.gcs.send_errors + c.fc.send_errors
+        gcs.arm()
+        forward = None
+        deadline = time.monotonic() + 2.0
+        while forward is None and time.monotonic() < deadline:
+            gcs.sticks(1000)
+            forward = sim.wait_for(lambda s: [s.channel_pwm.get(ch) for ch in (1, 2, 3, 4)]
+                                   == FORWARD, 0.1)
+        assert forward is not None
+    finally:
+        junk.close()
+        companion.close()
+        sim.stop()
+        port.close()
