@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 from conftest import lockstep
 
-from mecanum_mav.app.companion import FileStorage
 from mecanum_mav.config.params import Params
 from mecanum_mav.io.links import mavlink
+from mecanum_mav.io.storage import FileStorage
 from mecanum_mav.params import SCHEMA, load
 from mecanum_mav.protocol.mission import MissionItem
 from mecanum_mav.sim.lockstep import Lockstep

@@ -19,63 +19,24 @@ reported in SYS_STATUS ``errors_comm``; it never stops the loop.
 from __future__ import annotations
 
 import contextlib
-import logging
 import os
 import selectors
 import threading
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from pathlib import Path
 from typing import BinaryIO
 
 from mecanum_mav.config.params import Params
 from mecanum_mav.control.core import COMPANION_COMPID, NOTHING, Outbox, RoverCore
 from mecanum_mav.io.links import Link, open_link
-from mecanum_mav.io.missionfile import (
-    MissionFileError,
-    load_mission,
-    mission_path_for,
-    save_mission,
-)
-from mecanum_mav.io.paramfile import save
-from mecanum_mav.protocol.mission import MissionItem
+from mecanum_mav.io.storage import FileStorage
 from mecanum_mav.protocol.statustext import Severity
 
-log = logging.getLogger(__name__)
-
-__all__ = ["Companion", "FileStorage"]
+__all__ = ["Companion"]
 
 FC_LINK_COMPID = 190
 """MAV_COMP_ID_MISSIONPLANNER: the companion is a ground station on the flight-controller link."""
-
-
-class FileStorage:
-    """Keeps accepted parameters in the ``--params`` file and the mission beside it
-    (``rover.parm`` -> ``rover.waypoints``), both written atomically."""
-
-    def __init__(self, param_path: Path) -> None:
-        self.param_path = param_path
-        self.mission_path = mission_path_for(param_path)
-
-    def save_params(self, params: Params) -> None:
-        """Write every parameter to the parameter file."""
-        save(params, self.param_path)
-
-    def save_mission(self, items: Sequence[MissionItem]) -> None:
-        """Write the mission file."""
-        save_mission(items, self.mission_path)
-
-    def load_mission(self) -> tuple[list[MissionItem], str]:
-        """The stored mission (empty if none) and, if the file is unreadable, why."""
-        if not self.mission_path.exists():
-            return [], ""
-        try:
-            items = load_mission(self.mission_path)
-        except (MissionFileError, OSError) as exc:
-            log.error("mission not loaded: %s", exc)  # the file is left as it is
-            return [], f"Mission file unreadable: {self.mission_path.name}"
-        log.info("mission of %d items loaded from %s", len(items), self.mission_path)
-        return items, ""
 
 
 class Companion:
