@@ -45,6 +45,7 @@ from mecanum_mav.control.autopilot import Autopilot
 from mecanum_mav.control.chain import Output, manual_output
 from mecanum_mav.control.estimator import WheelOdometryEstimator
 from mecanum_mav.control.guided import SetpointError, decode_setpoint
+from mecanum_mav.control.missions import MissionControl
 from mecanum_mav.control.pwm import PwmMap
 from mecanum_mav.control.sticks import InputError, RcStickState, stick_from_manual_control
 from mecanum_mav.control.vehicle import Decision, Vehicle
@@ -69,8 +70,7 @@ from mecanum_mav.protocol.messages import (
     WheelDistanceMsg,
 )
 from mecanum_mav.protocol.mission import MissionItem
-from mecanum_mav.protocol.missionlink import MISSION_MESSAGES, MissionLink
-from mecanum_mav.protocol.missionservice import MissionService
+from mecanum_mav.protocol.missionlink import MISSION_MESSAGES
 from mecanum_mav.protocol.modes import Mode
 from mecanum_mav.protocol.outbox import MessageOutbox
 from mecanum_mav.protocol.paramservice import RESTART_REQUIRED, ParamService, ParamValue
@@ -178,9 +178,9 @@ class RoverCore:
         self.vehicle = Vehicle(params, hooks=self)
         self.streams = StreamSchedule(params)
         self.rc_sticks = RcStickState()
-        self.mission = MissionService(mission)
-        self.mission_link = MissionLink(self.mission, self.to_gcs, self._for_us)
-        self.autopilot.executor.load(mission)
+        self.mission = MissionControl(mission, self.to_gcs, self._for_us, self.vehicle,
+                                      self.autopilot.executor, lambda: self.estimator.pose,
+                                      self.say, storage)
         self.origin_set: GlobalOrigin | None = None
         """The global origin from SET_GPS_GLOBAL_ORIGIN (overrides ORIGIN_LAT/LON)."""
         self.stick = (0.0, 0.0, 0.0)
@@ -226,8 +226,8 @@ class RoverCore:
             mavlink.MAV_CMD_SET_MESSAGE_INTERVAL: self._cmd_set_message_interval,
             mavlink.MAV_CMD_GET_MESSAGE_INTERVAL: self._cmd_get_message_interval,
             mavlink.MAV_CMD_REQUEST_MESSAGE: self._cmd_request_message,
-            mavlink.MAV_CMD_DO_SET_MISSION_CURRENT: self._cmd_set_mission_current,
-            mavlink.MAV_CMD_MISSION_START: self._cmd_mission_start,
+            mavlink.MAV_CMD_DO_SET_MISSION_CURRENT: self.mission.cmd_set_current,
+            mavlink.MAV_CMD_MISSION_START: self.mission.cmd_start,
             mavlink.MAV_CMD_DO_SET_HOME: self._cmd_set_home,
         }
         self.reconfigure()
@@ -301,13 +301,9 @@ class RoverCore:
             send_rover_heartbeat(self.to_gcs, vehicle.mode, armed=vehicle.armed,
                                  failsafe=vehicle.failsafe)
             send_gcs_heartbeat(self.to_fc)
-            self._send_mission_current()  # MISSION_CURRENT at 1 Hz, as ArduPilot
+            self.mission.send_current()  # MISSION_CURRENT at 1 Hz, as ArduPilot
             self._next_heartbeat_s = now_s + HEARTBEAT_PERIOD_S - TIMER_SLACK_S
-        if now_s >= self.mission.next_due_s():
-            self.mission_link.tick(now_s)
-            self._take_mission_events(now_s)
-        if self.autopilot.executor.has_events:
-            self._take_executor_events(now_s)
+        self.mission.tick(now_s)
         if self.vehicle.has_events:
             for severity, text in self.vehicle.take_events():
                 self.say(severity, text)
@@ -539,21 +535,6 @@ class RoverCore:
         build(name, self.to_gcs, self._telemetry_state(now_s))
         return Result.ACCEPTED
 
-    def _cmd_set_mission_current(self, p: tuple[float, ...], now_s: float) -> Result:
-        executor = self.autopilot.executor
-        if p[1] == 1.0:  # param2 = 1: reset the mission (DO_JUMP counters, start over)
-            executor.restart()
-        if not (math.isfinite(p[0]) and p[0] >= -1):
-            return Result.DENIED
-        seq = executor.current if p[0] == -1 else int(p[0])
-        return self._set_mission_current(seq, now_s)
-
-    def _cmd_mission_start(self, p: tuple[float, ...], now_s: float) -> Result:
-        if math.isfinite(p[0]) and p[0] >= 1 and self._set_mission_current(
-                int(p[0]), now_s) != Result.ACCEPTED:
-            return Result.DENIED
-        return self._result(self.vehicle.request_mode(Mode.AUTO, now_s))
-
     def _cmd_set_home(self, p: tuple[float, ...], now_s: float) -> Result:
         if p[0] != 1.0:
             self.say(Severity.WARNING, "Set home: only 'use current position' (param1=1)")
@@ -631,46 +612,11 @@ class RoverCore:
 
     def _on_mission_message(self, msg: Received, now_s: float) -> None:
         if self._from_pilot(msg):
-            self.mission_link.handle(msg, now_s)
-            self._take_mission_events(now_s)
-
-    def _take_mission_events(self, now_s: float) -> None:
-        for kind, text in self.mission.take_events():
-            if kind == "error":
-                self.say(Severity.WARNING, text)
-            else:
-                self._mission_replaced(now_s)
-
-    def _mission_replaced(self, now_s: float) -> None:
-        """A new mission was accepted (or the mission was cleared): run it, keep it."""
-        items = self.mission.items
-        executor = self.autopilot.executor
-        was_running = executor.running
-        executor.pause()
-        executor.load(items)
-        self._send_mission_current()
-        if self.vehicle.mode is Mode.AUTO and not executor.has_mission:
-            self.say(Severity.WARNING, "Mission cleared: HOLD")
-            self.vehicle.request_mode(Mode.HOLD, now_s)
-        elif was_running:
-            self.say(Severity.NOTICE, f"New mission: continuing at item {executor.current}")
-        if self.storage is not None:
-            try:
-                self.storage.save_mission(items)
-            except OSError as exc:
-                self.say(Severity.ERROR, f"Mission save failed: {exc.strerror}")
-
-    def _set_mission_current(self, seq: int, now_s: float) -> Result:
-        reason = self.autopilot.executor.set_current(seq, self.estimator.pose, now_s)
-        if reason is not None:
-            self.say(Severity.WARNING, f"Set current item refused: {reason}")
-            return Result.DENIED
-        self._take_executor_events(now_s)
-        return Result.ACCEPTED
+            self.mission.on_message(msg, now_s)
 
     def _on_mission_set_current(self, msg: MissionSetCurrentMsg, now_s: float) -> None:
         if self._for_us(msg.target_system, msg.target_component) and self._from_pilot(msg):
-            self._set_mission_current(msg.seq, now_s)  # answered by MISSION_CURRENT
+            self.mission.on_set_current(msg, now_s)
 
     def _on_set_origin(self, msg: OriginMsg, now_s: float) -> None:
         if not (self._for_us(msg.target_system) and self._from_pilot(msg)):
@@ -684,20 +630,3 @@ class RoverCore:
         self.to_gcs.gps_global_origin_send(origin.lat_e7, origin.lon_e7, origin.alt_mm,
                                            int((now_s - self.boot_s) * 1e6))
         self.say(Severity.INFO, f"Origin {origin.lat_e7 / 1e7:.7f} {origin.lon_e7 / 1e7:.7f}")
-
-    def _take_executor_events(self, now_s: float) -> None:
-        for event in self.autopilot.executor.take_events():
-            if event.kind == "current":
-                self._send_mission_current()
-            elif event.kind == "reached":
-                self.mission_link.reached_send(event.seq)
-            elif event.kind == "say":
-                self.say(event.severity, event.text)
-            elif event.kind == "finished":
-                self.vehicle.request_mode(Mode.HOLD, now_s)
-
-    def _send_mission_current(self) -> None:
-        ex = self.autopilot.executor
-        total = len(ex.items) - 1 if ex.has_mission else 0xFFFF
-        self.mission_link.current_send(ex.current, total, ex.state,
-                                       self.vehicle.mode is Mode.AUTO)
