@@ -76,7 +76,7 @@ def _number(fields: dict[str, object], key: str, default: float | None = None) -
     if raw is None or raw == "":
         return default
     try:
-        value = float(raw)  # type: ignore[arg-type]
+        value = float(raw)  # type: ignore[arg-type]  # any object: TypeError is caught
     except (TypeError, ValueError):
         raise CommandError(f"{key}: not a number: {raw!r}") from None
     if not math.isfinite(value):

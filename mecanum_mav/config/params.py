@@ -116,7 +116,7 @@ def float32_canonical(x: float) -> float:
     ``float32_canonical(float32(v)) == v`` for every value it returns.
     Raises ``OverflowError`` outside float32's range.
     """
-    single = _FLOAT32.unpack(_FLOAT32.pack(x))[0]
+    single: float = _FLOAT32.unpack(_FLOAT32.pack(x))[0]
     for digits in range(1, 10):
         shortest = float(format(single, f".{digits}g"))
         if _FLOAT32.unpack(_FLOAT32.pack(shortest))[0] == single:
@@ -186,7 +186,7 @@ class ParamSpec:
         if self.values is not None:
             if self.kind is not int:
                 return "an enumeration must be of kind int"
-            if set(self.values) != set(range(self.minimum, self.maximum + 1)):
+            if set(self.values) != set(range(int(self.minimum), int(self.maximum) + 1)):
                 return "enumeration labels must cover minimum .. maximum exactly"
         return None
 
@@ -820,7 +820,7 @@ def markdown_table() -> str:
     for s in SCHEMA:
         default = s.format(s.default)
         if s.values is not None:
-            default += f" ({s.values[s.default]})"
+            default += f" ({s.values[int(s.default)]})"
         cells = (f"`{s.name}`", default, s.range_text(units=False), s.units, s.description)
         rows.append("| " + " | ".join(c.replace("|", "\\|") for c in cells) + " |")
     return "\n".join(rows) + "\n"

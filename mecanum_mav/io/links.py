@@ -84,7 +84,7 @@ class Link:
         """The bound local UDP/TCP port (useful after binding port 0), else None."""
         sock = getattr(self.conn, "port", None)
         try:
-            return int(sock.getsockname()[1])  # type: ignore[union-attr]
+            return int(sock.getsockname()[1])  # type: ignore[union-attr]  # None: caught
         except (AttributeError, OSError, TypeError, IndexError):
             return None
 

@@ -111,12 +111,14 @@ class MecanumKinematics:
     def matrix(self) -> FloatArray:
         """Copy of the 4x3 inverse-kinematics matrix (rows FL, FR, RL, RR; columns vx,
         vy, yaw rate) for a centre of rotation at the robot centre: wheels = M @ chassis."""
-        return self._matrix.copy()
+        matrix: FloatArray = self._matrix.copy()
+        return matrix
 
     @property
     def pseudo_inverse(self) -> FloatArray:
         """Copy of the 3x4 Moore-Penrose pseudo-inverse of :attr:`matrix`."""
-        return self._pinv_t.T.copy()
+        pinv: FloatArray = self._pinv_t.T.copy()
+        return pinv
 
     def __repr__(self) -> str:
         """Constructor-style representation with the wheel positions in metres."""
@@ -195,7 +197,7 @@ class MecanumKinematics:
                 ),
                 axis=-1,
             )
-            wheels = chassis @ self._matrix.T
+            wheels: FloatArray = chassis @ self._matrix.T
         bad = ~np.isfinite(wheels).all(axis=-1)
         if bad.any():
             wheels[bad] = 0.0

@@ -128,7 +128,8 @@ def desaturate(wheels: ArrayLike, limit: float = 1.0) -> Wheels:
     limit = _check_limit(limit)
     w = _zero_nonfinite_rows(np.asarray(wheels, dtype=np.float64))
     peak = np.abs(w).max(axis=-1, keepdims=True)
-    return w * (limit / np.maximum(peak, limit))
+    scaled: Wheels = w * (limit / np.maximum(peak, limit))
+    return scaled
 
 
 def normalize(wheels: ArrayLike, always: bool = False) -> Wheels:
@@ -148,7 +149,8 @@ def normalize(wheels: ArrayLike, always: bool = False) -> Wheels:
         return desaturate(wheels, 1.0)
     w = _zero_nonfinite_rows(np.asarray(wheels, dtype=np.float64))
     peak = np.abs(w).max(axis=-1, keepdims=True)
-    return np.divide(w, peak, out=np.zeros_like(w), where=peak > 0.0)
+    normalized: Wheels = np.divide(w, peak, out=np.zeros_like(w), where=peak > 0.0)
+    return normalized
 
 
 def desaturate_prioritized(
@@ -191,7 +193,8 @@ def desaturate_prioritized(
     with np.errstate(over="ignore"):  # a subnormal |other| gives an infinite bound: fine
         bound = np.divide(room, magnitude, out=np.full_like(room, np.inf), where=magnitude > 0)
     s = np.clip(bound.min(axis=-1, keepdims=True), 0.0, 1.0)
-    return kept + s * other
+    result: Wheels = kept + s * other
+    return result
 
 
 # --------------------------------------------------------------------------- scalar core
@@ -344,7 +347,7 @@ def cartesian(
     """
     if _is_scalar(x, y, rotation, heading_deg):
         return np.array(_cartesian_scalar(
-            float(x), float(y), float(rotation), float(heading_deg), priority))  # type: ignore[arg-type]
+            float(x), float(y), float(rotation), float(heading_deg), priority))  # type: ignore[arg-type]  # _is_scalar
     xa, ya, ra, ha = _as_float(x, y, rotation, heading_deg)
     ok = _finite_mask(xa, ya, ra, ha)
     xa, ya = _clip1(xa), _clip1(ya)
@@ -379,12 +382,12 @@ def polar_2011(
         ``[..., 4]`` wheel commands FL, FR, RL, RR in [-1, 1].
     """
     if _is_scalar(magnitude, direction_deg, rotation):
-        m, d, r = float(magnitude), float(direction_deg), float(rotation)  # type: ignore[arg-type]
+        m, d, r = float(magnitude), float(direction_deg), float(rotation)  # type: ignore[arg-type]  # _is_scalar
         return np.array(_polar_2011_scalar(m, d, r, priority))
     ma, da, ra = _as_float(magnitude, direction_deg, rotation)
     ok = _finite_mask(ma, da, ra)
-    ma, d = _clip1(ma), np.radians(np.where(ok, da, 0.0))
-    x, y = ma * np.cos(d), ma * np.sin(d)
+    ma, dr = _clip1(ma), np.radians(np.where(ok, da, 0.0))
+    x, y = ma * np.cos(dr), ma * np.sin(dr)
     return _mix_vector(x + y, x - y, _clip1(ra), ok, priority)
 
 
@@ -413,12 +416,12 @@ def max_speed_scaled(
         ``[..., 4]`` wheel commands FL, FR, RL, RR in [-1, 1].
     """
     if _is_scalar(magnitude, direction_deg, rotation):
-        m, d, r = float(magnitude), float(direction_deg), float(rotation)  # type: ignore[arg-type]
+        m, d, r = float(magnitude), float(direction_deg), float(rotation)  # type: ignore[arg-type]  # _is_scalar
         return np.array(_max_speed_scaled_scalar(m, d, r, priority))
     ma, da, ra = _as_float(magnitude, direction_deg, rotation)
     ok = _finite_mask(ma, da, ra)
-    d = np.radians(np.where(ok, da, 0.0))
-    c, s = np.cos(d), np.sin(d)
+    dr = np.radians(np.where(ok, da, 0.0))
+    c, s = np.cos(dr), np.sin(dr)
     a, b = c + s, c - s
     k = _clip1(ma) / np.maximum(np.abs(a), np.abs(b))
     return _mix_vector(a * k, b * k, _clip1(ra), ok, priority)
@@ -442,15 +445,15 @@ def holonomic_2010(magnitude: ArrayLike, direction_deg: ArrayLike, rotation: Arr
         ``[..., 4]`` wheel commands FL, FR, RL, RR, each clipped to [-1, 1].
     """
     if _is_scalar(magnitude, direction_deg, rotation):
-        m, d, r = float(magnitude), float(direction_deg), float(rotation)  # type: ignore[arg-type]
+        m, d, r = float(magnitude), float(direction_deg), float(rotation)  # type: ignore[arg-type]  # _is_scalar
         return np.array(_holonomic_2010_scalar(m, d, r))
     ma, da, ra = _as_float(magnitude, direction_deg, rotation)
     ok = _finite_mask(ma, da, ra)
-    m = np.where(ok, _clip1(ma), 0.0) * _INV_SQRT2
-    d = np.radians(np.where(ok, da, 0.0))
-    r = np.where(ok, _clip1(ra), 0.0)
-    a, b = m * (np.cos(d) + np.sin(d)), m * (np.cos(d) - np.sin(d))
-    return _clip1(np.stack((a + r, b - r, b + r, a - r), axis=-1))
+    mv = np.where(ok, _clip1(ma), 0.0) * _INV_SQRT2
+    dr = np.radians(np.where(ok, da, 0.0))
+    rv = np.where(ok, _clip1(ra), 0.0)
+    a, b = mv * (np.cos(dr) + np.sin(dr)), mv * (np.cos(dr) - np.sin(dr))
+    return _clip1(np.stack((a + rv, b - rv, b + rv, a - rv), axis=-1))
 
 
 def chassis_from_wheels(wheels: ArrayLike) -> NDArray[np.float64]:
@@ -525,7 +528,7 @@ def wheels_from_stick(
     direction_deg = math.degrees(math.atan2(y, x)) - heading_deg
     if scalar is _holonomic_2010_scalar:
         return _holonomic_2010_scalar(magnitude, direction_deg, rotation)
-    return scalar(magnitude, direction_deg, rotation, priority)  # type: ignore[call-arg]
+    return scalar(magnitude, direction_deg, rotation, priority)
 
 
 _POLAR_SCALAR: dict[str, Callable[..., WheelTuple]] = {

@@ -39,13 +39,13 @@ def deadband(value: ArrayLike, deadband: float, max_magnitude: float = 1.0) -> F
         raise ValueError(f"deadband must be in [0, {max_magnitude}), got {deadband!r}")
     gain = max_magnitude / (max_magnitude - deadband)
     if type(value) in _SCALAR_TYPES:
-        v = float(value)  # type: ignore[arg-type]
+        v = float(value)  # type: ignore[arg-type]  # type() checked
         if abs(v) <= deadband:
             return 0.0
         return math.copysign((abs(v) - deadband) * gain, v)
-    v = np.asarray(value, dtype=np.float64)
-    magnitude = np.abs(v)
-    return np.where(magnitude <= deadband, 0.0, np.sign(v) * (magnitude - deadband) * gain)
+    a = np.asarray(value, dtype=np.float64)
+    magnitude = np.abs(a)
+    return np.where(magnitude <= deadband, 0.0, np.sign(a) * (magnitude - deadband) * gain)
 
 
 def expo(value: ArrayLike, expo: float) -> FloatOrArray:
@@ -64,10 +64,10 @@ def expo(value: ArrayLike, expo: float) -> FloatOrArray:
     if not 0.0 <= expo <= 1.0:
         raise ValueError(f"expo must be in [0, 1], got {expo!r}")
     if type(value) in _SCALAR_TYPES:
-        v = float(value)  # type: ignore[arg-type]
+        v = float(value)  # type: ignore[arg-type]  # type() checked
         return (1.0 - expo) * v + expo * v * v * v
-    v = np.asarray(value, dtype=np.float64)
-    return (1.0 - expo) * v + expo * v**3
+    a = np.asarray(value, dtype=np.float64)
+    return (1.0 - expo) * a + expo * a**3
 
 
 def square_to_circle(x: ArrayLike, y: ArrayLike) -> tuple[FloatOrArray, FloatOrArray]:
@@ -81,7 +81,7 @@ def square_to_circle(x: ArrayLike, y: ArrayLike) -> tuple[FloatOrArray, FloatOrA
         ``(x, y)`` as floats for float input, arrays for array input. Normalized, FRD.
     """
     if type(x) in _SCALAR_TYPES and type(y) in _SCALAR_TYPES:
-        fx, fy = float(x), float(y)  # type: ignore[arg-type]
+        fx, fy = float(x), float(y)  # type: ignore[arg-type]  # type() checked
         length = math.hypot(fx, fy)
         return (fx / length, fy / length) if length > 1.0 else (fx, fy)
     xa, ya = np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64)

@@ -17,12 +17,14 @@ takes pymavlink's general path, which also counts the bad ones.
 from __future__ import annotations
 
 import struct
+from collections.abc import Callable
 from typing import Any
 
 from mecanum_mav.protocol.dialect import mavlink
 
 __all__ = ["ManualControl", "decode_manual_control", "encode_rc_override"]
 
+_mcrf4xx: Callable[[bytes, int], int] | None
 try:  # pymavlink's fast CRC; the same function its x25crc uses when available
     from fastcrc.crc16 import mcrf4xx as _mcrf4xx
 except ImportError:  # pragma: no cover - pymavlink depends on fastcrc
@@ -121,6 +123,6 @@ def encode_rc_override(mav: Any, target_system: int, target_component: int,
     seq = mav.seq
     header = _HEADER.pack(_MAGIC, length, 0, 0, seq, mav.srcSystem, mav.srcComponent,
                           _OVERRIDE_ID & 0xFFFF, _OVERRIDE_ID >> 16)
-    body = header + payload[:length]
+    body: bytes = header + payload[:length]
     mav.seq = (seq + 1) % 256
     return body + _CRC.pack(_crc(body[1:], _OVERRIDE_CRC_EXTRA))

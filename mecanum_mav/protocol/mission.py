@@ -121,7 +121,7 @@ def command_name(command: int) -> str:
     entry = mavlink.enums["MAV_CMD"].get(command)
     if entry is None or entry.name.endswith("ENUM_END"):
         return f"command {command}"
-    return entry.name.removeprefix("MAV_CMD_")
+    return str(entry.name).removeprefix("MAV_CMD_")
 
 
 def xy_scale(frame: int) -> float:

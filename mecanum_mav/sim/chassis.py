@@ -169,7 +169,8 @@ class SimChassis:
         """This step's ground-speed factor of each wheel, ``1 + N(0, slip)``."""
         if self._slip == 0.0:
             return [1.0, 1.0, 1.0, 1.0]
-        return (1.0 + self._rng.normal(0.0, self._slip, 4)).tolist()
+        factors: list[float] = (1.0 + self._rng.normal(0.0, self._slip, 4)).tolist()
+        return factors
 
     def _move(self, dt_s: float, ground_mps: list[float]) -> None:
         """Move the true pose along the exact arc of these mean ground speeds (m/s)."""
