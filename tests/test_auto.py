@@ -5,24 +5,31 @@ from __future__ import annotations
 
 import itertools
 import math
+from itertools import pairwise
 
 import pytest
 from missionpeer import JUMP, LOITER, RTL, SPEED, YAW, do, local_wp, renumber
 
 from mecanum_mav.config.params import Params
+from mecanum_mav.control.chain import autonomous_output
 from mecanum_mav.control.executor import MissionExecutor
 from mecanum_mav.control.guided import GuidedController
 from mecanum_mav.control.pathfollow import Leg, LegFollower, corner_speed, sqrt_controller
+from mecanum_mav.control.pwm import PwmMap
 from mecanum_mav.io.links import mavlink
-from mecanum_mav.mecanum.geometry import Pose2d, body_to_ned
+from mecanum_mav.mecanum.geometry import Pose2d, wrap_pi
+from mecanum_mav.mecanum.kinematics import MecanumKinematics
 from mecanum_mav.protocol.mission import MissionItem
+from mecanum_mav.sim.chassis import SimChassis
 
 HOME = local_wp(0, 0.0, 0.0)
-DT, TAU = 0.02, 0.08
+DT = 0.02
 
 
 class Run:
-    """Executor + GUIDED layer + first-order-lag rover, stepped at 50 Hz."""
+    """The companion's autonomous chain (executor -> GUIDED -> kinematics -> desaturation ->
+    PWM, :func:`~mecanum_mav.control.chain.autonomous_output`) driving the simulated chassis
+    (first-order motor lag), stepped at 50 Hz with the true pose as odometry."""
 
     def __init__(self, items, pose=None, **values):
         pose = pose or Pose2d(0.0, 0.0, 0.0)
@@ -31,22 +38,24 @@ class Run:
         self.ex = MissionExecutor(self.params)
         self.guided = GuidedController(self.params)
         self.ex.load(renumber(items))
-        self.pose, self.v, self.r, self.t = pose, (0.0, 0.0), 0.0, 0.0
+        self.chassis = SimChassis.from_params(self.params, pose)
+        self.kinematics = MecanumKinematics.from_half_extents(
+            float(self.params["GEO_HALF_LEN"]), float(self.params["GEO_HALF_WID"]))
+        self.pwm = PwmMap.from_params(self.params)
+        self.pose, self.t = pose, 0.0
         self.events, self.track, self.speeds = [], [], []
         self.guided.start(pose, 0.0)
         assert self.ex.start(pose, 0.0, None) is None
 
     def step(self):
-        self.guided.setpoint = self.ex.update(self.pose, self.guided.velocity_ned, self.t)
-        vx, vy, yaw_rate = self.guided.update(self.pose, self.t)
-        cmd, k = body_to_ned(vx, vy, self.pose.yaw_rad), DT / TAU
-        self.v = (self.v[0] + (cmd[0] - self.v[0]) * k, self.v[1] + (cmd[1] - self.v[1]) * k)
-        self.r += (yaw_rate - self.r) * k
-        p = self.pose
-        self.pose = Pose2d(p.x_m + self.v[0] * DT, p.y_m + self.v[1] * DT, p.yaw_rad + self.r * DT)
+        wheels, _ = autonomous_output(self.guided, self.ex, self.pose, self.t, self.kinematics,
+                                      float(self.params["WHL_MAX_SPD"]),
+                                      int(self.params["MIX_DESAT"]), self.pwm)
+        self.chassis.step(DT, wheels)
+        self.pose = self.chassis.pose
         self.t += DT
         self.track.append((self.t, self.pose, self.ex.current))
-        self.speeds.append(math.hypot(*self.v))
+        self.speeds.append(math.hypot(*self.chassis.velocity_body))
         self.events += self.ex.take_events()
 
     def until_done(self, limit_s=60.0):
@@ -134,8 +143,9 @@ def test_condition_yaw_before_a_leg_turns_while_driving_it():
 
 def test_condition_yaw_with_a_direction_turns_the_long_way():
     run = Run([HOME, local_wp(0, 0.0, 0.0), do(0, YAW, 270.0, 0.0, 1.0, 0.0)]).until_done()
-    yaws = [p.yaw_rad for _, p, _ in run.track]
-    assert max(yaws) > math.radians(200)  # clockwise through south, not -90 the short way
+    poses = [p for _, p, _ in run.track]
+    turned = itertools.accumulate(wrap_pi(b.yaw_rad - a.yaw_rad) for a, b in pairwise(poses))
+    assert max(turned) > math.radians(200)  # clockwise through south, not -90 the short way
     assert math.degrees(math.remainder(run.pose.yaw_rad, 2 * math.pi)) == pytest.approx(
         -90.0, abs=2.5)
 
