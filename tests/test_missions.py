@@ -14,11 +14,9 @@ from missionpeer import (
     SPEED,
     YAW,
     do,
-    download,
     local_wp,
     renumber,
     same,
-    upload,
 )
 
 from mecanum_mav.app.companion import Companion
@@ -75,37 +73,37 @@ def assert_same_mission(got, want, *, float32_xy: bool = False):
 
 def test_upload_then_download_returns_every_item_and_field(harness):
     gcs = harness.gcs
-    ack = upload(gcs, MIXED)
+    ack = gcs.upload(MIXED)
     assert ack is not None and ack.type == ACCEPTED
-    assert_same_mission(download(gcs), MIXED)
+    assert_same_mission(gcs.download(), MIXED)
     assert_same_mission(list(harness.core.mission.items), MIXED)
 
 
 def test_legacy_mission_item_upload_and_mission_request_download_round_trip(harness):
     gcs = harness.gcs
-    ack = upload(gcs, MIXED, legacy=True)
+    ack = gcs.upload(MIXED, legacy=True)
     assert ack is not None and ack.type == ACCEPTED
-    assert_same_mission(download(gcs), MIXED, float32_xy=True)
-    assert_same_mission(download(gcs, legacy=True), MIXED, float32_xy=True)
+    assert_same_mission(gcs.download(), MIXED, float32_xy=True)
+    assert_same_mission(gcs.download(legacy=True), MIXED, float32_xy=True)
 
 
 def test_upload_survives_lost_requests_and_duplicated_items(harness):
     gcs = harness.gcs
     since = gcs.mark()
     lost = frozenset({0, 3, len(MIXED) - 1})
-    ack = upload(gcs, MIXED, ignore_first=lost, duplicate=True)
+    ack = gcs.upload(MIXED, lose_first=lost, duplicate=True)
     assert ack is not None and ack.type == ACCEPTED
     requests = [m.seq for m in gcs.received("MISSION_REQUEST_INT", since)]
     assert requests == sorted(requests)  # in order, duplicates dropped silently
     assert sorted(set(requests)) == list(range(len(MIXED)))
     assert [s for s in set(requests) if requests.count(s) > 1] == sorted(lost)  # re-requested
-    assert_same_mission(download(gcs), MIXED)
+    assert_same_mission(gcs.download(), MIXED)
 
 
 def test_clear_all_and_a_count_of_zero_both_empty_the_mission(harness):
     gcs = harness.gcs
     for clear in ("clear_all", "count_zero"):
-        assert upload(gcs, MIXED).type == ACCEPTED
+        assert gcs.upload(MIXED).type == ACCEPTED
         since = gcs.mark()
         if clear == "clear_all":
             gcs.mav.mission_clear_all_send(1, 1, 0)
@@ -113,15 +111,15 @@ def test_clear_all_and_a_count_of_zero_both_empty_the_mission(harness):
             gcs.mav.mission_count_send(1, 1, 0, 0)
         ack = gcs.wait("MISSION_ACK", timeout_s=1.0, since=since)
         assert ack is not None and ack.type == ACCEPTED
-        assert download(gcs) == []
+        assert gcs.download() == []
 
 
 def test_a_non_finite_coordinate_is_rejected_and_the_previous_mission_kept(harness):
     gcs = harness.gcs
-    assert upload(gcs, MIXED).type == ACCEPTED
+    assert gcs.upload(MIXED).type == ACCEPTED
     bad = renumber([HOME, local_wp(0, 1.0, 0.0), local_wp(0, 2.0, 0.0, z=math.nan)])
     since = gcs.mark()
-    ack = upload(gcs, bad)
+    ack = gcs.upload(bad)
     assert ack is not None and ack.type == mavlink.MAV_MISSION_INVALID_PARAM7
     assert text_seen(gcs, "item 2", since)
     nan_x = renumber([HOME, MissionItem(0, mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT,
@@ -136,12 +134,12 @@ def test_a_non_finite_coordinate_is_rejected_and_the_previous_mission_kept(harne
                               0.0, 0)
     ack = gcs.wait("MISSION_ACK", timeout_s=1.0, since=since)
     assert ack is not None and ack.type == mavlink.MAV_MISSION_INVALID_PARAM5_X
-    assert_same_mission(download(gcs), MIXED)
+    assert_same_mission(gcs.download(), MIXED)
 
 
 def test_an_upload_abandoned_midway_times_out_and_keeps_the_previous_mission(harness):
     h, gcs = harness, harness.gcs
-    assert upload(gcs, MIXED).type == ACCEPTED
+    assert gcs.upload(MIXED).type == ACCEPTED
     since, start_s = gcs.mark(), h.now_s
     gcs.mav.mission_count_send(1, 1, 3, 0)
     assert gcs.wait("MISSION_REQUEST_INT", lambda m: m.seq == 0, 1.0, since)
@@ -152,7 +150,7 @@ def test_an_upload_abandoned_midway_times_out_and_keeps_the_previous_mission(har
     requests = gcs.received("MISSION_REQUEST_INT", since)
     assert [m.seq for m in requests] == [0] * (1 + MAX_RETRIES)  # the first and five retries
     assert text_seen(gcs, "Mission upload timed out at item 0", since)
-    assert_same_mission(download(gcs), MIXED)
+    assert_same_mission(gcs.download(), MIXED)
 
 
 def test_the_mission_persists_beside_the_parameter_file(tmp_path):
@@ -167,7 +165,7 @@ def test_the_mission_persists_beside_the_parameter_file(tmp_path):
         companion.start()
         try:
             assert gcs.wait("HEARTBEAT", timeout_s=3.0)
-            assert upload(gcs, MIXED).type == ACCEPTED
+            assert gcs.upload(MIXED).type == ACCEPTED
         finally:
             companion.close()
             port.close()
@@ -183,7 +181,7 @@ def test_the_mission_persists_beside_the_parameter_file(tmp_path):
 
 def test_set_current_is_answered_with_mission_current(harness):
     gcs = harness.gcs
-    assert upload(gcs, MIXED).type == ACCEPTED
+    assert gcs.upload(MIXED).type == ACCEPTED
     since = gcs.mark()
     gcs.mav.mission_set_current_send(1, 1, 4)
     current = gcs.wait("MISSION_CURRENT", lambda m: m.seq == 4, 1.0, since)
@@ -240,7 +238,7 @@ def test_auto_drives_every_item_in_order_within_wp_radius_and_4cm_cross_track(ha
     h, gcs = harness, harness.gcs
     items = renumber([HOME, do(0, YAW, 0.0, 0.0, 0.0, 0.0),
                       *(local_wp(0, n, e) for n, e in SQUARE)])
-    assert upload(gcs, items).type == ACCEPTED
+    assert gcs.upload(items).type == ACCEPTED
     reached, track, since = drive_mission(h)
     assert [seq for seq, _, _ in reached] == list(range(1, len(items)))
     assert text_seen(gcs, "Mission started", since)
@@ -261,7 +259,7 @@ def test_auto_drives_every_item_in_order_within_wp_radius_and_4cm_cross_track(ha
 
 def test_do_jump_repeats_its_items(harness):
     items = renumber([HOME, local_wp(0, 0.25, 0.0), local_wp(0, 0.0, 0.0), do(0, JUMP, 1, 2)])
-    assert upload(harness.gcs, items).type == ACCEPTED
+    assert harness.gcs.upload(items).type == ACCEPTED
     reached, _, _ = drive_mission(harness)
     assert [seq for seq, _, _ in reached] == [1, 2, 3, 1, 2, 3, 1, 2, 3]
 
@@ -269,7 +267,7 @@ def test_do_jump_repeats_its_items(harness):
 def test_hold_pauses_the_mission_and_auto_resumes_it(harness):
     h, gcs = harness, harness.gcs
     items = renumber([HOME, local_wp(0, 2.0, 0.0), local_wp(0, 2.0, 0.3)])
-    assert upload(gcs, items).type == ACCEPTED
+    assert gcs.upload(items).type == ACCEPTED
     auto(h)
     assert h.run_until(lambda: h.truth().pose.x_m > 0.6, 5.0)
     assert gcs.set_mode(Mode.HOLD) == CMD_ACCEPTED
@@ -293,7 +291,7 @@ def test_hold_pauses_the_mission_and_auto_resumes_it(harness):
 def test_disarming_in_auto_sends_neutral_and_arming_resumes(harness):
     h, gcs = harness, harness.gcs
     items = renumber([HOME, local_wp(0, 1.5, 0.0)])
-    assert upload(gcs, items).type == ACCEPTED
+    assert gcs.upload(items).type == ACCEPTED
     auto(h)
     assert h.run_until(lambda: h.truth().pose.x_m > 0.3, 5.0)
     ack = gcs.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 0)
@@ -317,7 +315,7 @@ def test_a_global_mission_needs_an_origin_and_drives_to_the_converted_point(harn
     lat, lon = origin.to_global(0.8, -0.4)
     items = renumber([HOME, MissionItem(0, GLOBAL_REL, mavlink.MAV_CMD_NAV_WAYPOINT, x=lat,
                                         y=lon)])
-    assert upload(gcs, items).type == ACCEPTED
+    assert gcs.upload(items).type == ACCEPTED
     gcs.arm()
     since = gcs.mark()
     assert gcs.set_mode(Mode.AUTO) == CMD_DENIED
@@ -337,7 +335,7 @@ def test_a_global_mission_needs_an_origin_and_drives_to_the_converted_point(harn
 def test_mission_start_command_switches_to_auto_and_runs_from_the_given_item(harness):
     h, gcs = harness, harness.gcs
     items = renumber([HOME, local_wp(0, 3.0, 0.0), local_wp(0, 0.0, 0.3)])
-    assert upload(gcs, items).type == ACCEPTED
+    assert gcs.upload(items).type == ACCEPTED
     gcs.arm()
     since = gcs.mark()
     ack = gcs.command(mavlink.MAV_CMD_MISSION_START, 2)

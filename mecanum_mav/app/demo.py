@@ -137,7 +137,7 @@ def _fly(gcs: ScriptedGroundStation, truth: Callable[[], SimState], items: list[
     """The ground station's script: upload, arm, AUTO, watch until HOLD."""
     if gcs.wait("HEARTBEAT", lambda m: m.get_srcSystem() == 1, 5.0) is None:
         raise RuntimeError("no heartbeat from the companion")
-    result = gcs.upload(items)
+    result = gcs.upload(items).type
     if result != mavlink.MAV_MISSION_ACCEPTED:
         raise RuntimeError(f"mission upload refused (MISSION_ACK {result})")
     # The companion arms once it hears the flight controller (its first heartbeat may still

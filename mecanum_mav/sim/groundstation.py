@@ -12,12 +12,12 @@ from __future__ import annotations
 
 import selectors
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Collection, Sequence
 from typing import Any, Protocol
 
 from mecanum_mav.io.links import Link, open_link
 from mecanum_mav.protocol.dialect import mavlink
-from mecanum_mav.protocol.mission import MissionItem
+from mecanum_mav.protocol.mission import MissionItem, float_xy, item_from_fields
 from mecanum_mav.protocol.modes import Mode
 
 __all__ = ["GCS_COMPID", "GCS_SYSID", "Port", "ScriptedGroundStation", "UdpPort"]
@@ -33,6 +33,10 @@ Predicate = Callable[[Any], bool]
 
 def _any(msg: Any) -> bool:
     return True
+
+
+def _seq_is(seq: int) -> Predicate:
+    return lambda msg: bool(msg.seq == seq)
 
 
 class Port(Protocol):
@@ -162,10 +166,17 @@ class ScriptedGroundStation:
                                      r, 0)
         return since
 
-    def upload(self, items: Sequence[MissionItem], timeout_s: float = 10.0) -> int:
-        """Upload a mission over the mission protocol; returns the MISSION_ACK type
-        (MAV_MISSION_ACCEPTED = 0). Answers every request (re-requests too); when the
-        vehicle falls silent for the protocol's 1.5 s it starts again with MISSION_COUNT.
+    def upload(self, items: Sequence[MissionItem], *, legacy: bool = False,
+               lose_first: Collection[int] = (), duplicate: bool = False,
+               timeout_s: float = 10.0) -> Any:
+        """Upload a mission over the mission protocol; returns the vehicle's MISSION_ACK (its
+        ``type`` is MAV_MISSION_ACCEPTED = 0 on success).
+
+        Answers every request (re-requests too) with MISSION_ITEM_INT, or the legacy
+        MISSION_ITEM (float x/y) with ``legacy``; when the vehicle falls silent for the
+        protocol's 1.5 s it starts again with MISSION_COUNT, as ground stations do. For tests
+        of a lossy link: the first request for each seq in ``lose_first`` goes unanswered, and
+        ``duplicate`` sends every item twice.
 
         Raises:
             TimeoutError: no MISSION_ACK within ``timeout_s``.
@@ -174,6 +185,7 @@ class ScriptedGroundStation:
         self.mav.mission_count_send(*self.target, len(items), 0)
         deadline = self.port.now() + timeout_s
         quiet_since = self.port.now()
+        lost: set[int] = set()
         index = since
         while self.port.now() < deadline:
             while index < len(self.messages):
@@ -181,19 +193,57 @@ class ScriptedGroundStation:
                 index += 1
                 kind = msg.get_type()
                 if kind == "MISSION_ACK":
-                    return int(msg.type)
-                if kind in ("MISSION_REQUEST_INT", "MISSION_REQUEST") and msg.seq < len(items):
-                    it = items[msg.seq]
-                    self.mav.mission_item_int_send(
-                        *self.target, it.seq, it.frame, it.command, it.current,
-                        it.autocontinue, it.param1, it.param2, it.param3, it.param4, it.x,
-                        it.y, it.z, 0)
-                    quiet_since = self.port.now()
+                    return msg
+                if kind not in ("MISSION_REQUEST_INT", "MISSION_REQUEST") or not (
+                        0 <= msg.seq < len(items)):
+                    continue
+                quiet_since = self.port.now()
+                if msg.seq in lose_first and msg.seq not in lost:
+                    lost.add(msg.seq)
+                    continue
+                for _ in range(2 if duplicate else 1):
+                    self._send_item(items[msg.seq], legacy=legacy)
             if self.port.now() - quiet_since > MISSION_TIMEOUT_S:
                 self.mav.mission_count_send(*self.target, len(items), 0)
                 quiet_since = self.port.now()
             self.pump(0.05)
         raise TimeoutError("mission upload: no MISSION_ACK")
+
+    def download(self, *, legacy: bool = False,
+                 timeout_s: float = 3.0) -> list[MissionItem] | None:
+        """Download the mission item by item (MISSION_REQUEST_INT, or the legacy
+        MISSION_REQUEST with ``legacy``); None if the vehicle stops answering."""
+        since = self.mark()
+        self.mav.mission_request_list_send(*self.target, 0)
+        count = self.wait("MISSION_COUNT", timeout_s=timeout_s, since=since)
+        if count is None:
+            return None
+        items = []
+        reply = "MISSION_ITEM" if legacy else "MISSION_ITEM_INT"
+        for seq in range(count.count):
+            since = self.mark()
+            if legacy:
+                self.mav.mission_request_send(*self.target, seq, 0)
+            else:
+                self.mav.mission_request_int_send(*self.target, seq, 0)
+            msg = self.wait(reply, _seq_is(seq), timeout_s, since)
+            if msg is None:
+                return None
+            items.append(item_from_fields(msg.seq, msg.frame, msg.command, msg.current,
+                                          msg.autocontinue,
+                                          (msg.param1, msg.param2, msg.param3, msg.param4),
+                                          msg.x, msg.y, msg.z, encoded=not legacy))
+        self.mav.mission_ack_send(*self.target, mavlink.MAV_MISSION_ACCEPTED, 0)
+        return items
+
+    def _send_item(self, it: MissionItem, *, legacy: bool) -> None:
+        fields = (it.seq, it.frame, it.command, it.current, it.autocontinue, it.param1,
+                  it.param2, it.param3, it.param4)
+        if legacy:
+            x, y = float_xy(it)
+            self.mav.mission_item_send(*self.target, *fields, x, y, it.z, 0)
+        else:
+            self.mav.mission_item_int_send(*self.target, *fields, it.x, it.y, it.z, 0)
 
 
 class UdpPort:
