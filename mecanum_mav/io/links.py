@@ -6,12 +6,13 @@ pymavlink connection strings: ``udpin:HOST:PORT`` (listen; replies go to every p
 ``/dev/ttyUSB0,57600`` (pyserial).
 
 A :class:`Link` is read when its file descriptor is readable: :meth:`Link.read` returns every
-message that arrived, parsed from the raw bytes (a datagram may carry several). On datagram
-links a lone MANUAL_CONTROL takes the fast codec of :mod:`mecanum_mav.protocol.codec`, and
-:meth:`Link.send_rc_override` packs with it too: the control path never waits on pymavlink's
-pure-Python parser and packer. Malformed bytes, bad CRCs and truncated packets are counted in
-:attr:`Link.bad`, never raised; a send that fails (peer gone, no route) is counted in
-:attr:`Link.send_errors`.
+message that arrived, parsed from the raw bytes by :class:`~mecanum_mav.protocol.framing.
+MessageParser` (on datagram links a lone MANUAL_CONTROL takes the fast codec of
+:mod:`mecanum_mav.protocol.codec`), and :meth:`Link.send_rc_override` packs with that codec
+too: the control path never waits on pymavlink's pure-Python parser and packer. Malformed
+bytes, bad CRCs and truncated packets are counted in :attr:`Link.bad`, never raised; a send
+that fails (peer gone, no route) is counted in :attr:`Link.send_errors` and logged at WARNING
+at most once a second per link.
 """
 
 from __future__ import annotations

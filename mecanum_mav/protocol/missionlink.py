@@ -1,9 +1,10 @@
 """The mission protocol on the ground-station link: MAVLink messages in and out of
 :class:`~mecanum_mav.protocol.missionservice.MissionService`.
 
-This is the I/O edge only: it decodes the mission messages, hands them to the pure protocol
-machine and sends what it answers. The companion routes the messages here and calls
-:meth:`MissionLink.tick` from its loop for the protocol's timeouts.
+It decodes the mission messages, hands them to the pure protocol machine and puts what it
+answers into a pymavlink ``MAVLink`` (the core's message outbox). The rover's
+:class:`~mecanum_mav.control.missions.MissionControl` routes the messages here and calls
+:meth:`MissionLink.tick` for the protocol's timeouts.
 """
 
 from __future__ import annotations
