@@ -84,8 +84,10 @@ class Link:
     def local_port(self) -> int | None:
         """The bound local UDP/TCP port (useful after binding port 0), else None."""
         sock = getattr(self.conn, "port", None)
+        if sock is None:
+            return None
         try:
-            return int(sock.getsockname()[1])  # type: ignore[union-attr]  # None: caught
+            return int(sock.getsockname()[1])
         except (AttributeError, OSError, TypeError, IndexError):
             return None
 

@@ -28,6 +28,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from enum import IntEnum
+from typing import Any, TypeGuard
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -226,7 +227,12 @@ def _mix_scalar(a: float, b: float, r: float, priority: int) -> WheelTuple:
     return (a + r, b - r, b + r, a - r)
 
 
-def _is_scalar(*values: object) -> bool:
+_Scalar = float | int | np.floating[Any] | np.integer[Any]
+"""What :data:`_SCALAR_TYPES` admits (exact types; ``float()`` takes each of them)."""
+
+
+def _is_scalar(values: tuple[object, ...]) -> TypeGuard[tuple[_Scalar, ...]]:
+    """True when every value's exact type is one of :data:`_SCALAR_TYPES` (plain numbers)."""
     return all(type(v) in _SCALAR_TYPES for v in values)
 
 
@@ -345,9 +351,10 @@ def cartesian(
         desaturation FL = x + y + r, FR = x - y - r, RL = x - y + r, RR = x + y - r, so
         :func:`chassis_from_wheels` inverts it exactly where nothing saturated.
     """
-    if _is_scalar(x, y, rotation, heading_deg):
-        return np.array(_cartesian_scalar(
-            float(x), float(y), float(rotation), float(heading_deg), priority))  # type: ignore[arg-type]  # _is_scalar
+    args = (x, y, rotation, heading_deg)
+    if _is_scalar(args):
+        xs, ys, rs, hs = args
+        return np.array(_cartesian_scalar(float(xs), float(ys), float(rs), float(hs), priority))
     xa, ya, ra, ha = _as_float(x, y, rotation, heading_deg)
     ok = _finite_mask(xa, ya, ra, ha)
     xa, ya = _clip1(xa), _clip1(ya)
@@ -381,8 +388,10 @@ def polar_2011(
     Returns:
         ``[..., 4]`` wheel commands FL, FR, RL, RR in [-1, 1].
     """
-    if _is_scalar(magnitude, direction_deg, rotation):
-        m, d, r = float(magnitude), float(direction_deg), float(rotation)  # type: ignore[arg-type]  # _is_scalar
+    args = (magnitude, direction_deg, rotation)
+    if _is_scalar(args):
+        ms, ds, rs = args
+        m, d, r = float(ms), float(ds), float(rs)
         return np.array(_polar_2011_scalar(m, d, r, priority))
     ma, da, ra = _as_float(magnitude, direction_deg, rotation)
     ok = _finite_mask(ma, da, ra)
@@ -415,8 +424,10 @@ def max_speed_scaled(
     Returns:
         ``[..., 4]`` wheel commands FL, FR, RL, RR in [-1, 1].
     """
-    if _is_scalar(magnitude, direction_deg, rotation):
-        m, d, r = float(magnitude), float(direction_deg), float(rotation)  # type: ignore[arg-type]  # _is_scalar
+    args = (magnitude, direction_deg, rotation)
+    if _is_scalar(args):
+        ms, ds, rs = args
+        m, d, r = float(ms), float(ds), float(rs)
         return np.array(_max_speed_scaled_scalar(m, d, r, priority))
     ma, da, ra = _as_float(magnitude, direction_deg, rotation)
     ok = _finite_mask(ma, da, ra)
@@ -444,8 +455,10 @@ def holonomic_2010(magnitude: ArrayLike, direction_deg: ArrayLike, rotation: Arr
     Returns:
         ``[..., 4]`` wheel commands FL, FR, RL, RR, each clipped to [-1, 1].
     """
-    if _is_scalar(magnitude, direction_deg, rotation):
-        m, d, r = float(magnitude), float(direction_deg), float(rotation)  # type: ignore[arg-type]  # _is_scalar
+    args = (magnitude, direction_deg, rotation)
+    if _is_scalar(args):
+        ms, ds, rs = args
+        m, d, r = float(ms), float(ds), float(rs)
         return np.array(_holonomic_2010_scalar(m, d, r))
     ma, da, ra = _as_float(magnitude, direction_deg, rotation)
     ok = _finite_mask(ma, da, ra)
