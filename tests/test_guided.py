@@ -116,6 +116,41 @@ def test_a_position_target_is_reached_within_1cm_and_half_a_degree_without_overs
     assert math.hypot(pose.x_m - goal[0], pose.y_m - goal[1]) < 0.01
 
 
+def face_east(h: Lockstep) -> None:
+    """Turn in place to heading 90 degrees (a yaw target) and settle there."""
+    target(h, mask=IGNORE_POS | IGNORE_VEL | IGNORE_ACC | IGNORE_RATE, yaw=math.pi / 2)
+    assert h.run_until(lambda: abs(math.degrees(h.truth().pose.yaw_rad) - 90.0) < 0.2
+                       and abs(h.truth().yaw_rate) < 1e-3, 5.0)
+
+
+@pytest.mark.parametrize(
+    ("frame", "goal"),
+    [(mavlink.MAV_FRAME_BODY_NED, (0.0, 1.0)), (mavlink.MAV_FRAME_BODY_OFFSET_NED, (0.0, 1.0)),
+     (mavlink.MAV_FRAME_LOCAL_OFFSET_NED, (1.0, 0.0)), (NED, (1.0, 0.0))],
+    ids=["BODY_NED", "BODY_OFFSET_NED", "LOCAL_OFFSET_NED", "LOCAL_NED"],
+)
+def test_position_1_0_facing_east_goes_1m_ahead_in_body_frames_as_mavproxy_expects(
+        rover, frame, goal):
+    h = rover
+    face_east(h)
+    start = h.truth().pose
+    target(h, frame=frame, mask=IGNORE_VEL | IGNORE_ACC | IGNORE_YAW | IGNORE_RATE, x=1.0)
+    assert h.run_until(lambda: h.core.autopilot.guided.arrived(h.core.estimator.pose, 0.01)
+                       and math.hypot(*h.truth().velocity_body) < 0.005, 8.0)
+    pose = h.truth().pose
+    assert (pose.x_m, pose.y_m) == pytest.approx(
+        (start.x_m + goal[0] if frame != NED else goal[0], start.y_m + goal[1]), abs=0.02)
+
+
+def test_body_velocity_facing_east_moves_east(rover):
+    h = rover
+    face_east(h)
+    start = h.truth().pose
+    stream(h, 1.0, frame=mavlink.MAV_FRAME_BODY_NED, vx=0.5)  # MAVProxy's "velocity 0.5 0 0"
+    pose = h.truth().pose
+    assert pose.y_m - start.y_m > 0.3 and abs(pose.x_m - start.x_m) < 0.01  # ramped at 1 m/s/s
+
+
 @pytest.mark.parametrize("rover", [{"GUID_TIMEOUT": 0.5}], indirect=True)
 def test_a_velocity_setpoint_lapses_and_the_rover_stops(rover):
     h = rover
@@ -180,9 +215,22 @@ def test_body_frames_rotate_offsets_velocities_and_yaw_by_the_heading():
     assert sp.yaw == pytest.approx(math.pi / 2 + 0.5)
 
 
-def test_body_ned_takes_absolute_positions_and_body_velocities():
-    sp = decode(8, IGNORE_ACC | IGNORE_YAW | IGNORE_RATE, x=5.0, y=6.0, vx=1.0)
-    assert sp.position_ned == (5.0, 6.0) and sp.velocity_ned == pytest.approx((0.0, 1.0))
+@pytest.mark.parametrize(
+    ("frame", "position", "velocity", "yaw"),
+    [(1, (5.0, 6.0), (1.0, 0.0), 0.5),                       # absolute, NED
+     (7, (6.0, 8.0), (1.0, 0.0), 0.5),                       # NED offset from (1, 2)
+     (8, (1.0 - 6.0, 2.0 + 5.0), (0.0, 1.0), 0.5),           # body offset, as ArduPilot Rover
+     (9, (1.0 - 6.0, 2.0 + 5.0), (0.0, 1.0), math.pi / 2 + 0.5),
+     (12, (1.0 - 6.0, 2.0 + 5.0), (0.0, 1.0), math.pi / 2 + 0.5)],
+    ids=["LOCAL_NED", "LOCAL_OFFSET_NED", "BODY_NED", "BODY_OFFSET_NED", "BODY_FRD"],
+)
+def test_every_frame_at_heading_90_gives_ardupilot_rovers_position_velocity_and_yaw(
+        frame, position, velocity, yaw):
+    # facing east at (1, 2): 5 m forward is 5 m east, 6 m right is 6 m south
+    sp = decode(frame, IGNORE_ACC | IGNORE_RATE, x=5.0, y=6.0, vx=1.0, yaw=0.5)
+    assert sp.position_ned == pytest.approx(position)
+    assert sp.velocity_ned == pytest.approx(velocity, abs=1e-12)
+    assert sp.yaw == pytest.approx(yaw)
 
 
 def test_accelerations_flagged_as_ignored_are_accepted_and_z_is_ignored():

@@ -13,11 +13,12 @@ velocity; this does not):
 
 ``type_mask`` is honoured bit by bit (1/2/4 position, 8/16/32 velocity, 64/128/256
 acceleration, 512 force, 1024 yaw, 2048 yaw rate; a set bit means "ignore"). z and
-accelerations are ignored. Frames: LOCAL_NED (1) absolute position, NED velocity;
-LOCAL_OFFSET_NED (7) position relative to the current position, NED velocity; BODY_NED (8)
-absolute position, body FRD velocity; BODY_OFFSET_NED (9) and BODY_FRD (12) position relative
-to the current position in the body frame (forward, right), body FRD velocity, and yaw
-relative to the current heading. Velocity and yaw-rate setpoints lapse after
+accelerations are ignored. Frames, with ArduPilot Rover's meaning (what MAVProxy's ``position``
+and ``velocity`` commands and MAVSDK expect): LOCAL_NED (1) absolute position, NED velocity;
+LOCAL_OFFSET_NED (7) position an NED offset from the current position, NED velocity;
+BODY_NED (8), BODY_OFFSET_NED (9) and BODY_FRD (12) position an offset from the current
+position in the body frame (forward, right: rotated by the heading), body FRD velocity; in 9
+and 12 the yaw is relative to the current heading. Velocity and yaw-rate setpoints lapse after
 ``GUID_TIMEOUT`` (the rover stops); position and yaw targets persist until replaced.
 
 All outputs are body FRD velocities (m/s) and a clockwise yaw rate (rad/s); positions are
@@ -42,6 +43,12 @@ __all__ = ["FRAMES", "GuidedController", "Setpoint", "SetpointError", "decode_se
 
 FRAMES = {1: "LOCAL_NED", 7: "LOCAL_OFFSET_NED", 8: "BODY_NED", 9: "BODY_OFFSET_NED",
           12: "BODY_FRD"}
+_BODY_FRAMES = frozenset({8, 9, 12})
+"""Frames whose positions and velocities are in the body frame (rotated by the heading)."""
+_OFFSET_FRAMES = frozenset({7, 8, 9, 12})
+"""Frames whose positions are offsets from the current position (ArduPilot Rover)."""
+_RELATIVE_YAW = frozenset({9, 12})
+"""Frames whose yaw is relative to the current heading."""
 IGNORE_X, IGNORE_Y, IGNORE_VX, IGNORE_VY = 1, 2, 8, 16
 IGNORE_YAW, IGNORE_YAW_RATE = 1024, 2048
 
@@ -116,17 +123,17 @@ def decode_setpoint(frame: int, type_mask: int, x: float, y: float, vx: float, v
         raise SetpointError("yaw rate not finite or absurd")
     if position is None and velocity is None and yaw_target is None and rate is None:
         raise SetpointError("nothing usable (z and accelerations are ignored)")
-    body = frame in (8, 9, 12)
-    offset = frame in (7, 9, 12)
+    body = frame in _BODY_FRAMES
+    offset = frame in _OFFSET_FRAMES
     if position is not None:
-        if frame in (9, 12):
+        if body:
             position = body_to_ned(*position, pose.yaw_rad)
         if offset:
             position = (pose.x_m + position[0], pose.y_m + position[1])
     if velocity is not None and body:
         velocity = body_to_ned(*velocity, pose.yaw_rad)
     if yaw_target is not None:
-        yaw_target = wrap_pi(yaw_target + (pose.yaw_rad if frame in (9, 12) else 0.0))
+        yaw_target = wrap_pi(yaw_target + (pose.yaw_rad if frame in _RELATIVE_YAW else 0.0))
     return Setpoint(position, velocity, yaw_target, rate, now_s)
 
 
