@@ -2,7 +2,11 @@
 
 from __future__ import annotations
 
+import contextlib
 import logging
+import socket
+import threading
+import time
 
 from mecanum_mav.config.params import Params
 from mecanum_mav.control.core import RoverCore
@@ -59,3 +63,63 @@ def test_sys_status_errors_comm_counts_bad_packets_and_failed_sends():
     out = core.handle(command, 1.0)
     status = [m for m in out.gcs if m.get_type() == "SYS_STATUS"]
     assert len(status) == 1 and status[0].errors_comm == 7
+
+
+def test_closing_a_tcp_link_gives_the_peer_time_to_read_the_last_packet_before_it_ends():
+    """ArduPilot drops what is still in its buffers when a TCP connection ends (measured with
+    SITL: the release sent at shutdown never took effect). With linger the connection stays
+    open, the peer's telemetry drained, for ``linger_s`` after the last packet."""
+    server = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+    server.bind(("127.0.0.1", 0))
+    server.listen(1)
+    link = open_link(f"tcp:127.0.0.1:{server.getsockname()[1]}", source_system=255,
+                     source_component=190, name="fc")
+    peer, _ = server.accept()
+    peer.settimeout(2.0)
+    stop = threading.Event()
+
+    def chatter():
+        while not stop.is_set():
+            with contextlib.suppress(OSError):
+                peer.send(b"\xfd" + bytes(40))  # telemetry the link never reads
+            stop.wait(0.002)
+
+    talker = threading.Thread(target=chatter, daemon=True)
+    talker.start()
+    try:
+        assert wait_until(lambda: len(peek(link)) > 0, 2.0)  # unread data on our side
+        closer = threading.Thread(
+            target=lambda: (link.send_rc_override(1, 1, [0] * 4 + [65535] * 4 + [0] * 10),
+                            link.close(linger_s=0.3)))
+        closer.start()
+        received, got_packet_s = b"", None
+        while chunk := peer.recv(4096):
+            received += chunk
+            if got_packet_s is None and len(received) >= 10:
+                got_packet_s = time.monotonic()
+        ended_s = time.monotonic()
+        closer.join(2.0)
+        messages = mavlink.MAVLink(None).parse_buffer(received) or []
+        assert [m.get_type() for m in messages] == ["RC_CHANNELS_OVERRIDE"]
+        assert messages[0].chan1_raw == 0 and messages[0].chan5_raw == 65535
+        assert ended_s - got_packet_s >= 0.25  # open 0.3 s after the last packet
+    finally:
+        stop.set()
+        peer.close()
+        server.close()
+
+
+def peek(link) -> bytes:
+    try:
+        return link.conn.port.recv(1, socket.MSG_PEEK | socket.MSG_DONTWAIT)
+    except BlockingIOError:
+        return b""
+
+
+def wait_until(condition, timeout_s: float) -> bool:
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if condition():
+            return True
+        threading.Event().wait(0.01)
+    return False

@@ -484,7 +484,7 @@ def valid_params(draw: st.DrawFn) -> Params:
             values[spec.name] = draw(st.integers(spec.minimum, spec.maximum))
         else:
             values[spec.name] = draw(st.floats(spec.minimum, spec.maximum))
-    channels = draw(st.lists(st.integers(1, 18), min_size=4, max_size=4, unique=True))
+    channels = draw(st.lists(st.integers(1, 16), min_size=4, max_size=4, unique=True))
     for prefix in (*(f"MOT_{w}" for w in WHEELS), "RCIN"):
         pwm = sorted(draw(st.lists(st.integers(800, 2200), min_size=3, max_size=3, unique=True)))
         values.update(
@@ -596,3 +596,8 @@ def test_a_retired_parameter_in_a_file_is_ignored_with_a_warning_naming_its_line
         params = parse_text("GEO_HALF_LEN 0.2\nGEO_WHEEL_RAD 0.0485\n", source="old.parm")
     assert params["GEO_HALF_LEN"] == 0.2 and "GEO_WHEEL_RAD" not in params
     assert "old.parm:2: GEO_WHEEL_RAD is no longer a parameter" in caplog.text
+
+
+def test_wheel_channels_17_and_18_which_ardupilot_never_reads_are_refused():
+    with pytest.raises(ParamError, match="MOT_FL_CH: 17 is outside the range 1 .. 16"):
+        Params().set("MOT_FL_CH", 17)

@@ -35,6 +35,9 @@ from mecanum_mav.protocol.statustext import Severity
 
 __all__ = ["Companion"]
 
+FC_CLOSE_LINGER_S = 0.3
+"""On a stream link (TCP, serial) the shell waits up to this long for its last overrides to
+reach the flight controller before closing (see :meth:`~mecanum_mav.io.links.Link.close`)."""
 FC_LINK_COMPID = 190
 """MAV_COMP_ID_MISSIONPLANNER: the companion is a ground station on the flight-controller link."""
 
@@ -142,7 +145,7 @@ class Companion:
         """Stop and close both links."""
         self.stop()
         self.gcs.close()
-        self.fc.close()
+        self.fc.close(linger_s=FC_CLOSE_LINGER_S)  # the release must reach the board
         for fd in (self._wake_r, self._wake_w):
             with contextlib.suppress(OSError):
                 os.close(fd)

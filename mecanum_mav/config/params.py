@@ -267,9 +267,9 @@ def _wheel_specs(wheel: str, channel: int) -> tuple[ParamSpec, ...]:
     prefix = f"MOT_{wheel}"
     return (
         ParamSpec(
-            f"{prefix}_CH", int, default=channel, minimum=1, maximum=18, units="",
-            description=f"RC channel (1-18, sent in RC_CHANNELS_OVERRIDE) whose flight "
-            f"controller output drives the {words} wheel's ESC.",
+            f"{prefix}_CH", int, default=channel, minimum=1, maximum=16, units="",
+            description=f"RC channel (1-16, sent in RC_CHANNELS_OVERRIDE; ArduPilot never "
+            f"reads 17-18) whose flight controller output drives the {words} wheel's ESC.",
         ),
         ParamSpec(
             f"{prefix}_MIN", int, default=1000, minimum=800, maximum=2200, units="us",

@@ -20,6 +20,7 @@ from __future__ import annotations
 import contextlib
 import logging
 import math
+import socket
 import struct
 import time
 from typing import Any, BinaryIO
@@ -159,10 +160,40 @@ class Link:
             with contextlib.suppress(OSError, ValueError):
                 self._tlog.write(_TLOG_STAMP.pack(int(time.time() * 1e6)) + packet)
 
-    def close(self) -> None:
-        """Close the connection; idempotent."""
+    def close(self, *, linger_s: float = 0.0) -> None:
+        """Close the connection; idempotent.
+
+        With ``linger_s`` what was written last reaches the peer and is read before the link
+        goes: a serial port waits until its output is sent (``flush``); a TCP socket keeps the
+        connection open for ``linger_s`` seconds, reading and dropping what the peer still
+        sends, then sends its end-of-stream and closes. A peer that sees the connection end
+        while the last bytes are still in its buffers may drop them: measured with ArduPilot
+        SITL, the companion's channel release sent right before ``close()`` never took effect.
+        Draining also keeps unread data from turning the close into a reset.
+        """
+        with contextlib.suppress(OSError, ValueError):
+            if linger_s > 0.0:
+                self._flush_out(linger_s)
         with contextlib.suppress(OSError):
             self.conn.close()
+
+    def _flush_out(self, linger_s: float) -> None:
+        port = getattr(self.conn, "port", None)
+        if isinstance(port, socket.socket) and port.type == socket.SOCK_STREAM:
+            port.settimeout(0.05)
+            deadline = time.monotonic() + linger_s
+            while time.monotonic() < deadline:
+                try:
+                    if not port.recv(_READ_CHUNK):
+                        return  # the peer closed first
+                except TimeoutError:
+                    continue
+            port.shutdown(socket.SHUT_WR)
+            with contextlib.suppress(TimeoutError):
+                while port.recv(_READ_CHUNK):  # what is left, so the close is not a reset
+                    pass
+        elif port is not None and hasattr(port, "flush"):  # pyserial: wait until sent
+            port.flush()
 
 
 def open_link(url: str, *, source_system: int, source_component: int, name: str) -> Link:
