@@ -599,5 +599,5 @@ def test_a_retired_parameter_in_a_file_is_ignored_with_a_warning_naming_its_line
 
 
 def test_wheel_channels_17_and_18_which_ardupilot_never_reads_are_refused():
-    with pytest.raises(ParamError, match="MOT_FL_CH: 17 is outside the range 1 .. 16"):
+    with pytest.raises(ParamError, match=r"MOT_FL_CH: 17 is outside the range 1 \.\. 16"):
         Params().set("MOT_FL_CH", 17)
