@@ -270,6 +270,45 @@ def test_unknown_command_is_unsupported(harness):
     assert harness.gcs.command(31999).result == mavlink.MAV_RESULT_UNSUPPORTED
 
 
+def test_arming_with_the_sticks_deflected_is_refused_as_ardupilot_words_it(harness):
+    h = harness
+    _, stop = stream(h, x=500)  # the pilot holds the stick forward
+    h.run_for(0.2)
+    ack = h.gcs.command(ARM, 1)
+    assert ack is not None and ack.result == DENIED
+    assert statustext(h, "PreArm: sticks not centred (x +0.50)", 0) is not None
+    assert not h.core.vehicle.armed
+    stop()
+    _, stop = stream(h)  # centred: arms
+    h.run_for(0.2)
+    ack = h.gcs.command(ARM, 1)
+    stop()
+    assert ack is not None and ack.result == ACCEPTED and h.core.vehicle.armed
+
+
+def test_forced_arming_and_arming_check_0_skip_the_pre_arm_checks(harness):
+    h = harness
+    _, stop = stream(h, y=800)
+    h.run_for(0.2)
+    ack = h.gcs.command(ARM, 1, 21196)  # MAV_CMD_COMPONENT_ARM_DISARM param2: force
+    assert ack is not None and ack.result == ACCEPTED and h.core.vehicle.armed
+    assert h.gcs.command(ARM, 0).result == ACCEPTED
+    h.gcs.mav.param_set_send(1, 1, b"ARMING_CHECK", 0, mavlink.MAV_PARAM_TYPE_INT32)
+    h.run_for(0.1)
+    ack = h.gcs.command(ARM, 1)
+    stop()
+    assert ack is not None and ack.result == ACCEPTED
+
+
+def test_arming_without_the_flight_controller_is_refused_as_a_pre_arm_check():
+    h = Lockstep()  # the board's first heartbeat has not been heard yet
+    since = h.gcs.mark()
+    h.gcs.mav.command_long_send(1, 1, ARM, 0, 1, 0, 0, 0, 0, 0, 0)
+    ack = h.gcs.wait("COMMAND_ACK", timeout_s=0.01, since=since)
+    assert ack is not None and ack.result == DENIED
+    assert statustext(h, "PreArm: flight controller link down", since) is not None
+
+
 def test_arm_with_a_bad_param1_is_denied(harness):
     assert harness.gcs.command(ARM, math.nan).result == DENIED
     assert not harness.core.vehicle.armed

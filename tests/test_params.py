@@ -71,7 +71,7 @@ def test_the_schema_has_exactly_the_parameters_the_rest_of_the_code_reads():
         "WHL_MAX_SPD",
         *motor,
         "SYSID_THISMAV", "SYSID_MYGCS", "FC_SYSID", "FC_COMPID", "FC_GCS_SYSID", "OUT_RATE",
-        "FS_INPUT_TMO", "FS_GCS_TMO", "FS_GCS_ACTION", "FS_FC_TMO",
+        "FS_INPUT_TMO", "FS_GCS_TMO", "FS_GCS_ACTION", "FS_FC_TMO", "ARMING_CHECK",
         "RCMAP_STEER", "RCMAP_THROTTLE", "RCMAP_LATERAL", "RCIN_MIN", "RCIN_TRIM", "RCIN_MAX",
         "MAN_Z_SCALE", "CTL_RATE", "GUID_SPD_MAX", "GUID_ACC_MAX", "GUID_YAW_RATE",
         "GUID_POS_P", "GUID_YAW_P", "GUID_YAW_LEAD", "GUID_TIMEOUT", "WP_SPEED", "WP_ACCEL",

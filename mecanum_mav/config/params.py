@@ -305,6 +305,7 @@ GROUP_TITLES: dict[str, str] = {
     "FC": "Flight-controller link",
     "OUT": "Output to the flight controller",
     "FS": "Failsafes",
+    "ARMING": "Arming",
     "RCMAP": "Ground-station stick channels (RC_CHANNELS_OVERRIDE input)",
     "RCIN": "Ground-station stick pulse range",
     "MAN": "Manual driving",
@@ -419,6 +420,12 @@ SCHEMA: tuple[ParamSpec, ...] = (
         "FS_FC_TMO", float, default=3.0, minimum=0.5, maximum=60.0, units="s",
         description="No flight-controller HEARTBEAT for this long reports the link lost, "
         "disarms and refuses to arm until it is back.",
+    ),
+    ParamSpec(
+        "ARMING_CHECK", int, default=1, minimum=0, maximum=1, units="",
+        values={0: "off", 1: "on"},
+        description="Pre-arm checks before arming (sticks centred, flight controller link "
+        "up), as ArduPilot's ARMING_CHECK; arming with param2 21196 skips them too.",
     ),
     ParamSpec(
         "RCMAP_STEER", int, default=1, minimum=1, maximum=18, units="",

@@ -96,7 +96,7 @@ class OutputConfig:
 
 @dataclass(frozen=True, slots=True)
 class FailsafeConfig:
-    """The failsafe timeouts and the ground-station failsafe action."""
+    """The failsafe timeouts, the ground-station failsafe action and the pre-arm checks."""
 
     input_timeout_s: float
     """Stick input older than this stops MANUAL driving (``FS_INPUT_TMO``)."""
@@ -106,12 +106,16 @@ class FailsafeConfig:
     """The ground-station failsafe disarms (True) or switches to HOLD (``FS_GCS_ACTION``)."""
     fc_timeout_s: float
     """No flight-controller HEARTBEAT for this long disarms (``FS_FC_TMO``)."""
+    arming_check: bool
+    """Run the pre-arm checks before arming (``ARMING_CHECK``)."""
 
     @classmethod
     def from_params(cls, params: Params) -> FailsafeConfig:
-        """Read ``FS_INPUT_TMO``, ``FS_GCS_TMO``, ``FS_GCS_ACTION`` and ``FS_FC_TMO``."""
+        """Read ``FS_INPUT_TMO``, ``FS_GCS_TMO``, ``FS_GCS_ACTION``, ``FS_FC_TMO`` and
+        ``ARMING_CHECK``."""
         return cls(float(params["FS_INPUT_TMO"]), float(params["FS_GCS_TMO"]),
-                   int(params["FS_GCS_ACTION"]) == 1, float(params["FS_FC_TMO"]))
+                   int(params["FS_GCS_ACTION"]) == 1, float(params["FS_FC_TMO"]),
+                   bool(params["ARMING_CHECK"]))
 
 
 @dataclass(frozen=True, slots=True)

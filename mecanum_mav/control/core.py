@@ -91,6 +91,8 @@ __all__ = ["COMPANION_COMPID", "NOTHING", "Outbox", "RcOverride", "RoverCore", "
 COMPANION_COMPID = 1
 """The companion's component id on the ground-station link (MAVSDK talks to component 1 only)."""
 HEARTBEAT_PERIOD_S = 1.0
+FORCE_ARM_MAGIC = 21196.0
+"""MAV_CMD_COMPONENT_ARM_DISARM param2 that forces arming past the pre-arm checks (ArduPilot)."""
 TIMER_SLACK_S = 1e-6
 """Timers fall due this much early, so that a period is never missed by a rounding error."""
 STATUSTEXT_REPEAT_S = 1.0
@@ -508,11 +510,23 @@ class RoverCore:
 
     def _cmd_arm_disarm(self, p: tuple[float, ...], now_s: float) -> Result:
         if p[0] == 1.0:
-            return self._result(self.vehicle.request_arm(now_s))
+            self.vehicle.update(now_s)
+            return self._result(self.vehicle.request_arm(
+                now_s, self._prearm_problems(), force=p[1] == FORCE_ARM_MAGIC))
         if p[0] == 0.0:
             return self._result(self.vehicle.request_disarm(now_s, "by command"))
         self.say(Severity.WARNING, f"Arm/disarm: param1 must be 0 or 1, got {p[0]}")
         return Result.DENIED
+
+    def _prearm_problems(self) -> list[str]:
+        """The core's pre-arm checks: a pilot's fresh stick must be centred (within the
+        deadband), or arming would drive off at once."""
+        if self.vehicle.input_stale:
+            return []
+        deflected = [f"{name} {value:+.2f}" for name, value in zip("xyr", self.stick,
+                                                                    strict=True)
+                     if abs(value) > self.input.deadband]
+        return [f"sticks not centred ({', '.join(deflected)})"] if deflected else []
 
     def _cmd_set_mode(self, p: tuple[float, ...], now_s: float) -> Result:
         return self._set_mode(p[0], p[1], now_s)

@@ -20,6 +20,7 @@ Failsafes (each a parameter):
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Protocol
 
@@ -110,13 +111,19 @@ class Vehicle:
 
     # ----------------------------------------------------------------- commands
 
-    def request_arm(self, now_s: float) -> Decision:
-        """Arm, unless the flight controller link is down. Arming when armed is accepted."""
+    def request_arm(self, now_s: float, problems: Sequence[str] = (), *,
+                    force: bool = False) -> Decision:
+        """Arm, unless a pre-arm check fails: the flight controller link is down, or one of
+        ``problems`` (the caller's checks, e.g. deflected sticks). Refusals are worded as
+        ArduPilot's ("PreArm: ..."). ``force`` skips the checks (ArduPilot's forced arming).
+        Arming when armed is accepted."""
         self.update(now_s)
         if self.armed:
             return Decision(True)
-        if self.fc_lost:
-            return self._refuse("Arm refused: flight controller link down")
+        if not force and self.config.arming_check:
+            failed = [*(["flight controller link down"] if self.fc_lost else []), *problems]
+            if failed:
+                return self._refuse(f"PreArm: {failed[0]}")
         self.armed = True
         self.input_stale = True  # the wheels wait for fresh sticks after arming
         self._say(Severity.INFO, f"Armed, mode {self.mode.name}")
