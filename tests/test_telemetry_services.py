@@ -210,3 +210,52 @@ def test_servo_output_raw_shows_the_commanded_pwm(harness):
     assert seen is not None
     assert (seen.servo1_raw, seen.servo2_raw, seen.servo3_raw, seen.servo4_raw,
             seen.servo5_raw) == (2000, 2000, 2000, 2000, 0)
+
+
+# --------------------------------------------------------------------------- health, battery
+
+MOTORS = mavlink.MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS
+AHRS = mavlink.MAV_SYS_STATUS_AHRS
+BATTERY = mavlink.MAV_SYS_STATUS_SENSOR_BATTERY
+FENCE, GPS = mavlink.MAV_SYS_STATUS_GEOFENCE, mavlink.MAV_SYS_STATUS_SENSOR_GPS
+
+
+def sys_status(h: Lockstep):
+    since = h.gcs.mark()
+    h.gcs.mav.command_long_send(1, 1, CMD.MAV_CMD_REQUEST_MESSAGE, 0,
+                                mavlink.MAVLINK_MSG_ID_SYS_STATUS, 0, 0, 0, 0, 0, 0)
+    return h.gcs.wait("SYS_STATUS", timeout_s=0.1, since=since)
+
+
+def test_sys_status_tells_the_truth_no_fence_or_gps_alarm_and_the_boards_battery(harness):
+    h = harness
+    h.run_for(1.5)  # the board's SYS_STATUS (1 Hz) has been relayed
+    s = sys_status(h)
+    assert s.onboard_control_sensors_present == MOTORS | AHRS | BATTERY
+    assert s.onboard_control_sensors_enabled == MOTORS | AHRS | BATTERY
+    assert s.onboard_control_sensors_health & (FENCE | GPS | MOTORS | AHRS | BATTERY) == (
+        FENCE | GPS | MOTORS | AHRS | BATTERY)  # a clear bit is an alarm in MAVProxy / QGC
+    assert (s.voltage_battery, s.battery_remaining) == (12600, 100)
+    assert s.current_battery == 30  # 0.3 A standing still (cA)
+
+
+def test_the_flight_controller_is_asked_for_its_battery_once_it_is_heard(harness):
+    asks = [m for m in harness.fc_received if m.get_type() == "COMMAND_LONG"]
+    assert len(asks) == 1
+    ask = asks[0]
+    assert ask.command == CMD.MAV_CMD_SET_MESSAGE_INTERVAL
+    assert (ask.param1, ask.param2) == (mavlink.MAVLINK_MSG_ID_SYS_STATUS, 1_000_000)
+    assert (ask.target_system, ask.target_component) == (1, 1)
+
+
+def test_without_the_flight_controller_motors_and_ahrs_are_unhealthy_and_the_battery_unknown(
+        harness):
+    h = harness
+    h.run_for(1.5)
+    h.fc_link_up = False  # the cable is pulled
+    h.run_for(5.5)  # FS_FC_TMO 3 s; the battery report is 5 s old
+    s = sys_status(h)
+    assert s.onboard_control_sensors_health & (MOTORS | AHRS) == 0
+    assert s.onboard_control_sensors_health & FENCE == FENCE
+    assert s.onboard_control_sensors_present == MOTORS | AHRS
+    assert (s.voltage_battery, s.current_battery, s.battery_remaining) == (65535, -1, -1)

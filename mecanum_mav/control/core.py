@@ -51,11 +51,18 @@ from mecanum_mav.control.sticks import InputError, RcStickState, stick_from_manu
 from mecanum_mav.control.vehicle import Decision, Vehicle
 from mecanum_mav.mecanum.geo import GlobalOrigin
 from mecanum_mav.protocol.dialect import mavlink
+from mecanum_mav.protocol.health import (
+    BATTERY_FRESH_S,
+    UNKNOWN_BATTERY,
+    Battery,
+    sensor_bits,
+)
 from mecanum_mav.protocol.heartbeat import send_gcs_heartbeat, send_rover_heartbeat
 from mecanum_mav.protocol.messages import (
     Addressed,
     AttitudeMsg,
     CommandMsg,
+    FcSysStatusMsg,
     FtpMsg,
     ManualControlMsg,
     MissionSetCurrentMsg,
@@ -91,6 +98,8 @@ __all__ = ["COMPANION_COMPID", "NOTHING", "Outbox", "RcOverride", "RoverCore", "
 COMPANION_COMPID = 1
 """The companion's component id on the ground-station link (MAVSDK talks to component 1 only)."""
 HEARTBEAT_PERIOD_S = 1.0
+FC_SYS_STATUS_INTERVAL_US = 1_000_000
+"""The flight controller is asked for SYS_STATUS (its battery) at 1 Hz."""
 FORCE_ARM_MAGIC = 21196.0
 """MAV_CMD_COMPONENT_ARM_DISARM param2 that forces arming past the pre-arm checks (ArduPilot)."""
 TIMER_SLACK_S = 1e-6
@@ -200,6 +209,9 @@ class RoverCore:
         self._next_output_s = now_s
         self._next_heartbeat_s = now_s
         self._said: OrderedDict[str, float] = OrderedDict()
+        self._fc_streams_asked = False
+        self._battery = UNKNOWN_BATTERY
+        self._battery_s = -math.inf
         self._gcs_handlers: dict[str, Handler] = {
             "HEARTBEAT": self._on_gcs_heartbeat,
             "MANUAL_CONTROL": self._on_manual_control,
@@ -221,6 +233,7 @@ class RoverCore:
             "HEARTBEAT": self._on_fc_heartbeat,
             "ATTITUDE": self._on_attitude,
             "WHEEL_DISTANCE": self._on_wheel_distance,
+            "SYS_STATUS": self._on_fc_sys_status,
         }
         self._commands: dict[int, Command] = {
             mavlink.MAV_CMD_COMPONENT_ARM_DISARM: self._cmd_arm_disarm,
@@ -289,6 +302,8 @@ class RoverCore:
         """After the output went out: odometry from the commanded wheels, telemetry,
         heartbeats, the mission protocol's timeouts and status texts; returns what to send."""
         self._now_s = now_s
+        if self.vehicle.fc_lost:
+            self._fc_streams_asked = False  # ask a rebooted flight controller again
         if self._wheels_s is not None:
             self.estimator.on_commanded(self.wheels, now_s - self._wheels_s, now_s)
         self.wheels, self._wheels_s = self._output_wheels, now_s
@@ -411,9 +426,12 @@ class RoverCore:
     def _telemetry_state(self, now_s: float) -> TelemetryState:
         est = self.estimator
         bad, send_errors = self.link_errors()
+        fresh = now_s - self._battery_s <= BATTERY_FRESH_S
+        battery = self._battery if fresh else UNKNOWN_BATTERY
+        sensors = sensor_bits(fc_link_up=not self.vehicle.fc_lost, battery_known=fresh)
         return TelemetryState(now_s, self.boot_s, est.pose, est.velocity_body, est.yaw_rate,
                               est.reset_counter, est.wheel_distances_m, self.pwm.channels,
-                              self.pulses_us, bad + send_errors, self.origin)
+                              self.pulses_us, bad + send_errors, self.origin, sensors, battery)
 
     # ================================================================== addressing
 
@@ -433,6 +451,18 @@ class RoverCore:
 
     def _on_fc_heartbeat(self, msg: Received, now_s: float) -> None:
         self.vehicle.on_fc_heartbeat(now_s)
+        if not self._fc_streams_asked:  # the battery: SYS_STATUS at 1 Hz from the board
+            self._fc_streams_asked = True
+            self.to_fc.command_long_send(
+                self.identity.fc_sysid, self.identity.fc_compid,
+                mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, 0, mavlink.MAVLINK_MSG_ID_SYS_STATUS,
+                FC_SYS_STATUS_INTERVAL_US, 0, 0, 0, 0, 0)
+
+    def _on_fc_sys_status(self, msg: FcSysStatusMsg, now_s: float) -> None:
+        if msg.voltage_battery not in (0, UNKNOWN_BATTERY.voltage_mv):  # 0: no monitor
+            self._battery = Battery(msg.voltage_battery, msg.current_battery,
+                                    msg.battery_remaining)
+            self._battery_s = now_s
 
     def _on_attitude(self, msg: AttitudeMsg, now_s: float) -> None:
         self.estimator.on_attitude(msg.yaw, msg.yawspeed, now_s)

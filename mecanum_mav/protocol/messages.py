@@ -19,6 +19,7 @@ __all__ = [
     "Addressed",
     "AttitudeMsg",
     "CommandMsg",
+    "FcSysStatusMsg",
     "FtpMsg",
     "ManualControlMsg",
     "MissionSetCurrentMsg",
@@ -150,6 +151,15 @@ class AttitudeMsg(Received, Protocol):
 
     yaw: float
     yawspeed: float
+
+
+class FcSysStatusMsg(Received, Protocol):
+    """SYS_STATUS from the flight controller: its battery (mV, cA, %; unknown: UINT16_MAX,
+    -1, -1; 0 mV: no battery monitor)."""
+
+    voltage_battery: int
+    current_battery: int
+    battery_remaining: int
 
 
 class WheelDistanceMsg(Received, Protocol):

@@ -23,6 +23,7 @@ from mecanum_mav import __version__
 from mecanum_mav.config.params import Params
 from mecanum_mav.mecanum.geometry import body_to_ned
 from mecanum_mav.protocol.dialect import mavlink
+from mecanum_mav.protocol.health import NO_SENSORS, UNKNOWN_BATTERY, Battery, SensorBits
 
 __all__ = ["STREAMS", "StreamSchedule", "TelemetryState", "build", "ftp_nak"]
 
@@ -112,6 +113,8 @@ class TelemetryState:
     pulses_us: tuple[int, ...]
     bad_packets: int
     origin: Any = None  # geo.GlobalOrigin, or None when the local frame has no global anchor
+    sensors: SensorBits = NO_SENSORS
+    battery: Battery = UNKNOWN_BATTERY
 
     @property
     def boot_ms(self) -> int:
@@ -145,8 +148,11 @@ def _attitude(mav: Any, t: TelemetryState) -> None:
 
 
 def _sys_status(mav: Any, t: TelemetryState) -> None:
-    # No onboard sensors of its own; battery unknown (UINT16_MAX mV, -1 A, -1 %).
-    mav.sys_status_send(0, 0, 0, 0, 65535, -1, -1, 0, min(t.bad_packets, 65535), 0, 0, 0, 0)
+    # Sensor bits and battery: mecanum_mav.protocol.health; errors_comm: bad packets + failed
+    # sends on both links.
+    s, b = t.sensors, t.battery
+    mav.sys_status_send(s.present, s.enabled, s.health, 0, b.voltage_mv, b.current_ca,
+                        b.remaining_pct, 0, min(t.bad_packets, 65535), 0, 0, 0, 0)
 
 
 def _servo_output_raw(mav: Any, t: TelemetryState) -> None:

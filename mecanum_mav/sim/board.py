@@ -22,8 +22,8 @@ companion and the simulated robot alike. A channel without an active override ou
 wheel's trim (a stopped wheel).
 
 Telemetry, as ArduPilot Rover sends it: HEARTBEAT 1 Hz, ATTITUDE 20 Hz (true yaw, radians
-clockwise from north), WHEEL_DISTANCE 10 Hz (cumulative encoder metres FL, FR, RL, RR) and
-SERVO_OUTPUT_RAW 10 Hz (the pulse width on each output).
+clockwise from north), WHEEL_DISTANCE 10 Hz (cumulative encoder metres FL, FR, RL, RR),
+SERVO_OUTPUT_RAW 10 Hz (the pulse width on each output) and SYS_STATUS 1 Hz (a battery).
 
 Physics is stepped at ``SIM_RATE`` with a zero-order hold of the wheel commands; an override
 takes effect from the moment it arrives. The socket version is
@@ -56,6 +56,10 @@ _HEARTBEAT_PERIOD_S = 1.0
 _ATTITUDE_PERIOD_S = 0.05
 _WHEEL_DISTANCE_PERIOD_S = 0.1
 _SERVO_OUTPUT_PERIOD_S = 0.1
+_SYS_STATUS_PERIOD_S = 1.0
+BATTERY_V = 12.6
+"""The simulated battery's voltage (V); it reports 100 % remaining."""
+_IDLE_CURRENT_A, _WHEEL_CURRENT_A = 0.3, 2.0
 
 
 class RcOverrides:
@@ -167,6 +171,7 @@ class SimBoard:
             (_Every(_ATTITUDE_PERIOD_S, now_s), self._attitude),
             (_Every(_WHEEL_DISTANCE_PERIOD_S, now_s), self._wheel_distance),
             (_Every(_SERVO_OUTPUT_PERIOD_S, now_s), self._servo_output_raw),
+            (_Every(_SYS_STATUS_PERIOD_S, now_s), self._sys_status),
         ]
 
     # ------------------------------------------------------------------ time
@@ -276,6 +281,13 @@ class SimBoard:
         """WHEEL_DISTANCE: cumulative encoder metres FL, FR, RL, RR, then zeros."""
         distances = [*self.chassis.wheel_distances_m, *([0.0] * 12)]
         mav.wheel_distance_send(self._boot_us(now_s), 4, distances)
+
+    def _sys_status(self, mav: Any, now_s: float) -> None:
+        """SYS_STATUS: a battery monitor (voltage, a current that grows with the wheel
+        commands, 100 % remaining); sensor bits of a healthy board."""
+        current_a = _IDLE_CURRENT_A + _WHEEL_CURRENT_A * sum(abs(c) for c in self.commands)
+        mav.sys_status_send(0, 0, 0xFFFFFFFF, 0, round(BATTERY_V * 1000), round(current_a * 100),
+                            100, 0, 0, 0, 0, 0, 0)
 
     def _servo_output_raw(self, mav: Any, now_s: float) -> None:
         """SERVO_OUTPUT_RAW: active override, else the wheel's trim, else 0 (port 0)."""

@@ -65,6 +65,11 @@ class _Wire:
         """The sender's ``file.write``: one datagram on the wire."""
         self.queue.append(bytes(data))
 
+    def drop(self) -> list[Any]:
+        """Lose everything on the wire (a cut link); returns nothing."""
+        self.queue = []
+        return []
+
     def deliver(self) -> list[Any]:
         """Everything on the wire, parsed; the wire is empty after."""
         if not self.queue:
@@ -129,6 +134,8 @@ class Lockstep:
         """Every RC_CHANNELS_OVERRIDE the board received, with its virtual time."""
         self.fc_received: list[Any] = []
         """Everything else the board received from the core (its HEARTBEATs)."""
+        self.fc_link_up = True
+        """Clear it to cut the flight-controller link: nothing crosses it either way."""
         self.on_step: list[Callable[[float], None]] = []
         """Called with the time at the start of every step (a test's periodic sender)."""
 
@@ -145,13 +152,13 @@ class Lockstep:
         for msg in self._gcs_to_core.deliver():
             self._write(core.handle(msg, now))
             woke = True
-        for msg in self._fc_to_core.deliver():
+        for msg in self._fc_to_core.deliver() if self.fc_link_up else self._fc_to_core.drop():
             self._write(core.handle(msg, now, from_fc=True))
             woke = True
         if woke or now >= core.next_due_s():
             self._write(core.tick(now))
             self._write(core.housekeeping(now))
-        received = self._core_to_fc.deliver()
+        received = self._core_to_fc.deliver() if self.fc_link_up else self._core_to_fc.drop()
         if received:
             self._log_fc(received, now)
             self.board.receive(received, now)
