@@ -22,6 +22,8 @@ from mecanum_mav.app.companion import Companion
 from mecanum_mav.config.params import SCHEMA, Params
 from mecanum_mav.io.links import mavlink
 from mecanum_mav.mecanum.geo import GlobalOrigin
+from mecanum_mav.mecanum.geometry import Pose2d
+from mecanum_mav.sim.board import ORIGIN
 from mecanum_mav.sim.simfc import SimFlightController
 
 
@@ -33,10 +35,12 @@ def free_udp_port() -> int:
 
 
 @contextmanager
-def rover_for_client(port: int) -> Iterator[tuple[SimFlightController, Companion, Params]]:
-    """Simulator + companion whose ground-station link goes to a client on ``port``."""
+def rover_for_client(port: int, pose: Pose2d = ORIGIN
+                     ) -> Iterator[tuple[SimFlightController, Companion, Params]]:
+    """Simulator (its chassis starting at ``pose``) + companion whose ground-station link goes
+    to a client on ``port``."""
     params = Params()
-    sim = SimFlightController("udpin:127.0.0.1:0", params)
+    sim = SimFlightController("udpin:127.0.0.1:0", params, pose)
     sim.start()
     companion = Companion(params, f"udpout:127.0.0.1:{port}",
                           f"udpout:127.0.0.1:{sim.local_port}")
@@ -94,9 +98,12 @@ class MavProxy:
             self.proc.kill()
 
 
-def test_mavproxy_fetches_params_sets_one_arms_and_drives_by_rc_and_velocity(tmp_path):
+def test_mavproxy_fetches_params_sets_one_arms_and_drives_by_rc_velocity_and_position(
+        tmp_path):
+    """The rover faces east (heading 90): MAVProxy's ``velocity`` and ``position`` are in the
+    body frame (BODY_NED), so "ahead" is east, and ``position 1 0 0`` is the point 1 m ahead."""
     port = free_udp_port()
-    with rover_for_client(port) as (sim, _, params):
+    with rover_for_client(port, Pose2d(0.0, 0.0, math.pi / 2)) as (sim, _, params):
         mavproxy = MavProxy(port, tmp_path)
         try:
             assert mavproxy.saw(f"Received {len(SCHEMA)} parameters", 30.0), mavproxy.lines
@@ -104,14 +111,25 @@ def test_mavproxy_fetches_params_sets_one_arms_and_drives_by_rc_and_velocity(tmp
             assert wait_until(lambda: params["INP_EXPO"] == 0.2, 5.0)
             mavproxy.send("arm throttle")
             assert mavproxy.saw("ARMED")
-            mavproxy.send("rc 3 1800")  # throttle channel: forward
-            assert wait_until(lambda: sim.snapshot().pose.x_m > 0.3, 5.0)
+            mavproxy.send("rc 3 1800")  # throttle channel: forward, here east
+            assert wait_until(lambda: sim.snapshot().pose.y_m > 0.3, 5.0)
             mavproxy.send("rc 3 1500")
             mavproxy.send("mode GUIDED")
             assert mavproxy.saw("Mode GUIDED")
-            mavproxy.send("velocity 0 0.5 0")  # north 0, east 0.5 m/s
-            assert wait_until(lambda: sim.snapshot().pose.y_m > 0.3, 5.0)
-            assert abs(sim.snapshot().pose.yaw_rad) < 0.02  # holonomic: it did not turn
+            start = sim.snapshot().pose
+            mavproxy.send("velocity 0 0.5 0")  # body frame: 0.5 m/s to the right, here south
+            assert wait_until(lambda: sim.snapshot().pose.x_m < start.x_m - 0.3, 5.0)
+            assert abs(sim.snapshot().pose.y_m - start.y_m) < 0.05
+            assert abs(sim.snapshot().pose.yaw_rad - math.pi / 2) < 0.02  # it did not turn
+            mavproxy.send("velocity 0 0 0")
+            assert wait_until(lambda: math.hypot(*sim.snapshot().velocity_body) < 0.01, 5.0)
+            start = sim.snapshot().pose
+            mavproxy.send("position 1 0 0")  # 1 m ahead of the rover: here 1 m east
+            assert wait_until(lambda: abs(sim.snapshot().pose.y_m - start.y_m - 1.0) < 0.03
+                              and math.hypot(*sim.snapshot().velocity_body) < 0.01, 10.0), (
+                start, sim.snapshot().pose)
+            assert abs(sim.snapshot().pose.x_m - start.x_m) < 0.03
+            assert not [line for line in mavproxy.lines if "fence breach" in line]
         finally:
             mavproxy.close()
 

@@ -45,8 +45,10 @@ from mecanum_mav.protocol.modes import Mode
 from mecanum_mav.protocol.rcoverride import CHANNELS, LEAVE, RELEASE, field_action
 from mecanum_mav.sim.chassis import SimChassis
 
-__all__ = ["RcOverrides", "SimBoard", "SimState"]
+__all__ = ["ORIGIN", "RcOverrides", "SimBoard", "SimState"]
 
+ORIGIN = Pose2d(0.0, 0.0, 0.0)
+"""Where the chassis starts unless told otherwise: the local origin, facing north."""
 SERVO_OUTPUTS = 16
 """Outputs SERVO_OUTPUT_RAW reports."""
 MAX_STEP_S = 0.1
@@ -147,16 +149,17 @@ class SimBoard:
             ``SIM_RC_TMO``, ``SIM_RATE``, the ``MOT_*`` channel map and the chassis
             parameters (see :meth:`SimChassis.from_params`).
         now_s: the time the board boots, seconds.
+        pose: where the chassis starts (local NED, yaw clockwise from north).
     """
 
-    def __init__(self, params: Params, now_s: float = 0.0) -> None:
+    def __init__(self, params: Params, now_s: float = 0.0, pose: Pose2d = ORIGIN) -> None:
         self.sysid = int(params["FC_SYSID"])
         self.compid = int(params["FC_COMPID"])
         self._gcs_sysid = int(params["SIM_GCS_SYSID"])
         self.physics_period_s = 1.0 / float(params["SIM_RATE"])
         self._outputs = PwmMap.from_params(params)
         self._trims = {w.channel: w.trim for w in self._outputs.wheels}
-        self.chassis = SimChassis.from_params(params)
+        self.chassis = SimChassis.from_params(params, pose)
         self._overrides = RcOverrides(float(params["SIM_RC_TMO"]))
         self.channel_pwm: dict[int, int] = {}
         self.commands = (0.0, 0.0, 0.0, 0.0)

@@ -17,7 +17,8 @@ from types import TracebackType
 
 from mecanum_mav.config.params import Params
 from mecanum_mav.io.links import Link, open_link
-from mecanum_mav.sim.board import RcOverrides, SimBoard, SimState
+from mecanum_mav.mecanum.geometry import Pose2d
+from mecanum_mav.sim.board import ORIGIN, RcOverrides, SimBoard, SimState
 
 __all__ = ["RcOverrides", "SimFlightController", "SimState"]
 
@@ -28,13 +29,14 @@ class SimFlightController:
     Args:
         url: pymavlink connection string to serve on, e.g. ``udpin:127.0.0.1:0``.
         params: the board's parameters (see :class:`~mecanum_mav.sim.board.SimBoard`).
+        pose: where the simulated chassis starts (local NED, yaw clockwise from north).
 
     Raises ``OSError``/``ValueError`` when the link cannot be opened. Use :meth:`start` /
     :meth:`stop` (or ``with``, which stops on exit) or run :meth:`run` in your own thread.
     """
 
-    def __init__(self, url: str, params: Params) -> None:
-        self.board = SimBoard(params, time.monotonic())
+    def __init__(self, url: str, params: Params, pose: Pose2d = ORIGIN) -> None:
+        self.board = SimBoard(params, time.monotonic(), pose)
         self._cond = threading.Condition()
         self._state = self.board.state()
         self._stop_event = threading.Event()
