@@ -3,6 +3,7 @@
 Sub-commands:
     sim     the companion and the built-in simulated flight controller (the quick start)
     run     the companion between a ground station (--gcs) and a flight controller (--fc)
+    setup-fc  check (and with --apply fix) an ArduPilot flight controller for the companion
     simfc   the simulated flight controller alone, as its own process
     mix     wheel outputs (normalized and PWM) for one command, or a batch from stdin
     plot    the speed-envelope figures of seed 000 (and of our mixers) as PNGs
@@ -354,6 +355,12 @@ def serve_simfc(url: str, params: Params) -> int:
     return 0
 
 
+def cmd_setup_fc(args: argparse.Namespace, params: Params) -> int:
+    from mecanum_mav.app.setupfc import run_setup
+
+    return run_setup(args.fc, params, apply=args.apply)
+
+
 def cmd_simfc(args: argparse.Namespace, params: Params) -> int:
     return serve_simfc(args.listen, params)
 
@@ -408,6 +415,19 @@ def build_parser() -> argparse.ArgumentParser:
                      "udpout:HOST:PORT), or 'sim' for the built-in simulator")
     run.add_argument("--tlog", type=Path, metavar="FILE", help="record all traffic (tlog)")
     run.set_defaults(handler=cmd_run)
+
+    setup = sub.add_parser(
+        "setup-fc", parents=[common], help="check (and fix) an ArduPilot flight controller",
+        description="Connect to the flight controller as the companion would, read the "
+        "settings the companion depends on and print each with what it needs and why: the "
+        "ground-station id, pass-through of the wheel channels, the fall-back to trim when the "
+        "companion dies, the override timeout, matched ranges, rudder arming. Exit status 0 "
+        "only when the board is safe.")
+    setup.add_argument("--fc", required=True, metavar="URL",
+                       help="flight-controller link, as for 'run' (e.g. /dev/ttyACM0,115200)")
+    setup.add_argument("--apply", action="store_true",
+                       help="write the safe settings, read them back and check again")
+    setup.set_defaults(handler=cmd_setup_fc)
 
     simfc = sub.add_parser("simfc", parents=[common], help="the simulated flight controller",
                            description="Run the simulated ArduPilot Rover flight controller "

@@ -1,0 +1,169 @@
+"""What an ArduPilot flight controller must be set to for the companion to drive it safely.
+
+Pure rules, no I/O: :func:`wanted_names` lists the flight-controller parameters to read for a
+companion configuration, :func:`check` turns the values read into findings (each setting, its
+value, what the companion needs and why), :func:`safe_settings` gives the values that make the
+board safe. ``mecanum-mav setup-fc`` (:mod:`mecanum_mav.app.setupfc`) reads, prints and writes
+them over MAVLink.
+
+What "safe" means, measured with ArduPilot Rover SITL (see the project's SITL notes):
+
+- Overrides are obeyed only from the ground-station id (``MAV_GCS_SYSID``, older firmware
+  ``SYSID_MYGCS``): it must be the companion's ``FC_GCS_SYSID``.
+- Each wheel channel's servo output must pass its RC input through: ``SERVOn_FUNCTION`` 51..66
+  (RCIN1..RCIN16) or 140..155 (RCIN1Scaled..RCIN16Scaled).
+- With the plain pass-through and no receiver, a board whose companion dies (kill -9, power
+  loss) HOLDS THE LAST OVERRIDE FOREVER: the wheels keep turning. The scaled pass-through with
+  the channel's bit in ``SERVO_RC_FS_MSK`` goes to the servo's trim when the radio failsafe
+  fires (``FS_THR_ENABLE``), which happens about 0.5 s after the overrides stop provided the
+  throttle input channel (``RCMAP_THROTTLE``) is one of the channels the companion refreshes.
+- ``RC_OVERRIDE_TIME`` longer than 1 s keeps a dead companion's override alive that long where
+  a receiver is fitted.
+- The scaled pass-through maps the pulse through ``RCn_MIN/TRIM/MAX/DZ`` and
+  ``SERVOn_MIN/TRIM/MAX``: only ranges equal to the companion's ``MOT_x_MIN/TRIM/MAX`` and a
+  dead zone of 0 pass a pulse unchanged.
+- ``ARMING_RUDDER`` (channel 1 held near full with channel 3 at trim arms or disarms the board)
+  turns a diagonal drive into an arming gesture.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import NamedTuple
+
+from mecanum_mav.config.params import Params
+
+__all__ = [
+    "GCS_SYSID_NAMES",
+    "OVERRIDE_TIME_MAX_S",
+    "SAFE_OVERRIDE_TIME_S",
+    "Finding",
+    "check",
+    "safe_settings",
+    "wanted_names",
+    "wheel_channels",
+]
+
+GCS_SYSID_NAMES = ("MAV_GCS_SYSID", "SYSID_MYGCS")
+"""The ground-station id's name in current and older ArduPilot."""
+RCIN_FIRST, RCIN_SCALED_FIRST = 51, 140
+"""SERVOn_FUNCTION of RCIN1 and of RCIN1Scaled (RCINk is 50 + k, RCINkScaled 139 + k)."""
+OVERRIDE_TIME_MAX_S = 1.0
+"""A longer RC_OVERRIDE_TIME keeps a dead companion's command alive too long."""
+SAFE_OVERRIDE_TIME_S = 0.5
+"""What ``--apply`` sets RC_OVERRIDE_TIME to."""
+_DEFAULT = object()
+
+Values = Mapping[str, float]
+
+
+class Finding(NamedTuple):
+    """One flight-controller setting: its value (None if the board has no such parameter),
+    what the companion needs, why, and whether it is a hazard as it stands."""
+
+    name: str
+    value: float | None
+    want: str
+    why: str
+    hazard: bool
+
+
+def wheel_channels(params: Params) -> list[tuple[str, int]]:
+    """(wheel key, RC channel) of the four wheels, FL, FR, RL, RR."""
+    return [(w, int(params[f"MOT_{w}_CH"])) for w in ("FL", "FR", "RL", "RR")]
+
+
+def wanted_names(params: Params) -> list[str]:
+    """Every flight-controller parameter :func:`check` reads, for this configuration."""
+    names = [*GCS_SYSID_NAMES, "SERVO_RC_FS_MSK", "RC_OVERRIDE_TIME", "ARMING_RUDDER",
+             "RCMAP_THROTTLE", "FS_THR_ENABLE"]
+    for _, ch in wheel_channels(params):
+        names += [f"SERVO{ch}_FUNCTION", f"SERVO{ch}_MIN", f"SERVO{ch}_TRIM", f"SERVO{ch}_MAX",
+                  f"RC{ch}_MIN", f"RC{ch}_TRIM", f"RC{ch}_MAX", f"RC{ch}_DZ"]
+    return names
+
+
+def _gcs_name(values: Values) -> str:
+    return next((n for n in GCS_SYSID_NAMES if n in values), GCS_SYSID_NAMES[0])
+
+
+def check(params: Params, values: Values) -> list[Finding]:
+    """Findings for a board whose parameters are ``values`` (name -> value; a name missing
+    means the board has no such parameter), for the companion configured by ``params``."""
+    out: list[Finding] = []
+    gcs_name = _gcs_name(values)
+    gcs = values.get(gcs_name)
+    own = int(params["FC_GCS_SYSID"])
+    out.append(Finding(gcs_name, gcs, str(own),
+                       "overrides are obeyed only from this system id (FC_GCS_SYSID)",
+                       gcs is None or int(gcs) != own))
+    wheels = wheel_channels(params)
+    fs_mask = int(values.get("SERVO_RC_FS_MSK", 0))
+    refreshed = {ch for _, ch in wheels}
+    for w, ch in wheels:
+        fn_name = f"SERVO{ch}_FUNCTION"
+        fn = values.get(fn_name)
+        plain, scaled = RCIN_FIRST + ch - 1, RCIN_SCALED_FIRST + ch - 1
+        passed = fn is not None and int(fn) in (plain, scaled)
+        out.append(Finding(fn_name, fn, f"{scaled} (RCIN{ch}Scaled)",
+                           f"the {w} wheel's output must pass RC channel {ch} through",
+                           not passed))
+        is_scaled = fn is not None and int(fn) == scaled
+        masked = bool(fs_mask & (1 << (ch - 1)))
+        out.append(Finding(f"SERVO_RC_FS_MSK bit {ch - 1}", float(masked), "set",
+                           f"channel {ch} goes to trim when the companion dies (with "
+                           f"RCIN{ch}Scaled): else the last command is held",
+                           not (is_scaled and masked)))
+        for part, key in (("MIN", "MIN"), ("TRIM", "TRIM"), ("MAX", "MAX")):
+            want = int(params[f"MOT_{w}_{key}"])
+            for name in (f"RC{ch}_{part}", f"SERVO{ch}_{part}"):
+                value = values.get(name)
+                out.append(Finding(name, value, str(want),
+                                   f"MOT_{w}_{key}: the pulse passes unchanged",
+                                   is_scaled and (value is None or int(value) != want)))
+        dz = values.get(f"RC{ch}_DZ")
+        out.append(Finding(f"RC{ch}_DZ", dz, "0", "no dead zone: small commands pass",
+                           is_scaled and (dz is None or int(dz) != 0)))
+    timeout = values.get("RC_OVERRIDE_TIME")
+    out.append(Finding("RC_OVERRIDE_TIME", timeout, f"{SAFE_OVERRIDE_TIME_S:g}",
+                       f"a dead companion's override lapses within {OVERRIDE_TIME_MAX_S:g} s",
+                       timeout is None or timeout < 0 or timeout > OVERRIDE_TIME_MAX_S))
+    throttle = values.get("RCMAP_THROTTLE")
+    out.append(Finding("RCMAP_THROTTLE", throttle, f"one of {sorted(refreshed)}",
+                       "the radio failsafe watches this channel; the companion must refresh "
+                       "it", throttle is None or int(throttle) not in refreshed))
+    fs_thr = values.get("FS_THR_ENABLE")
+    out.append(Finding("FS_THR_ENABLE", fs_thr, "1",
+                       "the radio failsafe takes the scaled outputs to trim",
+                       fs_thr is None or int(fs_thr) == 0))
+    rudder = values.get("ARMING_RUDDER")
+    out.append(Finding("ARMING_RUDDER", rudder, "0",
+                       "a diagonal drive (ch 1 full, ch 3 trim) must not arm or disarm",
+                       rudder is not None and int(rudder) != 0))
+    return out
+
+
+def safe_settings(params: Params, values: Values) -> dict[str, float]:
+    """The parameter values that make the board safe for this companion (what ``--apply``
+    writes): the ground-station id, scaled pass-through with the failsafe mask, matched
+    ranges, no dead zone, a short override timeout, the radio failsafe on, no rudder arming.
+    ``values`` (what the board has) chooses the ground-station id's name."""
+    wheels = wheel_channels(params)
+    out: dict[str, float] = {_gcs_name(values): int(params["FC_GCS_SYSID"])}
+    mask = int(values.get("SERVO_RC_FS_MSK", 0))
+    for w, ch in wheels:
+        out[f"SERVO{ch}_FUNCTION"] = RCIN_SCALED_FIRST + ch - 1
+        mask |= 1 << (ch - 1)
+        for part in ("MIN", "TRIM", "MAX"):
+            want = int(params[f"MOT_{w}_{part}"])
+            out[f"RC{ch}_{part}"] = want
+            out[f"SERVO{ch}_{part}"] = want
+        out[f"RC{ch}_DZ"] = 0
+    out["SERVO_RC_FS_MSK"] = mask
+    out["RC_OVERRIDE_TIME"] = SAFE_OVERRIDE_TIME_S
+    throttle = values.get("RCMAP_THROTTLE")
+    if throttle is None or int(throttle) not in {ch for _, ch in wheels}:
+        out["RCMAP_THROTTLE"] = wheels[0][1]
+    out["FS_THR_ENABLE"] = 1
+    out["ARMING_RUDDER"] = 0
+    return out
