@@ -1,0 +1,464 @@
+"""Real ArduPilot Rover firmware (SITL) as the flight controller of integration tests.
+
+:class:`Sitl` starts ``ardurover`` (../shared/ardupilot-sitl/ardurover from the repository
+root, or ``$MECANUM_SITL``) in its own temporary directory and process group, with the
+pass-through parameters of ``sitl_passthrough.parm`` (RC channels 1-4 straight to SERVO1-4),
+its flight-controller port on UDP, TCP or a serial pty, a simulated RC receiver fed with a
+distinctive pulse, and a :class:`Monitor` on its second serial port that timestamps every
+SERVO_OUTPUT_RAW. :class:`CompanionProcess` runs ``python -m mecanum_mav run`` against it.
+Both kill their whole process group on every way out. Ports come from the OS (bind port 0).
+See ../shared/ardupilot-sitl/README.md for what the firmware does and needs.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import select
+import shutil
+import signal
+import socket
+import struct
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+import tty
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from types import TracebackType
+from typing import Any
+
+from pymavlink import mavutil
+
+__all__ = ["CompanionProcess", "Monitor", "PtyCable", "Sample", "Sitl", "find_sitl"]
+
+REPO_ROOT = Path(__file__).resolve().parent.parent
+DEFAULT_BINARY = REPO_ROOT.parent / "shared" / "ardupilot-sitl" / "ardurover"
+PASSTHROUGH_PARM = Path(__file__).with_name("sitl_passthrough.parm")
+TRANSPORTS = ("udp", "tcp", "serial")
+
+SERVO_OUTPUT_RAW = 36
+SET_MESSAGE_INTERVAL = 511  # MAV_CMD_SET_MESSAGE_INTERVAL
+SERVO_INTERVAL_US = 25_000
+"""The fastest SERVO_OUTPUT_RAW this firmware grants (20 ms is DENIED, 25 ms accepted)."""
+RECEIVER_PERIOD_S = 0.05
+MONITOR_SYSID = 254  # not the ground station's 255: the monitor only reads
+
+
+def find_sitl() -> tuple[Path | None, str]:
+    """The ``ardurover`` binary to use, or None and why not (a pytest skip reason)."""
+    env = os.environ.get("MECANUM_SITL")
+    if env:
+        path = Path(env)
+        if path.is_file() and os.access(path, os.X_OK):
+            return path, ""
+        return None, f"$MECANUM_SITL={env!r} is not an executable file"
+    if DEFAULT_BINARY.is_file() and os.access(DEFAULT_BINARY, os.X_OK):
+        return DEFAULT_BINARY, ""
+    return None, ("ArduPilot SITL not found: neither ../shared/ardupilot-sitl/ardurover "
+                  "(from the repository root) nor $MECANUM_SITL")
+
+
+def free_port(kind: int = socket.SOCK_DGRAM, host: str = "127.0.0.1") -> int:
+    """A port the OS says is free now (bind port 0, read it, close)."""
+    with socket.socket(socket.AF_INET, kind) as s:
+        s.bind((host, 0))
+        return int(s.getsockname()[1])
+
+
+def _kill_group(proc: subprocess.Popen[Any]) -> None:
+    """SIGKILL the process group ``proc`` leads (``start_new_session=True``) and reap it."""
+    if proc.poll() is None:  # still ours: the group id cannot have been reused
+        with contextlib.suppress(ProcessLookupError, PermissionError):
+            os.killpg(proc.pid, signal.SIGKILL)
+    with contextlib.suppress(subprocess.TimeoutExpired):
+        proc.wait(timeout=10)
+
+
+# --------------------------------------------------------------------------- the monitor
+
+
+@dataclass(frozen=True)
+class Sample:
+    """One SERVO_OUTPUT_RAW: when it arrived (monotonic s) and SERVO1..4 (us)."""
+
+    t: float
+    servos: tuple[int, int, int, int]
+
+
+class Monitor:
+    """A pymavlink connection on SITL's second serial port (``udpin:127.0.0.1:PORT``).
+
+    A thread reads it and timestamps every SERVO_OUTPUT_RAW on arrival, so that times are
+    right even while the test is busy elsewhere (waiting for a COMMAND_ACK, for instance).
+    """
+
+    def __init__(self, port: int) -> None:
+        self.conn = mavutil.mavlink_connection(f"udpin:127.0.0.1:{port}",
+                                               source_system=MONITOR_SYSID, source_component=191)
+        self.samples: list[Sample] = []
+        self.heartbeats = 0
+        self._acks: list[Any] = []
+        self._cond = threading.Condition()
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="sitl-monitor", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        fd = self.conn.port.fileno()
+        while not self._stop.is_set():
+            try:
+                ready = select.select([fd], [], [], 0.1)[0]
+            except (OSError, ValueError):
+                return
+            if not ready:
+                continue
+            now = time.monotonic()
+            got = []
+            while (msg := self.conn.recv_msg()) is not None:
+                got.append(msg)
+            with self._cond:
+                for msg in got:
+                    kind = msg.get_type()
+                    if kind == "SERVO_OUTPUT_RAW":
+                        self.samples.append(Sample(now, (msg.servo1_raw, msg.servo2_raw,
+                                                         msg.servo3_raw, msg.servo4_raw)))
+                    elif kind == "HEARTBEAT" and msg.get_srcSystem() == 1:
+                        self.heartbeats += 1
+                    elif kind == "COMMAND_ACK":
+                        self._acks.append(msg)
+                self._cond.notify_all()
+
+    def _wait_for(self, ready: Callable[[], Any], timeout_s: float,
+                  tick: Callable[[], None] | None = None, period_s: float = 0.05) -> Any:
+        """``ready()`` (called under the lock) once it is truthy, or None at the deadline;
+        ``tick()`` runs every ``period_s`` meanwhile (outside the lock)."""
+        deadline = time.monotonic() + timeout_s
+        next_tick = time.monotonic()
+        while True:
+            now = time.monotonic()
+            if tick is not None and now >= next_tick:
+                tick()
+                next_tick = now + period_s
+            with self._cond:
+                if result := ready():
+                    return result
+                now = time.monotonic()
+                if now >= deadline:
+                    return None
+                wake = deadline if tick is None else min(deadline, next_tick)
+                self._cond.wait(max(0.0, wake - now))
+
+    def wait_heartbeat(self, timeout_s: float) -> bool:
+        """Whether the firmware's HEARTBEAT came within ``timeout_s``."""
+        return bool(self._wait_for(lambda: self.heartbeats > 0, timeout_s))
+
+    def request_servo_output(self, timeout_s: float, interval_us: int = SERVO_INTERVAL_US) -> None:
+        """MAV_CMD_SET_MESSAGE_INTERVAL for SERVO_OUTPUT_RAW, retried until accepted and the
+        first sample is in.
+
+        Raises:
+            TimeoutError: not within ``timeout_s``.
+        """
+        deadline = time.monotonic() + timeout_s
+        accepted = False
+
+        def ask() -> None:
+            if not accepted:
+                self.conn.mav.command_long_send(1, 1, SET_MESSAGE_INTERVAL, 0, SERVO_OUTPUT_RAW,
+                                                interval_us, 0, 0, 0, 0, 0)
+
+        def done() -> bool:
+            nonlocal accepted
+            accepted = accepted or any(a.command == SET_MESSAGE_INTERVAL and a.result == 0
+                                       for a in self._acks)
+            return accepted and len(self.samples) > 0
+
+        if not self._wait_for(done, deadline - time.monotonic(), tick=ask, period_s=0.3):
+            raise TimeoutError(f"SERVO_OUTPUT_RAW never streamed (accepted={accepted}, "
+                               f"acks={[a.result for a in self._acks]})")
+
+    def mark(self) -> int:
+        """An index into :attr:`samples`: wait only for what arrives after this point."""
+        with self._cond:
+            return len(self.samples)
+
+    def wait_servos(self, predicate: Callable[[tuple[int, int, int, int]], bool],
+                    timeout_s: float, *, since: int | None = None,
+                    tick: Callable[[], None] | None = None,
+                    period_s: float = 0.05) -> Sample | None:
+        """The first sample from index ``since`` (default: from now on) whose SERVO1..4
+        satisfy ``predicate``, or None after ``timeout_s``; ``tick()`` runs every
+        ``period_s`` while waiting (stream the sticks there)."""
+        index = self.mark() if since is None else since
+
+        def ready() -> Sample | None:
+            nonlocal index
+            while index < len(self.samples):
+                sample = self.samples[index]
+                index += 1
+                if predicate(sample.servos):
+                    return sample
+            return None
+
+        return self._wait_for(ready, timeout_s, tick, period_s)
+
+    def last(self, n: int = 5) -> list[tuple[int, int, int, int]]:
+        """SERVO1..4 of the last ``n`` samples (for assertion messages)."""
+        with self._cond:
+            return [s.servos for s in self.samples[-n:]]
+
+    def close(self) -> None:
+        self._stop.set()
+        self._thread.join(timeout=2)
+        self.conn.close()
+
+
+# --------------------------------------------------------------------------- a serial cable
+
+
+class PtyCable:
+    """Two pseudo-terminals joined by a relay thread: a null-modem cable with a device path
+    at each end (:attr:`fc_path` for SITL, :attr:`companion_path` for pyserial).
+
+    The slave ends stay open here too, so that a peer closing its end never makes the
+    master read fail; what cannot be delivered (nobody reading) is dropped, like a wire.
+    """
+
+    def __init__(self) -> None:
+        self._fds: list[int] = []
+        try:
+            self._a, a_slave = self._open()
+            self._b, b_slave = self._open()
+            self.fc_path = os.ttyname(a_slave)
+            self.companion_path = os.ttyname(b_slave)
+            self._stop_r, self._stop_w = os.pipe()
+            self._fds += [self._stop_r, self._stop_w]
+        except BaseException:
+            self.close()
+            raise
+        self._thread = threading.Thread(target=self._run, name="pty-cable", daemon=True)
+        self._thread.start()
+
+    def _open(self) -> tuple[int, int]:
+        master, slave = os.openpty()
+        self._fds += [master, slave]
+        tty.setraw(slave)  # no echo, no line editing, no CR/LF translation
+        os.set_blocking(master, False)
+        return master, slave
+
+    def _run(self) -> None:
+        peer = {self._a: self._b, self._b: self._a}
+        while True:
+            try:
+                ready = select.select([self._a, self._b, self._stop_r], [], [])[0]
+            except (OSError, ValueError):
+                return
+            if self._stop_r in ready:
+                return
+            for src in ready:
+                try:
+                    data = os.read(src, 65536)
+                except (BlockingIOError, InterruptedError):
+                    continue
+                except OSError:
+                    return
+                self._write(peer[src], data)
+
+    def _write(self, fd: int, data: bytes) -> None:
+        deadline = time.monotonic() + 0.1
+        while data and time.monotonic() < deadline:
+            try:
+                data = data[os.write(fd, data):]
+            except (BlockingIOError, InterruptedError):
+                select.select([], [fd], [], 0.01)
+            except OSError:
+                return
+
+    def close(self) -> None:
+        if hasattr(self, "_thread"):
+            os.write(self._stop_w, b"x")
+            self._thread.join(timeout=2)
+        for fd in self._fds:
+            with contextlib.suppress(OSError):
+                os.close(fd)
+        self._fds = []
+
+
+# --------------------------------------------------------------------------- the firmware
+
+
+class Sitl:
+    """``ardurover`` with pass-through parameters, a monitor and an RC receiver.
+
+    Use as a context manager; the process group is killed on every way out (also when the
+    start fails). ``transport`` is the flight-controller port (SERIAL0): ``udp``
+    (``udpclient:``, the companion uses ``udpin:``), ``tcp`` (SITL listens) or ``serial``
+    (a pty :class:`PtyCable`). :attr:`fc_url` is the companion's ``--fc``.
+
+    The simulated receiver (``--rc-in-port``) is fed ``receiver`` on channels 1-4 every
+    50 ms, so that "released to the radio" reads differently from neutral.
+    """
+
+    def __init__(self, binary: Path, transport: str = "udp", *,
+                 receiver: Sequence[int] = (1600, 1600, 1600, 1600),
+                 extra_params: Sequence[str] = (), boot_timeout_s: float = 20.0) -> None:
+        if transport not in TRANSPORTS:
+            raise ValueError(f"transport {transport!r}: one of {TRANSPORTS}")
+        self.binary = binary
+        self.transport = transport
+        self.receiver = tuple(receiver)
+        self.extra_params = tuple(extra_params)
+        self.boot_timeout_s = boot_timeout_s
+        self.workdir: Path | None = None
+        self.proc: subprocess.Popen[bytes] | None = None
+        self.monitor: Monitor | None = None
+        self.cable: PtyCable | None = None
+        self.fc_url = ""
+        self.command: list[str] = []
+        self.boot_s = float("nan")
+        self._stop = threading.Event()
+        self._receiver_thread: threading.Thread | None = None
+
+    @property
+    def log_path(self) -> Path:
+        assert self.workdir is not None
+        return self.workdir / "ardurover.log"
+
+    def log(self) -> str:
+        """The firmware's output so far (for assertion messages)."""
+        try:
+            return self.log_path.read_text(errors="replace")[-3000:]
+        except (OSError, AssertionError):
+            return ""
+
+    def __enter__(self) -> Sitl:
+        try:
+            self._start()
+        except BaseException:
+            self.close()
+            raise
+        return self
+
+    def __exit__(self, kind: type[BaseException] | None, exc: BaseException | None,
+                 tb: TracebackType | None) -> None:
+        self.close()
+
+    def _serial0(self) -> str:
+        if self.transport == "udp":
+            port = free_port(socket.SOCK_DGRAM)
+            self.fc_url = f"udpin:127.0.0.1:{port}"
+            return f"udpclient:127.0.0.1:{port}"
+        if self.transport == "tcp":
+            port = free_port(socket.SOCK_STREAM, "")  # SITL listens on all interfaces
+            self.fc_url = f"tcp:127.0.0.1:{port}"
+            return f"tcp:{port}"
+        self.cable = PtyCable()
+        self.fc_url = f"{self.cable.companion_path},115200"
+        return f"uart:{self.cable.fc_path}:115200"
+
+    def _start(self) -> None:
+        self.workdir = Path(tempfile.mkdtemp(prefix="mecanum-sitl-"))
+        defaults = [str(self.binary.with_name("rover.parm"))] * (
+            self.binary.with_name("rover.parm").is_file())
+        extra = self.workdir / "extra.parm"
+        extra.write_text(PASSTHROUGH_PARM.read_text() + "".join(
+            f"{line}\n" for line in self.extra_params))
+        defaults.append(str(extra))
+        mon_port = free_port(socket.SOCK_DGRAM)
+        self.rc_port = free_port(socket.SOCK_DGRAM, "")  # SITL binds it on all interfaces
+        self.command = [str(self.binary), "-w", "--model", "rover", "--speedup", "1",
+                        "--defaults", ",".join(defaults), "--serial0", self._serial0(),
+                        "--serial1", f"udpclient:127.0.0.1:{mon_port}", "--serial2", "none",
+                        "--rc-in-port", str(self.rc_port)]
+        self.monitor = Monitor(mon_port)
+        started = time.monotonic()
+        with self.log_path.open("wb") as log:
+            self.proc = subprocess.Popen(self.command, cwd=self.workdir, stdin=subprocess.DEVNULL,
+                                         stdout=log, stderr=subprocess.STDOUT,
+                                         start_new_session=True)
+        self._receiver_thread = threading.Thread(target=self._feed_receiver,
+                                                 name="sitl-receiver", daemon=True)
+        self._receiver_thread.start()
+        if not self.monitor.wait_heartbeat(self.boot_timeout_s):
+            raise TimeoutError(f"no HEARTBEAT from SITL within {self.boot_timeout_s} s "
+                               f"(exit code {self.proc.poll()}):\n{self.log()}")
+        self.boot_s = time.monotonic() - started
+        self.monitor.request_servo_output(self.boot_timeout_s)
+
+    def _feed_receiver(self) -> None:
+        pulses = struct.pack("<8H", *self.receiver, 1500, 1500, 1500, 1500)
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+            while not self._stop.is_set():
+                with contextlib.suppress(OSError):
+                    s.sendto(pulses, ("127.0.0.1", self.rc_port))
+                self._stop.wait(RECEIVER_PERIOD_S)
+
+    def alive(self) -> bool:
+        return self.proc is not None and self.proc.poll() is None
+
+    def close(self) -> None:
+        """Kill the process group, stop the threads, remove the directory; idempotent."""
+        self._stop.set()
+        if self.proc is not None:
+            _kill_group(self.proc)
+        if self._receiver_thread is not None:
+            self._receiver_thread.join(timeout=2)
+        if self.monitor is not None:
+            self.monitor.close()
+        if self.cable is not None:
+            self.cable.close()
+        if self.workdir is not None:
+            shutil.rmtree(self.workdir, ignore_errors=True)
+
+
+# --------------------------------------------------------------------------- the companion
+
+
+class CompanionProcess:
+    """``python -m mecanum_mav run --gcs GCS --fc FC`` in its own process group.
+
+    A context manager: on the way out the group is killed if it is still running.
+    """
+
+    def __init__(self, gcs_url: str, fc_url: str, workdir: Path, *extra: str) -> None:
+        self.command = [sys.executable, "-m", "mecanum_mav", "run", "--gcs", gcs_url,
+                        "--fc", fc_url, *extra]
+        workdir.mkdir(parents=True, exist_ok=True)
+        self.log_path = workdir / "companion.log"
+        env = dict(os.environ)
+        env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(REPO_ROOT),
+                                                          env.get("PYTHONPATH")]))
+        with self.log_path.open("wb") as log:
+            self.proc = subprocess.Popen(self.command, cwd=workdir, env=env,
+                                         stdin=subprocess.DEVNULL, stdout=log,
+                                         stderr=subprocess.STDOUT, start_new_session=True)
+
+    def log(self) -> str:
+        try:
+            return self.log_path.read_text(errors="replace")[-3000:]
+        except OSError:
+            return ""
+
+    def terminate(self) -> float:
+        """SIGTERM; returns when it was sent (monotonic s)."""
+        sent = time.monotonic()
+        self.proc.send_signal(signal.SIGTERM)
+        return sent
+
+    def wait(self, timeout_s: float) -> int | None:
+        """The exit code, or None if still running after ``timeout_s``."""
+        try:
+            return self.proc.wait(timeout=timeout_s)
+        except subprocess.TimeoutExpired:
+            return None
+
+    def __enter__(self) -> CompanionProcess:
+        return self
+
+    def __exit__(self, kind: type[BaseException] | None, exc: BaseException | None,
+                 tb: TracebackType | None) -> None:
+        _kill_group(self.proc)

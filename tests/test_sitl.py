@@ -1,0 +1,124 @@
+"""Integration tests against real ArduPilot Rover firmware (SITL, see tests/sitl.py).
+
+The companion runs as its own process (``python -m mecanum_mav run``) between a scripted
+ground station on UDP and ``ardurover`` configured as a pass-through board; what ArduPilot
+really does with the overrides is read on the firmware's second port (SERVO_OUTPUT_RAW).
+Skipped when the firmware is not there (../shared/ardupilot-sitl/ardurover or
+$MECANUM_SITL).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterator
+
+import pytest
+from sitl import CompanionProcess, Sitl, find_sitl
+
+from mecanum_mav.protocol.dialect import mavlink
+from mecanum_mav.sim.groundstation import ScriptedGroundStation, udp_ground_station
+
+BINARY, WHY_NOT = find_sitl()
+if BINARY is None:
+    pytest.skip(WHY_NOT, allow_module_level=True)
+
+RECEIVER = (1600, 1600, 1600, 1600)  # the simulated radio: "released" is not "neutral"
+TRIM = (1500, 1500, 1500, 1500)
+FORWARD = (2000, 2000, 2000, 2000)
+STRAFE_RIGHT = (2000, 1000, 1000, 2000)
+CLOCKWISE = (2000, 1000, 2000, 1000)
+BOOT_S = 20.0  # generous deadlines: the suite must hold on a loaded 2-core machine
+REACT_S = 10.0
+SHUTDOWN_LIMIT_S = 0.5
+
+
+@pytest.fixture(scope="module", params=["udp", "tcp", "serial"])
+def sitl(request) -> Iterator[Sitl]:
+    """One firmware per transport, shared by the tests of that transport."""
+    assert BINARY is not None
+    with Sitl(BINARY, request.param, receiver=RECEIVER, boot_timeout_s=BOOT_S) as fc:
+        yield fc
+
+
+class Rig:
+    """The firmware, a companion process on it, and a ground station on the companion."""
+
+    def __init__(self, fc: Sitl, gcs: ScriptedGroundStation, companion: CompanionProcess):
+        self.fc = fc
+        self.gcs = gcs
+        self.companion = companion
+        assert fc.monitor is not None
+        self.monitor = fc.monitor
+
+    def why(self) -> str:
+        return (f"last SERVO1..4: {self.monitor.last()}\ncompanion: {self.companion.log()}"
+                f"\nsitl ({' '.join(self.fc.command)}):\n{self.fc.log()}")
+
+    def arm(self) -> None:
+        try:
+            self.gcs.arm(timeout_s=BOOT_S)
+        except RuntimeError:
+            pytest.fail(f"the companion never armed\n{self.why()}")
+
+    def drive(self, x: int, y: int, r: int, expected: tuple[int, ...]) -> float:
+        """Stream the sticks until SERVO1..4 read ``expected``; when they did."""
+        sample = self.monitor.wait_servos(lambda s: s == expected, REACT_S,
+                                          tick=lambda: self.gcs.sticks(x, y, r))
+        assert sample is not None, f"sticks {(x, y, r)} never gave {expected}\n{self.why()}"
+        return sample.t
+
+
+@pytest.fixture
+def rig(sitl, tmp_path) -> Iterator[Rig]:
+    assert sitl.alive(), sitl.log()
+    gcs, port = udp_ground_station()
+    try:
+        with CompanionProcess(port.url, sitl.fc_url, tmp_path) as companion:
+            yield Rig(sitl, gcs, companion)
+    finally:
+        port.close()
+
+
+def only(transport: str):
+    return pytest.mark.parametrize("sitl", [transport], indirect=True)
+
+
+def test_sticks_drive_ardupilot_outputs(rig):
+    rig.arm()
+    rig.drive(1000, 0, 0, FORWARD)
+    rig.drive(0, 1000, 0, STRAFE_RIGHT)
+    rig.drive(0, 0, 1000, CLOCKWISE)
+
+
+@only("udp")
+def test_disarm_gives_trim_on_the_firmware_within_half_a_second(rig):
+    rig.arm()
+    rig.drive(1000, 0, 0, FORWARD)
+    since = rig.monitor.mark()
+    ack = rig.gcs.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 0, timeout_s=REACT_S)
+    acked = time.monotonic()
+    assert ack is not None and ack.result == mavlink.MAV_RESULT_ACCEPTED, rig.why()
+    trim = rig.monitor.wait_servos(lambda s: s == TRIM, REACT_S, since=since,
+                                   tick=lambda: rig.gcs.sticks(1000, 0, 0))
+    assert trim is not None, f"never trim after disarming\n{rig.why()}"
+    delay = trim.t - acked
+    print(f"disarm: COMMAND_ACK -> trim on SERVO1..4 {delay * 1000:.0f} ms")
+    assert delay < SHUTDOWN_LIMIT_S, rig.why()
+
+
+def test_sigterm_releases_the_channels_to_the_receiver(rig):
+    # Over TCP this needs the companion to flush its last packets before it closes the
+    # socket (FC_CLOSE_LINGER_S): without that the release is lost and the channels only
+    # fall back after RC_OVERRIDE_TIME (measured: 3.0 s).
+    rig.arm()
+    rig.drive(0, 1000, 0, STRAFE_RIGHT)
+    since = rig.monitor.mark()
+    sent = rig.companion.terminate()
+    released = rig.monitor.wait_servos(lambda s: s == RECEIVER, REACT_S, since=since,
+                                       tick=lambda: rig.gcs.sticks(0, 1000, 0))
+    code = rig.companion.wait(REACT_S)
+    assert released is not None, f"never back to the receiver's {RECEIVER}\n{rig.why()}"
+    delay = released.t - sent
+    print(f"{rig.fc.transport}: SIGTERM -> receiver's pulse on SERVO1..4 {delay * 1000:.0f} ms")
+    assert code == 0, rig.why()
+    assert delay < SHUTDOWN_LIMIT_S, rig.why()
