@@ -300,18 +300,19 @@ class Sitl:
     (a pty :class:`PtyCable`). :attr:`fc_url` is the companion's ``--fc``.
 
     The simulated receiver (``--rc-in-port``) is fed ``receiver`` on channels 1-4 every
-    50 ms, so that "released to the radio" reads differently from neutral.
+    50 ms, so that "released to the radio" reads differently from neutral; ``receiver=None``
+    is a board with no receiver at all (``SIM_RC_FAIL 1``), a companion its only RC input.
     """
 
     def __init__(self, binary: Path, transport: str = "udp", *,
-                 receiver: Sequence[int] = (1600, 1600, 1600, 1600),
+                 receiver: Sequence[int] | None = (1600, 1600, 1600, 1600),
                  extra_params: Sequence[str] = (), boot_timeout_s: float = 20.0) -> None:
         if transport not in TRANSPORTS:
             raise ValueError(f"transport {transport!r}: one of {TRANSPORTS}")
         self.binary = binary
         self.transport = transport
-        self.receiver = tuple(receiver)
-        self.extra_params = tuple(extra_params)
+        self.receiver = None if receiver is None else tuple(receiver)
+        self.extra_params = tuple(extra_params) + (("SIM_RC_FAIL 1",) if receiver is None else ())
         self.boot_timeout_s = boot_timeout_s
         self.workdir: Path | None = None
         self.proc: subprocess.Popen[bytes] | None = None
@@ -373,16 +374,17 @@ class Sitl:
         self.command = [str(self.binary), "-w", "--model", "rover", "--speedup", "1",
                         "--defaults", ",".join(defaults), "--serial0", self._serial0(),
                         "--serial1", f"udpclient:127.0.0.1:{mon_port}", "--serial2", "none",
-                        "--rc-in-port", str(self.rc_port)]
+                        *(["--rc-in-port", str(self.rc_port)] if self.receiver else [])]
         self.monitor = Monitor(mon_port)
         started = time.monotonic()
         with self.log_path.open("wb") as log:
             self.proc = subprocess.Popen(self.command, cwd=self.workdir, stdin=subprocess.DEVNULL,
                                          stdout=log, stderr=subprocess.STDOUT,
                                          start_new_session=True)
-        self._receiver_thread = threading.Thread(target=self._feed_receiver,
-                                                 name="sitl-receiver", daemon=True)
-        self._receiver_thread.start()
+        if self.receiver is not None:
+            self._receiver_thread = threading.Thread(target=self._feed_receiver,
+                                                     name="sitl-receiver", daemon=True)
+            self._receiver_thread.start()
         if not self.monitor.wait_heartbeat(self.boot_timeout_s):
             raise TimeoutError(f"no HEARTBEAT from SITL within {self.boot_timeout_s} s "
                                f"(exit code {self.proc.poll()}):\n{self.log()}")
@@ -390,6 +392,7 @@ class Sitl:
         self.monitor.request_servo_output(self.boot_timeout_s)
 
     def _feed_receiver(self) -> None:
+        assert self.receiver is not None
         pulses = struct.pack("<8H", *self.receiver, 1500, 1500, 1500, 1500)
         with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
             while not self._stop.is_set():

@@ -9,6 +9,8 @@ $MECANUM_SITL).
 
 from __future__ import annotations
 
+import subprocess
+import sys
 import time
 from collections.abc import Iterator
 
@@ -122,3 +124,47 @@ def test_sigterm_releases_the_channels_to_the_receiver(rig):
     print(f"{rig.fc.transport}: SIGTERM -> receiver's pulse on SERVO1..4 {delay * 1000:.0f} ms")
     assert code == 0, rig.why()
     assert delay < SHUTDOWN_LIMIT_S, rig.why()
+
+
+# --------------------------------------------------------------------------- setup-fc
+
+
+def setup_fc(fc_url: str, *args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", "mecanum_mav", "setup-fc", "--fc", fc_url,
+                           *args], capture_output=True, text=True, timeout=120)
+
+
+def test_setup_fc_finds_the_hazards_and_after_apply_a_killed_companion_stops_the_wheels(
+        tmp_path):
+    """A board with no receiver, set up as the README used to recommend (plain RCIN
+    pass-through): setup-fc reports that a dead companion leaves the wheels turning; after
+    --apply, kill -9 of the companion brings SERVO1..4 to trim within RC_OVERRIDE_TIME +
+    0.6 s, and a 1600 us command comes out as 1600 +/- 2."""
+    assert BINARY is not None
+    with Sitl(BINARY, "udp", receiver=None, boot_timeout_s=BOOT_S) as fc:
+        before = setup_fc(fc.fc_url)
+        print(before.stdout)
+        assert before.returncode == 1, before.stdout + before.stderr
+        assert "SERVO_RC_FS_MSK bit 0" in before.stdout and "HAZARD" in before.stdout
+        applied = setup_fc(fc.fc_url, "--apply")
+        print(applied.stdout)
+        assert applied.returncode == 0, applied.stdout + applied.stderr
+        assert "the flight controller is set up safely" in applied.stdout
+        gcs, port = udp_ground_station()
+        try:
+            with CompanionProcess(port.url, fc.fc_url, tmp_path,
+                                  "--set", "INP_DEADBAND=0") as companion:
+                rig = Rig(fc, gcs, companion)
+                rig.arm()
+                rig.drive(200, 0, 0, (1600, 1600, 1600, 1600))  # 0.2 of full: 1600 us
+                rig.drive(1000, 0, 0, FORWARD)
+                since = rig.monitor.mark()
+                killed = time.monotonic()
+                companion.proc.kill()  # SIGKILL: no shutdown path at all
+                trim = rig.monitor.wait_servos(lambda s: s == TRIM, REACT_S, since=since)
+                assert trim is not None, f"the wheels kept turning\n{rig.why()}"
+                delay = trim.t - killed
+                print(f"kill -9 -> trim on SERVO1..4 {delay * 1000:.0f} ms")
+                assert delay < 0.5 + 0.6, rig.why()  # RC_OVERRIDE_TIME 0.5 s + 0.6 s
+        finally:
+            port.close()
