@@ -5,6 +5,7 @@ from __future__ import annotations
 import pytest
 
 from mecanum_mav.config.params import Params
+from mecanum_mav.control.fccheck import DECIDE_S, RETRY_S, FcSetupCheck
 from mecanum_mav.protocol.fcsetup import check, safe_settings, wanted_names
 
 PLAIN_PASSTHROUGH = {  # what the README recommended before: RCIN1..4, receiver-less board
@@ -70,3 +71,33 @@ def test_the_wheel_channels_decide_which_parameters_are_read():
     params.update({"MOT_FL_CH": 9, "MOT_RR_CH": 12})
     names = wanted_names(params)
     assert "SERVO9_FUNCTION" in names and "RC12_DZ" in names and "SERVO1_FUNCTION" not in names
+
+
+# --------------------------------------------------------------------------- the run-time check
+
+
+def test_the_companions_own_check_asks_again_for_missing_answers_then_reports_each_hazard():
+    params, check_ = Params(), FcSetupCheck()
+    asked = check_.start(params, 10.0)
+    assert set(asked) == set(wanted_names(params))
+    for name, value in list(PLAIN_PASSTHROUGH.items())[:5]:
+        check_.on_value(name, value)
+    assert check_.tick(params, 10.0 + RETRY_S - 0.01) == ((), None)  # not due yet
+    again, verdict = check_.tick(params, 10.0 + RETRY_S)
+    assert verdict is None and set(again) == set(asked) - set(list(PLAIN_PASSTHROUGH)[:5])
+    for name, value in PLAIN_PASSTHROUGH.items():
+        check_.on_value(name, value)
+    again, verdict = check_.tick(params, 10.0 + DECIDE_S)
+    assert again == () and verdict.startswith("FC setup unsafe (6): ")
+    assert "SERVO_RC_FS_MSK bit 0" in verdict and "ARMING_RUDDER" in verdict
+    assert check_.checked and {f.name for f in check_.hazards} >= {"RC_OVERRIDE_TIME"}
+    assert check_.next_due_s == float("inf")
+
+
+def test_a_board_that_answers_no_parameter_is_not_checked_and_blocks_nothing():
+    params, check_ = Params(), FcSetupCheck()
+    check_.start(params, 0.0)
+    check_.tick(params, RETRY_S)
+    _, verdict = check_.tick(params, DECIDE_S)
+    assert verdict == "FC setup not checked: no parameters from the flight controller"
+    assert not check_.checked and check_.hazards == []

@@ -75,7 +75,11 @@ def rig(sitl, tmp_path) -> Iterator[Rig]:
     assert sitl.alive(), sitl.log()
     gcs, port = udp_ground_station()
     try:
-        with CompanionProcess(port.url, sitl.fc_url, tmp_path) as companion:
+        # The fixture's board is the plain pass-through with a receiver, on purpose (what
+        # SIGTERM releases to): the companion's own setup check rightly calls it unsafe, so
+        # its pre-arm checks are off here.
+        with CompanionProcess(port.url, sitl.fc_url, tmp_path,
+                              "--set", "ARMING_CHECK=0") as companion:
             yield Rig(sitl, gcs, companion)
     finally:
         port.close()
@@ -146,6 +150,19 @@ def test_setup_fc_finds_the_hazards_and_after_apply_a_killed_companion_stops_the
         print(before.stdout)
         assert before.returncode == 1, before.stdout + before.stderr
         assert "SERVO_RC_FS_MSK bit 0" in before.stdout and "HAZARD" in before.stdout
+        gcs, port = udp_ground_station()
+        try:  # the companion finds the same hazards itself, says so, and will not arm
+            with CompanionProcess(port.url, fc.fc_url, tmp_path / "unsafe") as companion:
+                warning = gcs.wait("STATUSTEXT", lambda m: "FC setup unsafe" in m.text,
+                                   BOOT_S, 0)
+                assert warning is not None, companion.log()
+                assert warning.severity == mavlink.MAV_SEVERITY_WARNING
+                ack = gcs.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 1, timeout_s=REACT_S)
+                assert ack is not None and ack.result == mavlink.MAV_RESULT_DENIED
+                assert gcs.wait("STATUSTEXT", lambda m: "PreArm: FC setup unsafe" in m.text,
+                                REACT_S, 0)
+        finally:
+            port.close()
         applied = setup_fc(fc.fc_url, "--apply")
         print(applied.stdout)
         assert applied.returncode == 0, applied.stdout + applied.stderr

@@ -424,8 +424,9 @@ SCHEMA: tuple[ParamSpec, ...] = (
     ParamSpec(
         "ARMING_CHECK", int, default=1, minimum=0, maximum=1, units="",
         values={0: "off", 1: "on"},
-        description="Pre-arm checks before arming (sticks centred, flight controller link "
-        "up), as ArduPilot's ARMING_CHECK; arming with param2 21196 skips them too.",
+        description="Pre-arm checks before arming (sticks centred, the flight controller's "
+        "setup safe), as ArduPilot's ARMING_CHECK; arming with param2 21196 skips them too "
+        "(the flight-controller link is always required).",
     ),
     ParamSpec(
         "RCMAP_STEER", int, default=1, minimum=1, maximum=18, units="",

@@ -44,6 +44,7 @@ from mecanum_mav.config.views import IdentityConfig, InputConfig, OutputConfig, 
 from mecanum_mav.control.autopilot import Autopilot
 from mecanum_mav.control.chain import Output, manual_output
 from mecanum_mav.control.estimator import WheelOdometryEstimator
+from mecanum_mav.control.fccheck import FcSetupCheck
 from mecanum_mav.control.guided import SetpointError, decode_setpoint
 from mecanum_mav.control.missions import MissionControl
 from mecanum_mav.control.pwm import PwmMap
@@ -62,6 +63,7 @@ from mecanum_mav.protocol.messages import (
     Addressed,
     AttitudeMsg,
     CommandMsg,
+    FcParamValueMsg,
     FcSysStatusMsg,
     FtpMsg,
     ManualControlMsg,
@@ -210,6 +212,8 @@ class RoverCore:
         self._next_heartbeat_s = now_s
         self._said: OrderedDict[str, float] = OrderedDict()
         self._fc_streams_asked = False
+        self.fc_check = FcSetupCheck()
+        """The read-only check of the flight controller's setup, run when it appears."""
         self._battery = UNKNOWN_BATTERY
         self._battery_s = -math.inf
         self._gcs_handlers: dict[str, Handler] = {
@@ -234,6 +238,7 @@ class RoverCore:
             "ATTITUDE": self._on_attitude,
             "WHEEL_DISTANCE": self._on_wheel_distance,
             "SYS_STATUS": self._on_fc_sys_status,
+            "PARAM_VALUE": self._on_fc_param_value,
         }
         self._commands: dict[int, Command] = {
             mavlink.MAV_CMD_COMPONENT_ARM_DISARM: self._cmd_arm_disarm,
@@ -304,6 +309,12 @@ class RoverCore:
         self._now_s = now_s
         if self.vehicle.fc_lost:
             self._fc_streams_asked = False  # ask a rebooted flight controller again
+        if now_s >= self.fc_check.next_due_s:
+            again, verdict = self.fc_check.tick(self.params, now_s)
+            self._ask_fc_params(again)
+            if verdict is not None:
+                self.say(Severity.WARNING if self.fc_check.hazards else Severity.NOTICE,
+                         verdict)
         if self._wheels_s is not None:
             self.estimator.on_commanded(self.wheels, now_s - self._wheels_s, now_s)
         self.wheels, self._wheels_s = self._output_wheels, now_s
@@ -329,7 +340,8 @@ class RoverCore:
     def next_due_s(self) -> float:
         """When :meth:`tick` must run next if no message arrives first (monotonic s)."""
         return min(self._next_output_s, self._next_heartbeat_s, self.streams.next_due_s(),
-                   self.autopilot.next_due_s(), self.mission.next_due_s())
+                   self.autopilot.next_due_s(), self.mission.next_due_s(),
+                   self.fc_check.next_due_s)
 
     def shutdown(self) -> list[RcOverride]:
         """The last overrides before the companion lets go: neutral (twice, the wheels stop),
@@ -451,12 +463,21 @@ class RoverCore:
 
     def _on_fc_heartbeat(self, msg: Received, now_s: float) -> None:
         self.vehicle.on_fc_heartbeat(now_s)
-        if not self._fc_streams_asked:  # the battery: SYS_STATUS at 1 Hz from the board
+        if not self._fc_streams_asked:  # the link came up: the battery and the setup check
             self._fc_streams_asked = True
+            self._ask_fc_params(self.fc_check.start(self.params, now_s))
             self.to_fc.command_long_send(
                 self.identity.fc_sysid, self.identity.fc_compid,
                 mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, 0, mavlink.MAVLINK_MSG_ID_SYS_STATUS,
                 FC_SYS_STATUS_INTERVAL_US, 0, 0, 0, 0, 0)
+
+    def _on_fc_param_value(self, msg: FcParamValueMsg, now_s: float) -> None:
+        self.fc_check.on_value(msg.param_id.rstrip("\x00"), float(msg.param_value))
+
+    def _ask_fc_params(self, names: Sequence[str]) -> None:
+        target = self.identity.fc_sysid, self.identity.fc_compid
+        for name in names:
+            self.to_fc.param_request_read_send(*target, name.encode("ascii"), -1)
 
     def _on_fc_sys_status(self, msg: FcSysStatusMsg, now_s: float) -> None:
         if msg.voltage_battery not in (0, UNKNOWN_BATTERY.voltage_mv):  # 0: no monitor
@@ -549,14 +570,20 @@ class RoverCore:
         return Result.DENIED
 
     def _prearm_problems(self) -> list[str]:
-        """The core's pre-arm checks: a pilot's fresh stick must be centred (within the
-        deadband), or arming would drive off at once."""
-        if self.vehicle.input_stale:
-            return []
-        deflected = [f"{name} {value:+.2f}" for name, value in zip("xyr", self.stick,
-                                                                    strict=True)
-                     if abs(value) > self.input.deadband]
-        return [f"sticks not centred ({', '.join(deflected)})"] if deflected else []
+        """The core's pre-arm checks: the flight controller's setup (when it was checked)
+        must be safe, and a pilot's fresh stick must be centred (within the deadband), or
+        arming would drive off at once."""
+        problems = []
+        if self.fc_check.hazards:
+            problems.append(f"FC setup unsafe: {self.fc_check.hazards[0].name} "
+                            f"(mecanum-mav setup-fc)")
+        if not self.vehicle.input_stale:
+            deflected = [f"{name} {value:+.2f}" for name, value in zip("xyr", self.stick,
+                                                                        strict=True)
+                         if abs(value) > self.input.deadband]
+            if deflected:
+                problems.append(f"sticks not centred ({', '.join(deflected)})")
+        return problems
 
     def _cmd_set_mode(self, p: tuple[float, ...], now_s: float) -> Result:
         return self._set_mode(p[0], p[1], now_s)

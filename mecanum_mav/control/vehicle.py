@@ -113,17 +113,18 @@ class Vehicle:
 
     def request_arm(self, now_s: float, problems: Sequence[str] = (), *,
                     force: bool = False) -> Decision:
-        """Arm, unless a pre-arm check fails: the flight controller link is down, or one of
-        ``problems`` (the caller's checks, e.g. deflected sticks). Refusals are worded as
-        ArduPilot's ("PreArm: ..."). ``force`` skips the checks (ArduPilot's forced arming).
-        Arming when armed is accepted."""
+        """Arm, unless a pre-arm check fails: the flight controller link is down (always
+        checked: without it the rover would be disarmed again at once), or one of
+        ``problems`` (the caller's checks, e.g. deflected sticks), which ``ARMING_CHECK`` 0
+        and ``force`` (ArduPilot's forced arming) skip. Refusals are worded as ArduPilot's
+        ("PreArm: ..."). Arming when armed is accepted."""
         self.update(now_s)
         if self.armed:
             return Decision(True)
-        if not force and self.config.arming_check:
-            failed = [*(["flight controller link down"] if self.fc_lost else []), *problems]
-            if failed:
-                return self._refuse(f"PreArm: {failed[0]}")
+        if self.fc_lost:
+            return self._refuse("PreArm: flight controller link down")
+        if problems and not force and self.config.arming_check:
+            return self._refuse(f"PreArm: {problems[0]}")
         self.armed = True
         self.input_stale = True  # the wheels wait for fresh sticks after arming
         self._say(Severity.INFO, f"Armed, mode {self.mode.name}")

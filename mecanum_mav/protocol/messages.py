@@ -19,6 +19,7 @@ __all__ = [
     "Addressed",
     "AttitudeMsg",
     "CommandMsg",
+    "FcParamValueMsg",
     "FcSysStatusMsg",
     "FtpMsg",
     "ManualControlMsg",
@@ -151,6 +152,13 @@ class AttitudeMsg(Received, Protocol):
 
     yaw: float
     yawspeed: float
+
+
+class FcParamValueMsg(Received, Protocol):
+    """PARAM_VALUE from the flight controller."""
+
+    param_id: str
+    param_value: float
 
 
 class FcSysStatusMsg(Received, Protocol):
