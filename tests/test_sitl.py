@@ -185,3 +185,16 @@ def test_setup_fc_finds_the_hazards_and_after_apply_a_killed_companion_stops_the
                 assert delay < 0.5 + 0.6, rig.why()  # RC_OVERRIDE_TIME 0.5 s + 0.6 s
         finally:
             port.close()
+
+
+@only("udp")
+def test_the_battery_the_firmware_measures_reaches_the_ground_station(rig):
+    """The companion asks ArduPilot for SYS_STATUS and relays its battery, and says the
+    truth about its sensors (battery present; fence, GPS and AHRS bits healthy)."""
+    status = rig.gcs.wait("SYS_STATUS", lambda m: m.voltage_battery != 65535, BOOT_S, 0)
+    assert status is not None, rig.why()
+    assert 10_000 < status.voltage_battery < 14_000 and 0 <= status.battery_remaining <= 100
+    assert status.onboard_control_sensors_present & mavlink.MAV_SYS_STATUS_SENSOR_BATTERY
+    healthy = (mavlink.MAV_SYS_STATUS_GEOFENCE | mavlink.MAV_SYS_STATUS_SENSOR_GPS
+               | mavlink.MAV_SYS_STATUS_AHRS)
+    assert status.onboard_control_sensors_health & healthy == healthy
