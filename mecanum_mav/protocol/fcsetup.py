@@ -76,7 +76,7 @@ def wheel_channels(params: Params) -> list[tuple[str, int]]:
 def wanted_names(params: Params) -> list[str]:
     """Every flight-controller parameter :func:`check` reads, for this configuration."""
     names = [*GCS_SYSID_NAMES, "SERVO_RC_FS_MSK", "RC_OVERRIDE_TIME", "ARMING_RUDDER",
-             "RCMAP_THROTTLE", "FS_THR_ENABLE"]
+             "RCMAP_THROTTLE", "FS_THR_ENABLE", "RC_PROTOCOLS"]
     for _, ch in wheel_channels(params):
         names += [f"SERVO{ch}_FUNCTION", f"SERVO{ch}_MIN", f"SERVO{ch}_TRIM", f"SERVO{ch}_MAX",
                   f"RC{ch}_MIN", f"RC{ch}_TRIM", f"RC{ch}_MAX", f"RC{ch}_DZ"]
@@ -136,6 +136,11 @@ def check(params: Params, values: Values) -> list[Finding]:
     out.append(Finding("FS_THR_ENABLE", fs_thr, "1",
                        "the radio failsafe takes the scaled outputs to trim",
                        fs_thr is None or int(fs_thr) == 0))
+    protocols = values.get("RC_PROTOCOLS")
+    out.append(Finding("RC_PROTOCOLS", protocols, "any",
+                       "the receiver's protocols (0: no receiver is read; then only the "
+                       "scaled pass-through's fall-back stops a dead companion's wheels)",
+                       False))
     rudder = values.get("ARMING_RUDDER")
     out.append(Finding("ARMING_RUDDER", rudder, "0",
                        "a diagonal drive (ch 1 full, ch 3 trim) must not arm or disarm",
