@@ -109,7 +109,9 @@ class Companion:
     def _drain(self, link: Link) -> None:
         now, from_fc, handle = self.clock(), link is self.fc, self.core.handle
         for msg in link.read():
-            self._write(handle(msg, now, from_fc=from_fc))
+            out = handle(msg, now, from_fc=from_fc)
+            if out is not NOTHING:  # a stick is answered by the tick, not here
+                self._write(out)
 
     def _write(self, out: Outbox) -> None:
         if out is NOTHING:
