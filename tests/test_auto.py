@@ -8,7 +8,7 @@ import math
 from itertools import pairwise
 
 import pytest
-from missionpeer import JUMP, LOITER, RTL, SPEED, YAW, do, local_wp, renumber
+from missionitems import JUMP, LOITER, RTL, SPEED, YAW, do, local_wp, renumber
 
 from mecanum_mav.config.params import Params
 from mecanum_mav.control.chain import autonomous_output

@@ -8,7 +8,7 @@ import math
 from dataclasses import replace
 
 import pytest
-from missionpeer import (
+from missionitems import (
     GLOBAL_REL,
     JUMP,
     SPEED,
