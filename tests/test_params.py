@@ -16,6 +16,7 @@ from hypothesis import strategies as st
 
 from mecanum_mav.config.params import _index
 from mecanum_mav.io.paramfile import main as _main
+from mecanum_mav.io.paramfile import save_keeping_layout
 from mecanum_mav.params import (
     DEFAULTS_FILE_HEADER,
     SCHEMA,
@@ -601,3 +602,45 @@ def test_a_retired_parameter_in_a_file_is_ignored_with_a_warning_naming_its_line
 def test_wheel_channels_17_and_18_which_ardupilot_never_reads_are_refused():
     with pytest.raises(ParamError, match=r"MOT_FL_CH: 17 is outside the range 1 \.\. 16"):
         Params().set("MOT_FL_CH", 17)
+
+
+# --------------------------------------------------------------------------- saving in place
+
+HAND_WRITTEN = """# my rover: measured 2026-11-20
+GEO_HALF_LEN   0.2     # wheelbase 400 mm
+MIX_ALGO,1
+# motors
+MOT_FR_REV 1
+"""
+
+
+def test_saving_a_changed_parameter_changes_only_its_line_and_keeps_the_old_file(tmp_path):
+    path = tmp_path / "rover.parm"
+    path.write_text(HAND_WRITTEN)
+    params = load(path)
+    params.set("GEO_HALF_LEN", 0.25)
+    save_keeping_layout(params, path)
+    old, new = HAND_WRITTEN.splitlines(), path.read_text().splitlines()
+    changed = [(a, b) for a, b in zip(old, new, strict=True) if a != b]
+    assert changed == [("GEO_HALF_LEN   0.2     # wheelbase 400 mm",
+                        "GEO_HALF_LEN   0.25     # wheelbase 400 mm")]
+    assert (tmp_path / "rover.parm.bak").read_text() == HAND_WRITTEN
+    assert load(path).as_dict() == params.as_dict()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["rover.parm", "rover.parm.bak"]
+
+
+def test_a_parameter_that_was_not_in_the_file_is_appended(tmp_path):
+    path = tmp_path / "rover.parm"
+    path.write_text(HAND_WRITTEN)
+    params = load(path)
+    params.set("INP_EXPO", 0.3)
+    save_keeping_layout(params, path)
+    assert path.read_text() == HAND_WRITTEN + "INP_EXPO 0.3\n"
+    assert load(path)["INP_EXPO"] == 0.3
+
+
+def test_saving_unchanged_parameters_writes_nothing(tmp_path):
+    path = tmp_path / "rover.parm"
+    path.write_text(HAND_WRITTEN)
+    save_keeping_layout(load(path), path)
+    assert path.read_text() == HAND_WRITTEN and not (tmp_path / "rover.parm.bak").exists()

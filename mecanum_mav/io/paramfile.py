@@ -20,6 +20,7 @@ from __future__ import annotations
 import argparse
 import logging
 import os
+import re
 import sys
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -50,6 +51,8 @@ __all__ = [
     "main",
     "parse_text",
     "save",
+    "save_keeping_layout",
+    "update_text",
 ]
 
 
@@ -146,6 +149,56 @@ def save(
     (:func:`~mecanum_mav.io.atomicfile.write_atomic`: the permissions of the file it replaces are
     kept; on any exception ``path`` is untouched)."""
     write_atomic(path, format_text(params, header=header).encode("utf-8"))
+
+
+_LINE_RE = re.compile(r"^(?P<lead>\s*(?P<name>[A-Za-z0-9_]+)[\s,]+)(?P<value>[^\s,#]+)"
+                      r"(?P<rest>[^#]*)")
+
+
+def update_text(text: str, params: Mapping[str, Value]) -> str:
+    """``text`` (a parameter file) brought up to date with ``params``, keeping its layout.
+
+    Only the value of a line whose parameter now has another value is rewritten: comments,
+    blank lines, order, separators and spacing stay as they were. A parameter that differs
+    from its default and has no line in the file is appended at the end, so loading the result
+    gives ``params`` again. Lines this cannot read (they would not load either) are kept.
+    """
+    lines = text.splitlines()
+    seen: set[str] = set()
+    for i, line in enumerate(lines):
+        match = _LINE_RE.match(line)
+        if match is None or match["name"] not in SPECS:
+            continue
+        name = match["name"]
+        seen.add(name)
+        spec = SPECS[name]
+        try:
+            same = spec.parse(match["value"]) == params[name]
+        except ParamError:
+            same = False
+        if not same:
+            lines[i] = (match["lead"] + spec.format(params[name])
+                        + line[match.start("rest"):])
+    added = [s for s in SCHEMA if s.name not in seen and params[s.name] != s.default]
+    lines += [f"{s.name} {s.format(params[s.name])}" for s in added]
+    return "\n".join(lines) + "\n"
+
+
+def save_keeping_layout(params: Mapping[str, Value], path: str | os.PathLike[str]) -> None:
+    """Save ``params`` into the existing file at ``path`` as :func:`update_text` does (only
+    changed values change), keeping the previous file as ``path`` + ``.bak``; a file that does
+    not exist yet is written whole (:func:`save`). Both writes are atomic."""
+    target = Path(path)
+    try:
+        old = target.read_bytes()
+    except FileNotFoundError:
+        save(params, target)
+        return
+    new = update_text(old.decode("utf-8-sig", errors="replace"), params)
+    if new.encode("utf-8") == old:
+        return
+    write_atomic(target.with_name(target.name + ".bak"), old)
+    write_atomic(target, new.encode("utf-8"))
 
 
 def main(argv: Sequence[str] | None = None) -> int:

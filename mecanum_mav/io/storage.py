@@ -14,7 +14,7 @@ from mecanum_mav.io.missionfile import (
     mission_path_for,
     save_mission,
 )
-from mecanum_mav.io.paramfile import save
+from mecanum_mav.io.paramfile import save_keeping_layout
 from mecanum_mav.protocol.mission import MissionItem
 
 log = logging.getLogger(__name__)
@@ -31,8 +31,10 @@ class FileStorage:
         self.mission_path = mission_path_for(param_path)
 
     def save_params(self, params: Params) -> None:
-        """Write every parameter to the parameter file."""
-        save(params, self.param_path)
+        """Bring the parameter file up to date: only changed values change (comments, order
+        and layout stay), the previous file is kept as FILE.bak
+        (:func:`~mecanum_mav.io.paramfile.save_keeping_layout`)."""
+        save_keeping_layout(params, self.param_path)
 
     def save_mission(self, items: Sequence[MissionItem]) -> None:
         """Write the mission file."""
