@@ -9,6 +9,7 @@ import sys
 
 import pytest
 
+from mecanum_mav.app import cli
 from mecanum_mav.app.cli import main, run_batch
 from mecanum_mav.config.params import Params
 from mecanum_mav.mecanum.mixing import Desaturation
@@ -127,3 +128,22 @@ def test_console_script_runs_as_a_module():
                           capture_output=True, text=True, timeout=60, check=False)
     assert done.returncode == 0, done.stderr
     assert json.loads(done.stdout)["wheels"] == [1.0, 1.0, 1.0, 1.0]
+
+
+def test_a_broken_parameter_file_stops_run_unless_params_reset_says_start_on_defaults(
+        capsys, tmp_path, monkeypatch):
+    bad = tmp_path / "rover.parm"
+    bad.write_text("GEO_HALF_LEN 0.2\nMIX_ALOG 1\n")
+    served = []
+    monkeypatch.setattr(cli, "serve", lambda params, gcs, fc, path, tlog: served.append(
+        (params.as_dict(), path)) or 0)
+    assert main(["run", "--fc", "udpin:127.0.0.1:0", "--params", str(bad)]) == 2
+    assert "rover.parm:2: unknown parameter 'MIX_ALOG'; did you mean MIX_ALGO?" in (
+        capsys.readouterr().err)
+    assert served == []  # never silently on the defaults
+    assert main(["run", "--fc", "udpin:127.0.0.1:0", "--params", str(bad), "--params-reset",
+                 "--set", "INP_EXPO=0.2"]) == 0
+    assert "--params-reset: starting on the defaults" in capsys.readouterr().err
+    values, path = served[0]
+    assert values == {**Params().as_dict(), "INP_EXPO": 0.2} and path is None  # not saved to
+    assert bad.read_text() == "GEO_HALF_LEN 0.2\nMIX_ALOG 1\n"  # left untouched

@@ -264,6 +264,8 @@ def cmd_params(args: argparse.Namespace, params: Params) -> int:
 
 # --------------------------------------------------------------------------- the companion
 
+PARAMS_RESET_HELP = ("start on the parameter defaults (and --set) instead of the --params "
+                     "file, which is left untouched: for a file that no longer loads")
 DEFAULT_GCS_URL = "udpout:127.0.0.1:14550"
 """Where QGroundControl and MAVProxy listen by default."""
 
@@ -298,7 +300,12 @@ def serve(params: Params, gcs_url: str, fc_url: str, param_path: Path | None,
 
 
 def cmd_run(args: argparse.Namespace, params: Params) -> int:
-    return serve(params, args.gcs, args.fc, args.params, args.tlog)
+    return serve(params, args.gcs, args.fc, _saved_to(args), args.tlog)
+
+
+def _saved_to(args: argparse.Namespace) -> Path | None:
+    """The file changes are saved to: ``--params``, unless ``--params-reset`` set it aside."""
+    return None if args.params_reset else args.params
 
 
 def cmd_sim(args: argparse.Namespace, params: Params) -> int:
@@ -306,7 +313,7 @@ def cmd_sim(args: argparse.Namespace, params: Params) -> int:
     print(f"mecanum-mav sim: point a ground station at UDP {host_port} "
           f"(QGroundControl and Mission Planner listen on 14550; "
           f"MAVProxy: mavproxy.py --master=udpin:{host_port})", flush=True)
-    return serve(params, args.gcs, "sim", args.params, args.tlog)
+    return serve(params, args.gcs, "sim", _saved_to(args), args.tlog)
 
 
 def cmd_demo(args: argparse.Namespace, params: Params) -> int:
@@ -390,6 +397,7 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--gcs", default=DEFAULT_GCS_URL, metavar="URL",
                      help=f"ground-station link (default {DEFAULT_GCS_URL})")
     sim.add_argument("--tlog", type=Path, metavar="FILE", help="record all traffic (tlog)")
+    sim.add_argument("--params-reset", action="store_true", help=PARAMS_RESET_HELP)
     sim.set_defaults(handler=cmd_sim)
 
     demo = sub.add_parser("demo", parents=[common],
@@ -414,6 +422,7 @@ def build_parser() -> argparse.ArgumentParser:
                      help="flight-controller link: a pymavlink URL (e.g. /dev/ttyACM0,115200 or "
                      "udpout:HOST:PORT), or 'sim' for the built-in simulator")
     run.add_argument("--tlog", type=Path, metavar="FILE", help="record all traffic (tlog)")
+    run.add_argument("--params-reset", action="store_true", help=PARAMS_RESET_HELP)
     run.set_defaults(handler=cmd_run)
 
     setup = sub.add_parser(
@@ -473,8 +482,15 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``mecanum-mav`` console script."""
     args = build_parser().parse_args(argv)
+    if getattr(args, "params_reset", False) and args.params is not None:
+        print(f"mecanum-mav: --params-reset: starting on the defaults; {args.params} is not "
+              f"read and left untouched (changes made from the ground station are not saved)",
+              file=sys.stderr)
+        args_params: Path | None = None
+    else:
+        args_params = args.params
     try:
-        params = load_params(args.params, args.set)
+        params = load_params(args_params, args.set)
     except (ParamFileError, ParamError) as exc:
         print(f"mecanum-mav: {exc}", file=sys.stderr)
         return 2
