@@ -300,12 +300,7 @@ def serve(params: Params, gcs_url: str, fc_url: str, param_path: Path | None,
 
 
 def cmd_run(args: argparse.Namespace, params: Params) -> int:
-    return serve(params, args.gcs, args.fc, _saved_to(args), args.tlog)
-
-
-def _saved_to(args: argparse.Namespace) -> Path | None:
-    """The file changes are saved to: ``--params``, unless ``--params-reset`` set it aside."""
-    return None if args.params_reset else args.params
+    return serve(params, args.gcs, args.fc, args.params, args.tlog)
 
 
 def cmd_sim(args: argparse.Namespace, params: Params) -> int:
@@ -313,7 +308,7 @@ def cmd_sim(args: argparse.Namespace, params: Params) -> int:
     print(f"mecanum-mav sim: point a ground station at UDP {host_port} "
           f"(QGroundControl and Mission Planner listen on 14550; "
           f"MAVProxy: mavproxy.py --master=udpin:{host_port})", flush=True)
-    return serve(params, args.gcs, "sim", _saved_to(args), args.tlog)
+    return serve(params, args.gcs, "sim", args.params, args.tlog)
 
 
 def cmd_demo(args: argparse.Namespace, params: Params) -> int:
@@ -486,11 +481,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"mecanum-mav: --params-reset: starting on the defaults; {args.params} is not "
               f"read and left untouched (changes made from the ground station are not saved)",
               file=sys.stderr)
-        args_params: Path | None = None
-    else:
-        args_params = args.params
+        args.params = None  # neither read nor saved to
     try:
-        params = load_params(args_params, args.set)
+        params = load_params(args.params, args.set)
     except (ParamFileError, ParamError) as exc:
         print(f"mecanum-mav: {exc}", file=sys.stderr)
         return 2

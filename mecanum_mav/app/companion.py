@@ -28,8 +28,14 @@ from pathlib import Path
 from typing import BinaryIO
 
 from mecanum_mav.config.params import Params
-from mecanum_mav.control.core import COMPANION_COMPID, NOTHING, Outbox, RoverCore
-from mecanum_mav.io.links import Link, open_link
+from mecanum_mav.control.core import (
+    COMPANION_COMPID,
+    FC_LINK_COMPID,
+    NOTHING,
+    Outbox,
+    RoverCore,
+)
+from mecanum_mav.io.links import Link, follow, open_link
 from mecanum_mav.io.storage import FileStorage
 from mecanum_mav.protocol.statustext import Severity
 
@@ -38,8 +44,6 @@ __all__ = ["Companion"]
 FC_CLOSE_LINGER_S = 0.3
 """On a stream link (TCP, serial) the shell waits up to this long for its last overrides to
 reach the flight controller before closing (see :meth:`~mecanum_mav.io.links.Link.close`)."""
-FC_LINK_COMPID = 190
-"""MAV_COMP_ID_MISSIONPLANNER: the companion is a ground station on the flight-controller link."""
 
 
 class Companion:
@@ -95,11 +99,8 @@ class Companion:
                 now = self.clock()
                 self._write(core.tick(now))  # the override first,
                 self._write(core.housekeeping(now))  # then everything else
-                for link, fd in registered.items():  # tcpin swaps its fd on accept
-                    if link.fileno() != fd:
-                        selector.unregister(fd)
-                        registered[link] = link.fileno()
-                        selector.register(registered[link], selectors.EVENT_READ, link)
+                for link, fd in registered.items():
+                    registered[link] = follow(selector, link, fd, link)
         finally:
             selector.close()
             self.fc.mav.srcSystem = core.identity.fc_gcs_sysid

@@ -18,13 +18,14 @@ from collections.abc import Iterable
 from typing import Any, TextIO
 
 from mecanum_mav.config.params import Params
-from mecanum_mav.io.links import Link, open_link
+from mecanum_mav.control.core import FC_LINK_COMPID
+from mecanum_mav.io.links import Link, follow, open_link
 from mecanum_mav.protocol.dialect import mavlink
 from mecanum_mav.protocol.fcsetup import Finding, check, safe_settings, wanted_names
+from mecanum_mav.protocol.heartbeat import send_gcs_heartbeat
 
 __all__ = ["REBOOT_NAMES", "FcSession", "run_setup"]
 
-FC_LINK_COMPID = 190
 HEARTBEAT_TIMEOUT_S = 10.0
 ROUND_S = 1.0
 ROUNDS = 3
@@ -50,11 +51,7 @@ class FcSession:
         self.link.close(linger_s=0.2)
 
     def _receive(self, timeout_s: float) -> list[Any]:
-        fd = self.link.fileno()  # tcpin swaps its descriptor on accept
-        if fd != self._fd:
-            self._selector.unregister(self._fd)
-            self._selector.register(fd, selectors.EVENT_READ)
-            self._fd = fd
+        self._fd = follow(self._selector, self.link, self._fd)
         if not self._selector.select(max(0.0, timeout_s)):
             return []
         return [m for m in self.link.read() if m.get_srcSystem() == self.target[0]]
@@ -65,8 +62,7 @@ class FcSession:
         next_beat = 0.0
         while (now := time.monotonic()) < deadline:
             if now >= next_beat:
-                self.link.mav.heartbeat_send(mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID,
-                                             0, 0, mavlink.MAV_STATE_ACTIVE)
+                send_gcs_heartbeat(self.link.mav)
                 next_beat = now + 1.0
             if any(m.get_type() == "HEARTBEAT" for m in self._receive(min(0.2, deadline - now))):
                 return True

@@ -33,7 +33,8 @@ __all__ = ["Autopilot"]
 
 _CONTROLLED = (Mode.GUIDED, Mode.AUTO)
 TIMER_SLACK_S = 1e-6
-"""A control tick due within this much counts as due (floating-point clocks)."""
+"""Timers fall due this much early (the control grid here, the core's refresh and heartbeat),
+so that a clock that adds in floating point never misses a period by a rounding error."""
 
 
 class Autopilot:

@@ -41,7 +41,7 @@ from typing import Any, NamedTuple, Protocol
 
 from mecanum_mav.config.params import Params
 from mecanum_mav.config.views import IdentityConfig, InputConfig, OutputConfig, RcInputConfig
-from mecanum_mav.control.autopilot import Autopilot
+from mecanum_mav.control.autopilot import TIMER_SLACK_S, Autopilot
 from mecanum_mav.control.chain import Output, manual_output
 from mecanum_mav.control.estimator import WheelOdometryEstimator
 from mecanum_mav.control.fccheck import FcSetupCheck
@@ -95,17 +95,19 @@ from mecanum_mav.protocol.telemetry import (
 
 log = logging.getLogger(__name__)
 
-__all__ = ["COMPANION_COMPID", "NOTHING", "Outbox", "RcOverride", "RoverCore", "Storage"]
+__all__ = ["COMPANION_COMPID", "FC_LINK_COMPID", "NOTHING", "Outbox", "RcOverride", "RoverCore",
+           "Storage"]
 
 COMPANION_COMPID = 1
 """The companion's component id on the ground-station link (MAVSDK talks to component 1 only)."""
+FC_LINK_COMPID: int = mavlink.MAV_COMP_ID_MISSIONPLANNER
+"""The companion's component id on the flight-controller link, where it is a ground station
+(190, as Mission Planner)."""
 HEARTBEAT_PERIOD_S = 1.0
 FC_SYS_STATUS_INTERVAL_US = 1_000_000
 """The flight controller is asked for SYS_STATUS (its battery) at 1 Hz."""
 FORCE_ARM_MAGIC = 21196.0
 """MAV_CMD_COMPONENT_ARM_DISARM param2 that forces arming past the pre-arm checks (ArduPilot)."""
-TIMER_SLACK_S = 1e-6
-"""Timers fall due this much early, so that a period is never missed by a rounding error."""
 STATUSTEXT_REPEAT_S = 1.0
 """The same rejection is reported at most once a second."""
 SAID_MEMORY = 64

@@ -20,6 +20,7 @@ from __future__ import annotations
 import contextlib
 import logging
 import math
+import selectors
 import socket
 import struct
 import time
@@ -31,7 +32,7 @@ from mecanum_mav.protocol.framing import MessageParser
 
 log = logging.getLogger(__name__)
 
-__all__ = ["Link", "mavlink", "mavutil", "open_link"]
+__all__ = ["Link", "follow", "mavlink", "mavutil", "open_link"]
 
 _READ_CHUNK = 4096
 _TLOG_STAMP = struct.Struct(">Q")
@@ -194,6 +195,17 @@ class Link:
                     pass
         elif port is not None and hasattr(port, "flush"):  # pyserial: wait until sent
             port.flush()
+
+
+def follow(selector: selectors.BaseSelector, link: Link, fd: int, data: object = None) -> int:
+    """Keep ``selector`` watching ``link`` whose descriptor was ``fd``; the current one.
+
+    A ``tcpin`` link swaps its descriptor when a client connects: re-register it then."""
+    new_fd = link.fileno()
+    if new_fd != fd:
+        selector.unregister(fd)
+        selector.register(new_fd, selectors.EVENT_READ, data)
+    return new_fd
 
 
 def open_link(url: str, *, source_system: int, source_component: int, name: str) -> Link:

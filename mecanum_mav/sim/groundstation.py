@@ -17,13 +17,14 @@ from typing import Any, Protocol
 
 from mecanum_mav.io.links import Link, open_link
 from mecanum_mav.protocol.dialect import mavlink
+from mecanum_mav.protocol.heartbeat import send_gcs_heartbeat
 from mecanum_mav.protocol.mission import MissionItem, float_xy, item_from_fields
 from mecanum_mav.protocol.modes import Mode
 
 __all__ = ["GCS_COMPID", "GCS_SYSID", "Port", "ScriptedGroundStation", "UdpPort"]
 
 GCS_SYSID = 255
-GCS_COMPID = 190
+GCS_COMPID: int = mavlink.MAV_COMP_ID_MISSIONPLANNER
 HEARTBEAT_PERIOD_S = 1.0
 MISSION_TIMEOUT_S = 1.5
 """The mission protocol's default timeout: silence this long restarts an upload."""
@@ -80,8 +81,7 @@ class ScriptedGroundStation:
     def on_time(self, now_s: float) -> None:
         """Time passed: the 1 Hz HEARTBEAT (the port calls this)."""
         if self.beating and now_s >= self._next_beat_s:
-            self.mav.heartbeat_send(mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID, 0, 0,
-                                    mavlink.MAV_STATE_ACTIVE)
+            send_gcs_heartbeat(self.mav)
             self._next_beat_s = now_s + HEARTBEAT_PERIOD_S
 
     def pump(self, timeout_s: float) -> list[Any]:

@@ -29,7 +29,13 @@ from collections.abc import Callable, Sequence
 from typing import Any, NamedTuple, TypeVar
 
 from mecanum_mav.config.params import Params
-from mecanum_mav.control.core import COMPANION_COMPID, Outbox, RoverCore, Storage
+from mecanum_mav.control.core import (
+    COMPANION_COMPID,
+    FC_LINK_COMPID,
+    Outbox,
+    RoverCore,
+    Storage,
+)
 from mecanum_mav.protocol.codec import encode_rc_override
 from mecanum_mav.protocol.dialect import mavlink
 from mecanum_mav.protocol.framing import MessageParser
@@ -40,7 +46,6 @@ from mecanum_mav.sim.groundstation import GCS_COMPID, GCS_SYSID, ScriptedGroundS
 
 __all__ = ["Lockstep", "OverrideSeen"]
 
-FC_LINK_COMPID = 190
 T = TypeVar("T")
 
 
@@ -221,13 +226,9 @@ class Lockstep:
         if out.override is not None:
             sender = self._core_to_fc.sender
             sender.srcSystem = self.core.identity.fc_gcs_sysid
-            packet = encode_rc_override(sender, *out.override)
-            if packet is None:  # a signing link: pymavlink packs it
-                sender.send(sender.rc_channels_override_encode(
-                    out.override.target_system, out.override.target_component,
-                    *out.override.channels))
-            else:
-                self._core_to_fc.write(packet)
+            packet = encode_rc_override(sender, *out.override)  # the companion's fast codec
+            assert packet is not None, "the harness's wires do not sign"
+            self._core_to_fc.write(packet)
         for msg in out.fc:
             self._core_to_fc.sender.send(msg)
         for msg in out.gcs:

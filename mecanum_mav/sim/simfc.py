@@ -16,7 +16,7 @@ from collections.abc import Callable
 from types import TracebackType
 
 from mecanum_mav.config.params import Params
-from mecanum_mav.io.links import Link, open_link
+from mecanum_mav.io.links import Link, follow, open_link
 from mecanum_mav.mecanum.geometry import Pose2d
 from mecanum_mav.sim.board import ORIGIN, RcOverrides, SimBoard, SimState
 
@@ -114,11 +114,7 @@ class SimFlightController:
                     self._publish()
                 if board.on_time(time.monotonic(), link.mav):
                     self._publish()
-                new_fd = link.fileno()  # tcpin swaps its descriptor on accept
-                if new_fd != fd:
-                    selector.unregister(fd)
-                    selector.register(new_fd, selectors.EVENT_READ)
-                    fd = new_fd
+                fd = follow(selector, link, fd)
 
 
 def _copy_state(state: SimState) -> SimState:
