@@ -508,7 +508,7 @@ def test_stale_manual_control_returns_wheels_to_neutral_at_the_timeout_and_resum
 
     o = h.run_until(first_neutral, 2.0)
     assert o is not None
-    assert timeout_s < o.time_s - last <= timeout_s + PERIOD_S + h.dt_s + EPS, o.time_s - last
+    assert timeout_s < o.time_s - last <= timeout_s + h.dt_s + EPS, o.time_s - last
     assert all(wheels(d) == FORWARD for d in h.overrides_since(last) if d.time_s < o.time_s)
     lost = statustext(h, "Manual input lost", since)
     assert lost is not None and lost.severity == Severity.WARNING
@@ -530,7 +530,7 @@ def test_ground_station_loss_triggers_the_failsafe_action_at_the_timeout(action,
     text = statustext(h, "GCS link lost", since, 3.0)
     fired = h.now_s  # the step the text arrived in
     assert text is not None and text.severity == mavlink.MAV_SEVERITY_CRITICAL
-    assert timeout_s < fired - last_beat <= timeout_s + PERIOD_S + h.dt_s + EPS
+    assert timeout_s < fired - last_beat <= timeout_s + h.dt_s + EPS
     before = [o for o in h.overrides if o.time_s < fired]
     assert wheels(before[-1]) == FORWARD  # driving until then
     assert wheels(answer_at(h, fired)) == NEUTRAL  # neutral in the same step
@@ -558,7 +558,7 @@ def test_flight_controller_loss_disarms_reports_and_refuses_to_arm():
     last_beat = h.core.vehicle.fc_seen_s
     assert statustext(h, "Flight controller link lost", since, 3.0)
     fired = h.now_s
-    assert timeout_s < fired - last_beat <= timeout_s + PERIOD_S + h.dt_s + EPS
+    assert timeout_s < fired - last_beat <= timeout_s + h.dt_s + EPS
     assert "Disarmed: flight controller link lost" in texts(h, since)  # in the same step
     assert not h.core.vehicle.armed
     assert heartbeat(h).system_status == mavlink.MAV_STATE_CRITICAL

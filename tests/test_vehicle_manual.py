@@ -87,6 +87,22 @@ def test_no_gcs_failsafe_before_a_ground_station_was_ever_seen():
     assert not v.gcs_failsafe and v.armed
 
 
+def test_next_due_is_the_earliest_failsafe_deadline_and_inf_when_none_can_fire():
+    v = vehicle(FS_FC_TMO=3.0, FS_GCS_TMO=2.0, FS_INPUT_TMO=0.5)  # both heard at 0.0
+    assert v.next_due_s() == 2.0
+    v.request_arm(0.0)
+    v.on_stick_input(1.8)
+    assert v.next_due_s() == 2.0  # the GCS's (the stick's is 2.3)
+    v.on_gcs_heartbeat(1.9)
+    assert v.next_due_s() == pytest.approx(2.3)  # the stick's, then
+    v.update(2.31)
+    assert v.next_due_s() == 3.0  # stale input has nothing left to fire: the FC's
+    v.update(3.01)
+    assert v.fc_lost and v.next_due_s() == pytest.approx(3.9)  # the GCS's
+    v.update(3.91)
+    assert v.next_due_s() == float("inf")
+
+
 def test_fc_loss_disarms_and_reports_once():
     v = vehicle(FS_FC_TMO=3.0)
     v.request_arm(0.0)

@@ -341,9 +341,9 @@ class RoverCore:
 
     def next_due_s(self) -> float:
         """When :meth:`tick` must run next if no message arrives first (monotonic s)."""
-        return min(self._next_output_s, self._next_heartbeat_s, self.streams.next_due_s(),
-                   self.autopilot.next_due_s(), self.mission.next_due_s(),
-                   self.fc_check.next_due_s)
+        return min(self._next_output_s, self._next_heartbeat_s, self.vehicle.next_due_s(),
+                   self.streams.next_due_s(), self.autopilot.next_due_s(),
+                   self.mission.next_due_s(), self.fc_check.next_due_s)
 
     def shutdown(self) -> list[RcOverride]:
         """The last overrides before the companion lets go: neutral (twice, the wheels stop),

@@ -20,6 +20,7 @@ Failsafes (each a parameter):
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Protocol
@@ -185,6 +186,20 @@ class Vehicle:
             self.input_stale = True
             if self.armed and self.mode is Mode.MANUAL:
                 self._say(Severity.WARNING, "Manual input lost: wheels neutral")
+
+    def next_due_s(self) -> float:
+        """When the next timeout can fire if nothing arrives first (monotonic s; inf if none):
+        the flight controller's and the ground station's heartbeat deadlines and the stick
+        input's. :meth:`update` must run then for the failsafe to fire on time."""
+        c = self.config
+        due = math.inf
+        if not self.fc_lost and self.fc_seen_s is not None:
+            due = self.fc_seen_s + c.fc_timeout_s
+        if not self.gcs_failsafe and self.gcs_seen_s is not None:
+            due = min(due, self.gcs_seen_s + c.gcs_timeout_s)
+        if not self.input_stale and self.input_s is not None:
+            due = min(due, self.input_s + c.input_timeout_s)
+        return due
 
     # ----------------------------------------------------------------- outputs
 
