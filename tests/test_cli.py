@@ -4,15 +4,21 @@ from __future__ import annotations
 
 import io
 import json
+import signal
+import socket
 import subprocess
 import sys
+import time
 
 import pytest
+from sitl import CompanionProcess
 
 from mecanum_mav.app import cli
 from mecanum_mav.app.cli import main, run_batch
 from mecanum_mav.config.params import Params
 from mecanum_mav.mecanum.mixing import Desaturation
+from mecanum_mav.protocol.dialect import mavlink
+from mecanum_mav.sim.groundstation import udp_ground_station
 
 
 def run(capsys, *argv):
@@ -147,3 +153,35 @@ def test_a_broken_parameter_file_stops_run_unless_params_reset_says_start_on_def
     values, path = served[0]
     assert values == {**Params().as_dict(), "INP_EXPO": 0.2} and path is None  # not saved to
     assert bad.read_text() == "GEO_HALF_LEN 0.2\nMIX_ALOG 1\n"  # left untouched
+
+
+def test_run_prints_its_refusal_counts_on_sigusr1_and_at_exit(tmp_path):
+    """The status line a user asks for with ``kill -USR1`` and gets at exit, as the shell
+    counts: a bad stick and a bad parameter from a real ground station, one of each kind."""
+    gcs, port = udp_ground_station()
+    fc = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    fc.bind(("127.0.0.1", 0))
+    try:
+        with CompanionProcess(port.url, f"udpout:127.0.0.1:{fc.getsockname()[1]}",
+                              tmp_path) as companion:
+            assert gcs.wait("HEARTBEAT", timeout_s=10.0), companion.log()
+            gcs.mav.manual_control_send(1, 4000, 0, 500, 0, 0)
+            gcs.mav.param_set_send(1, 1, b"OUT_RATE", 1e30, mavlink.MAV_PARAM_TYPE_REAL32)
+            assert gcs.wait("STATUSTEXT", lambda m: "Param refused" in m.text, 5.0)
+
+            def status_lines() -> list[str]:
+                return [line for line in companion.log().splitlines() if "refused " in line]
+
+            companion.proc.send_signal(signal.SIGUSR1)
+            deadline = time.monotonic() + 5.0
+            while not status_lines() and time.monotonic() < deadline:
+                gcs.pump(0.05)
+            assert status_lines(), companion.log()
+            assert status_lines()[0].endswith("refused 2 (stick 1, param 1)")
+            companion.terminate()
+            assert companion.wait(10.0) == 0, companion.log()
+            assert len(status_lines()) == 2 and status_lines()[1].endswith(
+                "refused 2 (stick 1, param 1)")
+    finally:
+        port.close()
+        fc.close()

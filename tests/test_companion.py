@@ -30,7 +30,7 @@ from conftest import lockstep
 
 from mecanum_mav.app.companion import Companion
 from mecanum_mav.config.params import Params
-from mecanum_mav.control.core import SAID_MEMORY
+from mecanum_mav.control.refusals import REFUSAL_REPEAT_S, Refusal
 from mecanum_mav.io.links import mavlink
 from mecanum_mav.protocol.modes import Mode
 from mecanum_mav.protocol.rcoverride import override_fields, release_fields
@@ -577,12 +577,12 @@ def test_random_bytes_and_truncated_packets_on_both_links_do_not_crash_it(harnes
     h = harness
     blobs = junk(h)
     for from_fc in (False, True):
-        before = h.core.link_errors()[0]
+        before = h.core.link_counts().malformed
         for blob in blobs:
             h.inject(blob, from_fc=from_fc)
         h.step()
         # each datagram counted at least once (a truncated packet, bad bytes, a bad CRC)
-        assert h.core.link_errors()[0] - before >= len(blobs), from_fc
+        assert h.core.link_counts().malformed - before >= len(blobs), from_fc
     assert not h.core.faulted
     assert h.gcs.command(ARM, 1).result == ACCEPTED
     o = drive(h, 1000)
@@ -682,24 +682,62 @@ def test_a_mode_change_clears_the_exception_latch(monkeypatch):
     assert o is not None and wheels(o) == FORWARD
 
 
-def test_status_text_memory_is_bounded():
+def test_a_flood_of_distinct_bad_sticks_is_said_once_a_second_and_counted_whole():
     h = armed(lockstep())
     since = h.gcs.mark()
-    xs = range(1001, 1251)  # 250 distinct rejections
+    xs = range(1001, 1251)  # 250 distinct rejections in 0.05 s
     for x in xs:
         h.gcs.mav.manual_control_send(1, x, 0, 500, 0, 0)
         if x % 10 == 0:
             h.step()
     h.step()
-    said = texts(h, since)
-    assert [t for t in said if t.startswith("Rejected")] == [
-        f"Rejected: MANUAL_CONTROL x={x} not in +-1000" for x in xs]
-    assert len(h.core._said) <= SAID_MEMORY
-    # the most recent ones are still remembered: repeated within a second, not said again
+    assert [t for t in texts(h, since) if t.startswith("Rejected")] == [
+        "Rejected: MANUAL_CONTROL x=1001 not in +-1000"]
+    assert h.core.refusals.counts[Refusal.STICK] == len(xs)
+    h.run_for(REFUSAL_REPEAT_S)
     since = h.gcs.mark()
-    h.gcs.mav.manual_control_send(1, 1250, 0, 500, 0, 0)
+    h.gcs.mav.manual_control_send(1, 1300, 0, 500, 0, 0)
+    h.step()
+    assert texts(h, since) == ["Rejected: MANUAL_CONTROL x=1300 not in +-1000"]  # a second on
+
+
+def test_each_kind_of_refusal_is_said_on_its_own_clock_and_named_in_the_status_line():
+    h = armed(lockstep())
+    since = h.gcs.mark()
+    h.gcs.mav.manual_control_send(1, 2000, 0, 500, 0, 0)
+    h.gcs.mav.param_set_send(1, 1, b"OUT_RATE", math.nan, mavlink.MAV_PARAM_TYPE_REAL32)
+    h.gcs.mav.command_long_send(1, 1, ARM, 0, 7, 0, 0, 0, 0, 0, 0)
+    h.gcs.mav.set_mode_send(1, mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 99)
     h.run_for(0.1)
-    assert texts(h, since) == []
+    said = texts(h, since)
+    assert said[:1] == ["Rejected: MANUAL_CONTROL x=2000 not in +-1000"]
+    assert any(t.startswith("Param refused: OUT_RATE") for t in said), said
+    assert "Arm/disarm: param1 must be 0 or 1, got 7.0" in said
+    assert "Mode 99 unknown" in said
+    counts = h.core.refusals.counts
+    assert [counts[k] for k in (Refusal.STICK, Refusal.PARAM, Refusal.COMMAND, Refusal.MODE)] == [
+        1, 1, 1, 1]
+    assert h.core.refusals.total == 4
+    assert h.core.status_line().endswith("refused 4 (stick 1, param 1, command 1, mode 1)")
+
+
+def test_sys_status_counts_refusals_in_errors_comm_and_their_recent_share_in_drop_rate(harness):
+    h = armed(harness)
+    h.run_for(1.0)  # a heartbeat period without refusals: the drop rate starts at 0
+    assert h.core.link_counts().received > 0
+    status = h.gcs.wait("SYS_STATUS", timeout_s=1.0)
+    assert status is not None and status.errors_comm == 0 and status.drop_rate_comm == 0
+    for _ in range(20):
+        h.gcs.mav.manual_control_send(1, 1500, 0, 500, 0, 0)
+        h.step()
+    h.run_for(1.0)
+    # a heartbeat period later: 20 refused of the messages that arrived in it
+    status = h.gcs.wait("SYS_STATUS", timeout_s=1.0)
+    assert status is not None and status.errors_comm == 20
+    assert 0 < status.drop_rate_comm < 10_000
+    h.run_for(2.5)  # two clean heartbeat periods: the rate falls back, the count stays
+    status = h.gcs.wait("SYS_STATUS", timeout_s=1.0)
+    assert status.errors_comm == 20 and status.drop_rate_comm == 0
 
 
 def test_sys_status_errors_comm_counts_malformed_packets(harness):
@@ -709,7 +747,7 @@ def test_sys_status_errors_comm_counts_malformed_packets(harness):
         h.inject(blob)
         h.inject(blob, from_fc=True)
     h.step()
-    bad = h.core.link_errors()[0]
+    bad = h.core.link_counts().malformed
     assert bad >= 2 * len(blobs)
     since = command(h, mavlink.MAV_CMD_REQUEST_MESSAGE, mavlink.MAVLINK_MSG_ID_SYS_STATUS)
     h.step()

@@ -9,7 +9,7 @@ import threading
 import time
 
 from mecanum_mav.config.params import Params
-from mecanum_mav.control.core import RoverCore
+from mecanum_mav.control.core import LinkCounts, RoverCore
 from mecanum_mav.io import links
 from mecanum_mav.io.links import open_link
 from mecanum_mav.protocol.dialect import mavlink
@@ -55,7 +55,7 @@ def test_a_failing_send_is_counted_and_warned_about_once_a_second_per_link(monke
 
 
 def test_sys_status_errors_comm_counts_bad_packets_and_failed_sends():
-    core = RoverCore(Params(), now_s=0.0, link_errors=lambda: (3, 4))
+    core = RoverCore(Params(), now_s=0.0, link_counts=lambda: LinkCounts(10, 3, 4))
     command = mavlink.MAVLink_command_long_message(
         1, 1, mavlink.MAV_CMD_REQUEST_MESSAGE, 0, mavlink.MAVLINK_MSG_ID_SYS_STATUS,
         0, 0, 0, 0, 0, 0)

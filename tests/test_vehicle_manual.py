@@ -21,7 +21,7 @@ def vehicle(**values: float) -> Vehicle:
 
 
 def texts(v: Vehicle) -> list[str]:
-    return [text for _, text in v.take_events()]
+    return [event.text for event in v.take_events()]
 
 
 # --------------------------------------------------------------------------- vehicle

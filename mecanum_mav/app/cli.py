@@ -272,9 +272,15 @@ DEFAULT_GCS_URL = "udpout:127.0.0.1:14550"
 
 def serve(params: Params, gcs_url: str, fc_url: str, param_path: Path | None,
           tlog_path: Path | None) -> int:
-    """Run the companion in the foreground until SIGINT/SIGTERM; ``fc_url`` may be ``sim``."""
+    """Run the companion in the foreground until SIGINT/SIGTERM; ``fc_url`` may be ``sim``.
+
+    The status line (:meth:`~mecanum_mav.control.core.RoverCore.status_line`: messages
+    received, malformed packets, failed sends, refusals per kind) goes to stderr on SIGUSR1
+    and at exit."""
+    import signal
+
     from mecanum_mav.app.companion import Companion
-    from mecanum_mav.app.shutdown import on_termination
+    from mecanum_mav.app.shutdown import on_signals, on_termination
     from mecanum_mav.sim.simfc import SimFlightController
 
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s: %(message)s")
@@ -294,8 +300,13 @@ def serve(params: Params, gcs_url: str, fc_url: str, param_path: Path | None,
         print(f"mecanum-mav: rover system {params['SYSID_THISMAV']} on {gcs_url}, flight "
               f"controller on {fc_url}. Ctrl-C stops (wheels to neutral, channels released).",
               flush=True)
-        with on_termination(companion.stop):
+
+        def print_status() -> None:
+            print(f"mecanum-mav: {companion.core.status_line()}", file=sys.stderr, flush=True)
+
+        with on_termination(companion.stop), on_signals((signal.SIGUSR1,), print_status):
             companion.run()
+        print_status()
     return 0
 
 

@@ -13,7 +13,7 @@ One thread, one loop (:meth:`Companion.run`), top to bottom:
 4. On stop (SIGINT, SIGTERM, :meth:`Companion.stop`): neutral, then the channels released.
 
 A send that fails is counted per link, logged at WARNING at most once a second per link, and
-reported in SYS_STATUS ``errors_comm``; it never stops the loop.
+reported in SYS_STATUS ``errors_comm`` and the status line; it never stops the loop.
 """
 
 from __future__ import annotations
@@ -32,6 +32,7 @@ from mecanum_mav.control.core import (
     COMPANION_COMPID,
     FC_LINK_COMPID,
     NOTHING,
+    LinkCounts,
     Outbox,
     RoverCore,
 )
@@ -66,7 +67,7 @@ class Companion:
         storage = None if param_path is None else FileStorage(param_path)
         mission, problem = ([], "") if storage is None else storage.load_mission()
         self.core = RoverCore(params, now_s=clock(), mission=mission, storage=storage,
-                              link_errors=self._link_errors)
+                              link_counts=self._link_counts)
         if problem:
             self.core.say(Severity.ERROR, problem)
         self.gcs: Link = open_link(gcs_url, source_system=self.core.identity.sysid,
@@ -125,8 +126,10 @@ class Companion:
         for msg in out.gcs:
             self.gcs.send(msg)
 
-    def _link_errors(self) -> tuple[int, int]:
-        return self.gcs.bad + self.fc.bad, self.gcs.send_errors + self.fc.send_errors
+    def _link_counts(self) -> LinkCounts:
+        gcs, fc = self.gcs, self.fc
+        return LinkCounts(gcs.received + fc.received, gcs.bad + fc.bad,
+                          gcs.send_errors + fc.send_errors)
 
     # ================================================================== lifecycle
 

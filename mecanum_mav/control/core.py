@@ -33,7 +33,6 @@ from __future__ import annotations
 
 import logging
 import math
-from collections import OrderedDict
 from collections.abc import Callable, Sequence
 from dataclasses import replace
 from functools import partial
@@ -48,6 +47,7 @@ from mecanum_mav.control.fccheck import FcSetupCheck
 from mecanum_mav.control.guided import SetpointError, decode_setpoint
 from mecanum_mav.control.missions import MissionControl
 from mecanum_mav.control.pwm import PwmMap
+from mecanum_mav.control.refusals import Refusal, RefusalLog
 from mecanum_mav.control.sticks import InputError, RcStickState, stick_from_manual_control
 from mecanum_mav.control.vehicle import Decision, Vehicle
 from mecanum_mav.mecanum.geo import GlobalOrigin
@@ -95,8 +95,8 @@ from mecanum_mav.protocol.telemetry import (
 
 log = logging.getLogger(__name__)
 
-__all__ = ["COMPANION_COMPID", "FC_LINK_COMPID", "NOTHING", "Outbox", "RcOverride", "RoverCore",
-           "Storage"]
+__all__ = ["COMPANION_COMPID", "FC_LINK_COMPID", "NOTHING", "LinkCounts", "Outbox", "RcOverride",
+           "RoverCore", "Storage"]
 
 COMPANION_COMPID = 1
 """The companion's component id on the ground-station link (MAVSDK talks to component 1 only)."""
@@ -108,10 +108,6 @@ FC_SYS_STATUS_INTERVAL_US = 1_000_000
 """The flight controller is asked for SYS_STATUS (its battery) at 1 Hz."""
 FORCE_ARM_MAGIC = 21196.0
 """MAV_CMD_COMPONENT_ARM_DISARM param2 that forces arming past the pre-arm checks (ArduPilot)."""
-STATUSTEXT_REPEAT_S = 1.0
-"""The same rejection is reported at most once a second."""
-SAID_MEMORY = 64
-"""How many recent status texts are remembered for the repeat limit (bounded memory)."""
 
 _NEUTRAL_WHEELS = (0.0, 0.0, 0.0, 0.0)
 
@@ -154,8 +150,19 @@ class Storage(Protocol):
         """Keep the mission; raises ``OSError`` when that fails."""
 
 
-def _no_link_errors() -> tuple[int, int]:
-    return 0, 0
+class LinkCounts(NamedTuple):
+    """What the links counted, over both (the shell's; SYS_STATUS and the status line)."""
+
+    received: int = 0
+    """Messages received (parsed whole)."""
+    malformed: int = 0
+    """Packets dropped before they became messages: bad CRC, truncated, unknown."""
+    send_failed: int = 0
+    """Sends that failed (peer gone, no route)."""
+
+
+def _no_link_counts() -> LinkCounts:
+    return LinkCounts()
 
 
 Handler = Callable[[Any, float], None]
@@ -172,17 +179,21 @@ class RoverCore:
         now_s: the time the rover boots, monotonic seconds (telemetry's ``time_boot_ms``).
         mission: the mission to start with (item 0 is home), e.g. read from its file.
         storage: keeps accepted parameters and missions, or None.
-        link_errors: returns (malformed packets received, sends that failed) over both links,
-            for SYS_STATUS ``errors_comm``.
+        link_counts: what the links counted (:class:`LinkCounts`, over both links), for
+            SYS_STATUS ``errors_comm`` and ``drop_rate_comm``.
     """
 
     def __init__(self, params: Params, *, now_s: float, mission: Sequence[MissionItem] = (),
                  storage: Storage | None = None,
-                 link_errors: Callable[[], tuple[int, int]] = _no_link_errors) -> None:
+                 link_counts: Callable[[], LinkCounts] = _no_link_counts) -> None:
         self.params = params
         self._boot_sysid = int(params["SYSID_THISMAV"])
         self.storage = storage
-        self.link_errors = link_errors
+        self.link_counts = link_counts
+        self.refusals = RefusalLog()
+        """What was refused, per kind (:mod:`mecanum_mav.control.refusals`)."""
+        self._drop_window = (0, 0)  # (received + malformed, dropped) at the last heartbeat
+        self._drop_rate_cpct = 0
         self.boot_s = now_s
         self._now_s = now_s
         self.to_gcs = MessageOutbox()
@@ -195,7 +206,7 @@ class RoverCore:
         self.rc_sticks = RcStickState()
         self.mission = MissionControl(mission, self.to_gcs, self._for_us, self.vehicle,
                                       self.autopilot.executor, lambda: self.estimator.pose,
-                                      self.say, storage)
+                                      self.say, self.refuse, storage)
         self.origin_set: GlobalOrigin | None = None
         """The global origin from SET_GPS_GLOBAL_ORIGIN (overrides ORIGIN_LAT/LON)."""
         self.stick = (0.0, 0.0, 0.0)
@@ -212,7 +223,6 @@ class RoverCore:
         self._autopilot_active = False
         self._next_output_s = now_s
         self._next_heartbeat_s = now_s
-        self._said: OrderedDict[str, float] = OrderedDict()
         self._fc_streams_asked = False
         self.fc_check = FcSetupCheck()
         """The read-only check of the flight controller's setup, run when it appears."""
@@ -327,6 +337,7 @@ class RoverCore:
             for name in due:
                 build(name, self.to_gcs, state)
         if now_s >= self._next_heartbeat_s:
+            self._update_drop_rate()
             vehicle = self.vehicle
             send_rover_heartbeat(self.to_gcs, vehicle.mode, armed=vehicle.armed,
                                  failsafe=vehicle.failsafe)
@@ -335,8 +346,11 @@ class RoverCore:
             self._next_heartbeat_s = now_s + HEARTBEAT_PERIOD_S - TIMER_SLACK_S
         self.mission.tick(now_s)
         if self.vehicle.has_events:
-            for severity, text in self.vehicle.take_events():
-                self.say(severity, text)
+            for event in self.vehicle.take_events():
+                if event.refusal is None:
+                    self.say(event.severity, event.text)
+                else:
+                    self.refuse(event.refusal, event.text)
         return self._take(None)
 
     def next_due_s(self) -> float:
@@ -369,21 +383,24 @@ class RoverCore:
         self.estimator.reconfigure(p)
         self.autopilot.reconfigure(p)
 
-    def say(self, severity: Severity, text: str, *, repeat_s: float = 0.0) -> None:
-        """A STATUSTEXT to the ground station (and the log); long texts go in chunks.
-
-        With ``repeat_s`` the same text is said at most once per that many seconds.
-        """
-        now = self._now_s
-        said = self._said
-        if repeat_s and now - said.get(text, -math.inf) < repeat_s:
-            return
-        said[text] = now
-        said.move_to_end(text)
-        if len(said) > SAID_MEMORY:
-            said.popitem(last=False)
+    def say(self, severity: Severity, text: str) -> None:
+        """A STATUSTEXT to the ground station (and the log); long texts go in chunks."""
         log.log(logging.WARNING if severity <= Severity.WARNING else logging.INFO, "%s", text)
         self.to_gcs.messages.extend(statustext_messages(severity, text))
+
+    def refuse(self, kind: Refusal, text: str) -> None:
+        """Count a refused input of ``kind`` and say why (WARNING), at most once a second per
+        kind (:class:`~mecanum_mav.control.refusals.RefusalLog`)."""
+        if self.refusals.add(kind, self._now_s):
+            self.say(Severity.WARNING, text)
+
+    def status_line(self) -> str:
+        """One line of counts for people: messages received, packets dropped as malformed,
+        failed sends, and the refusals per kind."""
+        c = self.link_counts()
+        return (f"received {c.received}, malformed {c.malformed}, send failures "
+                f"{c.send_failed}, refused {self.refusals.total} "
+                f"({self.refusals.summary()})")
 
     @property
     def origin(self) -> GlobalOrigin | None:
@@ -439,13 +456,29 @@ class RoverCore:
 
     def _telemetry_state(self, now_s: float) -> TelemetryState:
         est = self.estimator
-        bad, send_errors = self.link_errors()
+        counts = self.link_counts()
+        errors = counts.malformed + self.refusals.total + counts.send_failed
         fresh = now_s - self._battery_s <= BATTERY_FRESH_S
         battery = self._battery if fresh else UNKNOWN_BATTERY
         sensors = sensor_bits(fc_link_up=not self.vehicle.fc_lost, battery_known=fresh)
         return TelemetryState(now_s, self.boot_s, est.pose, est.velocity_body, est.yaw_rate,
                               est.reset_counter, est.wheel_distances_m, self.pwm.channels,
-                              self.pulses_us, bad + send_errors, self.origin, sensors, battery)
+                              self.pulses_us, errors, self._drop_rate_cpct, self.origin,
+                              sensors, battery)
+
+    def _update_drop_rate(self) -> None:
+        """SYS_STATUS ``drop_rate_comm`` (c%): of the packets that arrived since the last
+        heartbeat, the share dropped as malformed or refused."""
+        counts = self.link_counts()
+        arrived = counts.received + counts.malformed
+        dropped = counts.malformed + self.refusals.total
+        arrived_before, dropped_before = self._drop_window
+        self._drop_window = arrived, dropped
+        if arrived > arrived_before:
+            share = (dropped - dropped_before) / (arrived - arrived_before)
+            self._drop_rate_cpct = min(10_000, round(10_000 * share))
+        else:
+            self._drop_rate_cpct = 0
 
     # ================================================================== addressing
 
@@ -457,9 +490,6 @@ class RoverCore:
     def _from_pilot(self, msg: Any) -> bool:
         gcs = self.identity.gcs_sysid
         return gcs == 0 or msg.get_srcSystem() == gcs
-
-    def _reject_input(self, reason: str) -> None:
-        self.say(Severity.WARNING, f"Rejected: {reason}", repeat_s=STATUSTEXT_REPEAT_S)
 
     # ================================================================== the flight controller
 
@@ -513,7 +543,7 @@ class RoverCore:
             stick = stick_from_manual_control(msg.x, msg.y, msg.r, msg.z,
                                               z_scale=self.input.z_scale)
         except InputError as exc:
-            self._reject_input(str(exc))
+            self.refuse(Refusal.STICK, f"Rejected: {exc}")
             return
         self._take_stick(stick, now_s)
 
@@ -524,7 +554,7 @@ class RoverCore:
         try:
             self.rc_sticks.apply(channels)
         except InputError as exc:
-            self._reject_input(str(exc))
+            self.refuse(Refusal.STICK, f"Rejected: {exc}")
             return
         if self.rc_sticks.touches_sticks(channels, self.rc_input):
             self._take_stick(self.rc_sticks.stick(self.rc_input), now_s)
@@ -533,14 +563,14 @@ class RoverCore:
         if not (self._for_us(msg.target_system, msg.target_component) and self._from_pilot(msg)):
             return
         if self.vehicle.mode is not Mode.GUIDED:
-            self._reject_input("setpoint: not in GUIDED")
+            self.refuse(Refusal.SETPOINT, "Rejected: setpoint: not in GUIDED")
             return
         pose = self.estimator.pose
         try:
             setpoint = decode_setpoint(msg.coordinate_frame, msg.type_mask, msg.x, msg.y,
                                        msg.vx, msg.vy, msg.yaw, msg.yaw_rate, pose, now_s)
         except SetpointError as exc:
-            self._reject_input(f"setpoint: {exc}")
+            self.refuse(Refusal.SETPOINT, f"Rejected: setpoint: {exc}")
             return
         self.autopilot.guided.accept(setpoint, pose)
         self.faulted = False
@@ -568,7 +598,7 @@ class RoverCore:
                 now_s, self._prearm_problems(), force=p[1] == FORCE_ARM_MAGIC))
         if p[0] == 0.0:
             return self._result(self.vehicle.request_disarm(now_s, "by command"))
-        self.say(Severity.WARNING, f"Arm/disarm: param1 must be 0 or 1, got {p[0]}")
+        self.refuse(Refusal.COMMAND, f"Arm/disarm: param1 must be 0 or 1, got {p[0]}")
         return Result.DENIED
 
     def _prearm_problems(self) -> list[str]:
@@ -610,7 +640,7 @@ class RoverCore:
 
     def _cmd_set_home(self, p: tuple[float, ...], now_s: float) -> Result:
         if p[0] != 1.0:
-            self.say(Severity.WARNING, "Set home: only 'use current position' (param1=1)")
+            self.refuse(Refusal.COMMAND, "Set home: only 'use current position' (param1=1)")
             return Result.DENIED
         self.estimator.reset(now_s=now_s)
         self.say(Severity.INFO, "Home and odometry origin set here")
@@ -618,10 +648,10 @@ class RoverCore:
 
     def _set_mode(self, base_mode: float, custom_mode: float, now_s: float) -> Result:
         if not (math.isfinite(base_mode) and math.isfinite(custom_mode)):
-            self.say(Severity.WARNING, "Set mode: base and custom mode must be numbers")
+            self.refuse(Refusal.COMMAND, "Set mode: base and custom mode must be numbers")
             return Result.DENIED
         if not int(base_mode) & mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED:
-            self.say(Severity.WARNING, "Set mode: only custom (Rover) modes are supported")
+            self.refuse(Refusal.COMMAND, "Set mode: only custom (Rover) modes are supported")
             return Result.UNSUPPORTED
         return self._result(self.vehicle.request_mode(int(custom_mode), now_s))
 
@@ -670,7 +700,7 @@ class RoverCore:
         self._send_param(value)
         name = value.param_id.decode()
         if problem:
-            self.say(Severity.WARNING, f"Param refused: {problem}")
+            self.refuse(Refusal.PARAM, f"Param refused: {problem}")
             return
         self.reconfigure()
         if name in RESTART_REQUIRED:
@@ -697,7 +727,7 @@ class RoverCore:
         try:
             origin = GlobalOrigin(msg.latitude, msg.longitude, msg.altitude)
         except ValueError as exc:
-            self._reject_input(f"origin: {exc}")
+            self.refuse(Refusal.ORIGIN, f"Rejected: origin: {exc}")
             return
         self.origin_set = origin
         self.to_gcs.gps_global_origin_send(origin.lat_e7, origin.lon_e7, origin.alt_mm,

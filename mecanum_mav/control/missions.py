@@ -17,6 +17,7 @@ from collections.abc import Callable, Sequence
 from typing import Any, Protocol
 
 from mecanum_mav.control.executor import MissionExecutor
+from mecanum_mav.control.refusals import Refusal
 from mecanum_mav.control.vehicle import Vehicle
 from mecanum_mav.mecanum.geometry import Pose2d
 from mecanum_mav.protocol.messages import MissionSetCurrentMsg, Result
@@ -50,19 +51,22 @@ class MissionControl:
         executor: the mission executor that drives the mission.
         pose: returns the rover's pose now (local NED).
         say: the core's STATUSTEXT.
+        refuse: the core's report of a refused input (counted, said sparingly).
         store: keeps accepted missions, or None.
     """
 
     def __init__(self, items: Sequence[MissionItem], to_gcs: Any,
                  for_us: Callable[[int, int], bool], vehicle: Vehicle,
                  executor: MissionExecutor, pose: Callable[[], Pose2d],
-                 say: Callable[[Severity, str], None], store: MissionStore | None) -> None:
+                 say: Callable[[Severity, str], None],
+                 refuse: Callable[[Refusal, str], None], store: MissionStore | None) -> None:
         self.service = MissionService(items)
         self.link = MissionLink(self.service, to_gcs, for_us)
         self.vehicle = vehicle
         self.executor = executor
         self.pose = pose
         self.say = say
+        self.refuse = refuse
         self.store = store
         executor.load(items)
 
@@ -107,7 +111,7 @@ class MissionControl:
         """Make item ``seq`` current (a running mission drives there from where it is)."""
         reason = self.executor.set_current(seq, self.pose(), now_s)
         if reason is not None:
-            self.say(Severity.WARNING, f"Set current item refused: {reason}")
+            self.refuse(Refusal.MISSION, f"Set current item refused: {reason}")
             return Result.DENIED
         self.take_executor_events(now_s)
         return Result.ACCEPTED
@@ -143,7 +147,7 @@ class MissionControl:
     def _take_protocol_events(self, now_s: float) -> None:
         for kind, text in self.service.take_events():
             if kind == "error":
-                self.say(Severity.WARNING, text)
+                self.refuse(Refusal.MISSION, text)
             else:
                 self._replaced(now_s)
 

@@ -23,14 +23,15 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Protocol
+from typing import NamedTuple, Protocol
 
 from mecanum_mav.config.params import Params
 from mecanum_mav.config.views import FailsafeConfig
+from mecanum_mav.control.refusals import Refusal
 from mecanum_mav.protocol.modes import Mode
 from mecanum_mav.protocol.statustext import Severity
 
-__all__ = ["Decision", "Mode", "ModeHooks", "Severity", "Vehicle"]
+__all__ = ["Decision", "Event", "Mode", "ModeHooks", "Severity", "Vehicle"]
 
 AVAILABLE_MODES: frozenset[Mode] = frozenset(Mode)
 """Modes this build can enter; asking for another is DENIED with a reason."""
@@ -46,8 +47,13 @@ class Decision:
     reason: str = ""
 
 
-Event = tuple[Severity, str]
-"""A state change a pilot must know about: (severity, STATUSTEXT text)."""
+class Event(NamedTuple):
+    """A state change or a refusal a pilot must know about (a STATUSTEXT)."""
+
+    severity: Severity
+    text: str
+    refusal: Refusal | None = None
+    """The kind of refused input, or None for a state change."""
 
 
 class ModeHooks(Protocol):
@@ -123,9 +129,9 @@ class Vehicle:
         if self.armed:
             return Decision(True)
         if self.fc_lost:
-            return self._refuse("PreArm: flight controller link down")
+            return self._refuse("PreArm: flight controller link down", Refusal.ARM)
         if problems and not force and self.config.arming_check:
-            return self._refuse(f"PreArm: {problems[0]}")
+            return self._refuse(f"PreArm: {problems[0]}", Refusal.ARM)
         self.armed = True
         self.input_stale = True  # the wheels wait for fresh sticks after arming
         self._say(Severity.INFO, f"Armed, mode {self.mode.name}")
@@ -145,15 +151,15 @@ class Vehicle:
         try:
             mode = Mode(mode_number)
         except ValueError:
-            return self._refuse(f"Mode {mode_number} unknown")
+            return self._refuse(f"Mode {mode_number} unknown", Refusal.MODE)
         if mode not in AVAILABLE_MODES:
-            return self._refuse(f"Mode {mode.name} not available")
+            return self._refuse(f"Mode {mode.name} not available", Refusal.MODE)
         if mode is self.mode:
             return Decision(True)
         if self.hooks is not None:
             reason = self.hooks.refuse_entry(mode, now_s)
             if reason is not None:
-                self._say(Severity.WARNING, f"{mode.name} refused: {reason}")
+                self._refuse(f"{mode.name} refused: {reason}", Refusal.MODE)
                 return Decision(False, reason)
         before, self.mode = self.mode, mode
         self._say(Severity.INFO, f"Mode {mode.name}")
@@ -240,8 +246,8 @@ class Vehicle:
     # ----------------------------------------------------------------- helpers
 
     def _say(self, severity: Severity, text: str) -> None:
-        self._events.append((severity, text))
+        self._events.append(Event(severity, text))
 
-    def _refuse(self, reason: str) -> Decision:
-        self._say(Severity.WARNING, reason)
+    def _refuse(self, reason: str, kind: Refusal) -> Decision:
+        self._events.append(Event(Severity.WARNING, reason, kind))
         return Decision(False, reason)

@@ -111,7 +111,10 @@ class TelemetryState:
     wheel_distances_m: tuple[float, ...]
     channels: tuple[int, ...]
     pulses_us: tuple[int, ...]
-    bad_packets: int
+    errors_comm: int
+    """Malformed packets, refused inputs and failed sends so far (SYS_STATUS ``errors_comm``)."""
+    drop_rate_comm: int
+    """Share of recent packets dropped as malformed or refused, c% (SYS_STATUS)."""
     origin: Any = None  # geo.GlobalOrigin, or None when the local frame has no global anchor
     sensors: SensorBits = NO_SENSORS
     battery: Battery = UNKNOWN_BATTERY
@@ -148,11 +151,11 @@ def _attitude(mav: Any, t: TelemetryState) -> None:
 
 
 def _sys_status(mav: Any, t: TelemetryState) -> None:
-    # Sensor bits and battery: mecanum_mav.protocol.health; errors_comm: bad packets + failed
-    # sends on both links.
+    # Sensor bits and battery: mecanum_mav.protocol.health; the link counts: RoverCore.
     s, b = t.sensors, t.battery
     mav.sys_status_send(s.present, s.enabled, s.health, 0, b.voltage_mv, b.current_ca,
-                        b.remaining_pct, 0, min(t.bad_packets, 65535), 0, 0, 0, 0)
+                        b.remaining_pct, t.drop_rate_comm, min(t.errors_comm, 65535), 0, 0, 0,
+                        0)
 
 
 def _servo_output_raw(mav: Any, t: TelemetryState) -> None:

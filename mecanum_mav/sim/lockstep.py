@@ -32,6 +32,7 @@ from mecanum_mav.config.params import Params
 from mecanum_mav.control.core import (
     COMPANION_COMPID,
     FC_LINK_COMPID,
+    LinkCounts,
     Outbox,
     RoverCore,
     Storage,
@@ -65,6 +66,7 @@ class _Wire:
         self.sender = mavlink.MAVLink(self, srcSystem=sysid, srcComponent=compid)
         self.parser = MessageParser(mavlink.MAVLink(None), datagrams=True, name=name)
         self.queue: list[bytes] = []
+        self.received = 0
 
     def write(self, data: bytes) -> None:
         """The sender's ``file.write``: one datagram on the wire."""
@@ -83,6 +85,7 @@ class _Wire:
         messages: list[Any] = []
         for data in datagrams:
             messages += self.parser.parse(data)
+        self.received += len(messages)
         return messages
 
 
@@ -131,7 +134,7 @@ class Lockstep:
         self._core_to_fc = _Wire(int(p["FC_GCS_SYSID"]), FC_LINK_COMPID, name="core->fc")
         self._fc_to_core = _Wire(int(p["FC_SYSID"]), int(p["FC_COMPID"]), name="fc->core")
         self.core = RoverCore(p, now_s=0.0, mission=mission, storage=storage,
-                              link_errors=self._link_errors)
+                              link_counts=self._link_counts)
         self.board = SimBoard(p, 0.0)
         self._board_out = MessageOutbox()
         self.gcs = ScriptedGroundStation(_GcsPort(self))
@@ -244,5 +247,6 @@ class Lockstep:
             else:
                 self.fc_received.append(msg)
 
-    def _link_errors(self) -> tuple[int, int]:
-        return self._gcs_to_core.parser.bad + self._fc_to_core.parser.bad, 0
+    def _link_counts(self) -> LinkCounts:
+        gcs, fc = self._gcs_to_core, self._fc_to_core
+        return LinkCounts(gcs.received + fc.received, gcs.parser.bad + fc.parser.bad)
