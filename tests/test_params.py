@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import logging
 import math
 import os
 import pickle
@@ -17,6 +18,7 @@ from hypothesis import strategies as st
 from mecanum_mav.config.params import _index
 from mecanum_mav.io.paramfile import main as _main
 from mecanum_mav.io.paramfile import save_keeping_layout
+from mecanum_mav.io.storage import FileStorage
 from mecanum_mav.params import (
     DEFAULTS_FILE_HEADER,
     SCHEMA,
@@ -644,3 +646,18 @@ def test_saving_unchanged_parameters_writes_nothing(tmp_path):
     path.write_text(HAND_WRITTEN)
     save_keeping_layout(load(path), path)
     assert path.read_text() == HAND_WRITTEN and not (tmp_path / "rover.parm.bak").exists()
+
+
+def test_opening_the_storage_removes_temporaries_a_killed_save_left_and_nothing_else(
+        tmp_path, caplog):
+    path = tmp_path / "rover.parm"
+    path.write_text("OUT_RATE 25\n")
+    left = [tmp_path / ".rover.parm.k3j9x_2a.tmp", tmp_path / ".rover.parm.bak.q0w9e8r7.tmp",
+            tmp_path / ".rover.waypoints.a1b2c3d4.tmp"]
+    kept = [tmp_path / ".other.parm.a1b2c3d4.tmp", tmp_path / "rover.parm.tmp", path]
+    for stray in left + kept[:2]:
+        stray.write_text("half a fi")
+    with caplog.at_level(logging.WARNING):
+        FileStorage(path)
+    assert sorted(tmp_path.iterdir()) == sorted(kept)
+    assert sum("cut short" in r.getMessage() for r in caplog.records) == len(left)

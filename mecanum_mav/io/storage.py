@@ -8,6 +8,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from mecanum_mav.config.params import Params
+from mecanum_mav.io.atomicfile import remove_stale_temporaries
 from mecanum_mav.io.missionfile import (
     MissionFileError,
     load_mission,
@@ -24,11 +25,15 @@ __all__ = ["FileStorage"]
 
 class FileStorage:
     """Keeps accepted parameters in the ``--params`` file and the mission beside it
-    (``rover.parm`` -> ``rover.waypoints``), both written atomically."""
+    (``rover.parm`` -> ``rover.waypoints``), both written atomically; temporary files that a
+    save cut short (kill -9, power loss) left beside them are removed when it is created."""
 
     def __init__(self, param_path: Path) -> None:
         self.param_path = param_path
         self.mission_path = mission_path_for(param_path)
+        for path in (param_path, self.mission_path):  # a save cut short by kill -9 or power
+            for stale in remove_stale_temporaries(path):
+                log.warning("removed %s, left by a save that was cut short", stale)
 
     def save_params(self, params: Params) -> None:
         """Bring the parameter file up to date: only changed values change (comments, order
