@@ -8,6 +8,7 @@ import pytest
 
 from mecanum_mav.io.keyfile import KeyFileError, load_signing_key
 from mecanum_mav.protocol.dialect import mavlink
+from mecanum_mav.protocol.framing import MessageParser
 from mecanum_mav.protocol.signing import (
     EPOCH_2015_UNIX_S,
     NEW_STREAM_WINDOW_TICKS,
@@ -184,3 +185,27 @@ def test_a_key_file_that_holds_no_key_is_refused_naming_the_file(tmp_path, conte
 def test_a_missing_key_file_is_refused_naming_it(tmp_path):
     with pytest.raises(KeyFileError, match="No such file"):
         load_signing_key(tmp_path / "absent.key")
+
+
+# --------------------------------------------------------------------------- the parser
+
+
+@pytest.mark.parametrize("datagrams", [True, False])
+def test_a_parser_with_a_check_keeps_only_fresh_correctly_signed_messages(datagrams):
+    check = SignatureCheck(KEY, NOW)
+    parser = MessageParser(mavlink.MAVLink(None), datagrams=datagrams, check=check)
+    pilot, stranger = signed_sender(), mavlink.MAVLink(None, srcSystem=255, srcComponent=190)
+    heartbeat = mavlink.MAVLink_heartbeat_message(6, 8, 0, 0, 4, 3)
+    stick = manual(pilot)  # the fast path on datagram links
+    beat = bytes(heartbeat.pack(pilot))
+    assert [m.get_type() for m in parser.parse(stick)] == ["MANUAL_CONTROL"]
+    assert [m.get_type() for m in parser.parse(beat)] == ["HEARTBEAT"]
+    assert parser.parse(manual(stranger)) == []  # unsigned
+    assert parser.parse(bytes(heartbeat.pack(stranger))) == []
+    assert parser.parse(manual(signed_sender(b"\x02" * 32))) == []  # another key
+    assert parser.parse(stick) == [] and parser.parse(beat) == []  # replays
+    two = manual(pilot) + manual(stranger)  # one datagram, two packets: the general path
+    assert [(m.get_type(), m.x) for m in parser.parse(two)] == [("MANUAL_CONTROL", 500)]
+    assert check.counts == {Check.ACCEPTED: 3, Check.UNSIGNED: 3, Check.BAD_SIGNATURE: 1,
+                            Check.REPLAYED: 2, Check.TOO_OLD: 0}
+    assert check.summary() == "unsigned 3, bad signature 1, replayed 2"

@@ -8,10 +8,13 @@ caches. This module decodes ``MANUAL_CONTROL`` and encodes ``RC_CHANNELS_OVERRID
 classes, so the wire format cannot drift from the dialect, and tests compare it byte for byte
 with pymavlink.
 
-The fast decoder takes exactly one unsigned MAVLink 2 packet per datagram (what ground stations
-send over UDP). Anything else (another message, a signed or MAVLink 1 packet, a bad CRC, a
-payload longer than this dialect knows, several packets in one datagram) returns ``None`` and
-takes pymavlink's general path, which also counts the bad ones.
+The fast decoder takes exactly one MAVLink 2 packet per datagram (what ground stations send over
+UDP), signed or not: it checks the CRC, and a signed packet's signature is checked by the
+caller, for fast and general paths alike (:class:`~mecanum_mav.protocol.signing.
+SignatureCheck`). Anything else (another message, a MAVLink 1 packet, a bad CRC, a payload
+longer than this dialect knows, several packets in one datagram) returns ``None`` and takes
+pymavlink's general path, which also counts the bad ones. The encoder signs when the link does
+(one SHA-256, as pymavlink, with the link's own signing state).
 """
 
 from __future__ import annotations
@@ -21,6 +24,7 @@ from collections.abc import Callable
 from typing import Any
 
 from mecanum_mav.protocol.dialect import mavlink
+from mecanum_mav.protocol.signing import IFLAG_SIGNED, SIGNATURE_BLOCK_LEN, signature_block
 
 __all__ = ["ManualControl", "decode_manual_control", "encode_rc_override"]
 
@@ -81,12 +85,21 @@ class ManualControl:
 
 
 def decode_manual_control(datagram: bytes) -> ManualControl | None:
-    """Decode a datagram holding exactly one unsigned MAVLink 2 MANUAL_CONTROL, else None."""
+    """Decode a datagram holding exactly one MAVLink 2 MANUAL_CONTROL, else None.
+
+    A signed one is decoded with its signature unchecked: the caller checks it."""
     size = len(datagram)
-    if size < _HEADER_LEN + 3 or datagram[0] != _MAGIC or datagram[2] != 0:
+    if size < _HEADER_LEN + 3 or datagram[0] != _MAGIC:
+        return None
+    flags = datagram[2]
+    if flags == 0:
+        signature_len = 0
+    elif flags == IFLAG_SIGNED:
+        signature_len = SIGNATURE_BLOCK_LEN
+    else:
         return None
     length = datagram[1]
-    if size != _HEADER_LEN + length + 2 or length > _MANUAL_SIZE:
+    if size != _HEADER_LEN + length + 2 + signature_len or length > _MANUAL_SIZE:
         return None
     if datagram[7] | datagram[8] << 8 | datagram[9] << 16 != _MANUAL_ID:
         return None
@@ -101,7 +114,7 @@ def decode_manual_control(datagram: bytes) -> ManualControl | None:
 
 
 def encode_rc_override(mav: Any, target_system: int, target_component: int,
-                       channels: list[int]) -> bytes | None:
+                       channels: list[int]) -> bytes:
     """Pack RC_CHANNELS_OVERRIDE exactly as pymavlink would, advancing ``mav.seq``.
 
     Args:
@@ -110,19 +123,23 @@ def encode_rc_override(mav: Any, target_system: int, target_component: int,
         channels: the 18 ``chanN_raw`` fields, channel 1 first.
 
     Returns:
-        The packet, or None when the link signs its packets (then use pymavlink).
+        The packet; signed when ``mav.signing.sign_outgoing`` (its timestamp then advances by
+        one, as pymavlink's does).
     """
-    signing = getattr(mav, "signing", None)
-    if signing is not None and signing.sign_outgoing:
-        return None
+    signing = mav.signing
+    signed = signing.sign_outgoing
     payload = _OVERRIDE.unpacker.pack(*channels[:8], target_system, target_component,
                                       *channels[8:])
     length = len(payload)
     while length > 1 and payload[length - 1] == 0:  # MAVLink 2 payload truncation
         length -= 1
     seq = mav.seq
-    header = _HEADER.pack(_MAGIC, length, 0, 0, seq, mav.srcSystem, mav.srcComponent,
-                          _OVERRIDE_ID & 0xFFFF, _OVERRIDE_ID >> 16)
+    header = _HEADER.pack(_MAGIC, length, IFLAG_SIGNED if signed else 0, 0, seq, mav.srcSystem,
+                          mav.srcComponent, _OVERRIDE_ID & 0xFFFF, _OVERRIDE_ID >> 16)
     body: bytes = header + payload[:length]
     mav.seq = (seq + 1) % 256
-    return body + _CRC.pack(_crc(body[1:], _OVERRIDE_CRC_EXTRA))
+    packet = body + _CRC.pack(_crc(body[1:], _OVERRIDE_CRC_EXTRA))
+    if signed:
+        packet += signature_block(signing.secret_key, packet, signing.link_id, signing.timestamp)
+        signing.timestamp += 1
+    return packet

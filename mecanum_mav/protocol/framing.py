@@ -7,6 +7,12 @@ pymavlink's pure-Python parser; anything else goes through pymavlink. A MAVLink 
 spans UDP datagrams, so on datagram links a leftover partial packet is dropped (and counted)
 instead of swallowing the start of the next datagram. Malformed bytes, bad CRCs and truncated
 packets are counted in :attr:`MessageParser.bad`.
+
+With a :class:`~mecanum_mav.protocol.signing.SignatureCheck` (a link with a signing key) every
+message, from the fast path or pymavlink's, is kept only if its packet is correctly signed and
+not replayed; the others are dropped and counted in the check (per kind). pymavlink's own
+check is not used (its parser object holds no key): it records a stream's timestamp before
+verifying the signature (ArduPilot/pymavlink issue #961).
 """
 
 from __future__ import annotations
@@ -16,6 +22,7 @@ from typing import Any
 
 from mecanum_mav.protocol.codec import decode_manual_control
 from mecanum_mav.protocol.dialect import mavlink
+from mecanum_mav.protocol.signing import Check, SignatureCheck
 
 log = logging.getLogger(__name__)
 
@@ -29,22 +36,36 @@ class MessageParser:
         mav: the link's pymavlink ``MAVLink`` object (its parser state, version detection).
         datagrams: True on datagram links (UDP): each chunk is one datagram.
         name: short name for logs.
+        check: keep only correctly signed, fresh packets (a link with a signing key), or None.
+            ``mav`` must then hold no key (its signing is for sending).
     """
 
-    def __init__(self, mav: Any, *, datagrams: bool, name: str = "") -> None:
+    def __init__(self, mav: Any, *, datagrams: bool, name: str = "",
+                 check: SignatureCheck | None = None) -> None:
         self.mav = mav
         self.mav.robust_parsing = True
         self.datagrams = datagrams
         self.name = name
+        self.check = check
         self.bad = 0
         """Malformed, truncated or bad-CRC packets seen (never raised)."""
 
     def parse(self, data: bytes) -> list[Any]:
-        """Every complete message in ``data`` (and what earlier chunks left), oldest first."""
+        """Every complete message in ``data`` (and what earlier chunks left), oldest first;
+        with a signature check, only the accepted ones."""
+        check = self.check
         if self.datagrams:
             fast = decode_manual_control(data)
             if fast is not None:
-                return [fast]
+                if check is None or check.check(data) is Check.ACCEPTED:
+                    return [fast]
+                return []
+        messages = self._parse_general(data)
+        if check is None or not messages:
+            return messages
+        return [m for m in messages if check.check(m.get_msgbuf()) is Check.ACCEPTED]
+
+    def _parse_general(self, data: bytes) -> list[Any]:
         try:
             parsed = self._parse(data)
         except Exception as exc:  # pymavlink raises MAVError (and worse) on some garbage
