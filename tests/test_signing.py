@@ -5,7 +5,9 @@ from __future__ import annotations
 import hashlib
 
 import pytest
+from conftest import lockstep
 
+from mecanum_mav.control.refusals import Refusal
 from mecanum_mav.io.keyfile import KeyFileError, load_signing_key
 from mecanum_mav.protocol.dialect import mavlink
 from mecanum_mav.protocol.framing import MessageParser
@@ -209,3 +211,16 @@ def test_a_parser_with_a_check_keeps_only_fresh_correctly_signed_messages(datagr
     assert check.counts == {Check.ACCEPTED: 3, Check.UNSIGNED: 3, Check.BAD_SIGNATURE: 1,
                             Check.REPLAYED: 2, Check.TOO_OLD: 0}
     assert check.summary() == "unsigned 3, bad signature 1, replayed 2"
+
+
+# --------------------------------------------------------------------------- the rover
+
+
+def test_setup_signing_from_the_link_is_refused_the_key_comes_from_the_file():
+    h = lockstep()
+    since = h.gcs.mark()
+    h.gcs.mav.setup_signing_send(1, 1, list(KEY), NOW)
+    h.run_for(0.1)
+    said = [m.text for m in h.gcs.received("STATUSTEXT", since)]
+    assert said == ["SETUP_SIGNING refused: key is from --signing-key"]
+    assert h.core.refusals.counts[Refusal.COMMAND] == 1

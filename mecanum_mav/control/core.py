@@ -243,6 +243,7 @@ class RoverCore:
             "FILE_TRANSFER_PROTOCOL": self._on_ftp,
             "MISSION_SET_CURRENT": self._on_mission_set_current,
             "SET_GPS_GLOBAL_ORIGIN": self._on_set_origin,
+            "SETUP_SIGNING": self._on_setup_signing,
             **dict.fromkeys(MISSION_MESSAGES, self._on_mission_message),
         }
         self._fc_handlers: dict[str, Handler] = {
@@ -673,6 +674,11 @@ class RoverCore:
             self.to_gcs.file_transfer_protocol_send(0, msg.get_srcSystem(),
                                                     msg.get_srcComponent(),
                                                     ftp_nak(msg.payload))
+
+    def _on_setup_signing(self, msg: Addressed, now_s: float) -> None:
+        if self._for_us(msg.target_system, msg.target_component):
+            # the key is changed in the file, and takes effect at the next start
+            self.refuse(Refusal.COMMAND, "SETUP_SIGNING refused: key is from --signing-key")
 
     # ================================================================== parameters
 
