@@ -21,6 +21,7 @@ from mecanum_mav.protocol.signing import (
     signature_block,
     ticks_from_unix,
 )
+from mecanum_mav.sim.lockstep import SIGNING_START_TICKS
 
 KEY = hashlib.sha256(b"correct horse battery staple").digest()
 NOW = ticks_from_unix(1_790_000_000.0)
@@ -224,3 +225,142 @@ def test_setup_signing_from_the_link_is_refused_the_key_comes_from_the_file():
     said = [m.text for m in h.gcs.received("STATUSTEXT", since)]
     assert said == ["SETUP_SIGNING refused: key is from --signing-key"]
     assert h.core.refusals.counts[Refusal.COMMAND] == 1
+
+
+# --------------------------------------------------------------------------- the signed rover
+# The lockstep harness with the ground-station link signed (as --signing-key does): the scripted
+# ground station is the pilot, signing with KEY; everything else is put on the wire by hand.
+
+NEUTRAL = [1500, 1500, 1500, 1500]
+FORWARD = [2000, 2000, 2000, 2000]
+
+
+def signed_rover(**values: float):
+    return lockstep(values or None, signing_key=KEY)
+
+
+def wheel_pulses(h, since_s: float) -> list[list[int]]:
+    return [o.channels[:4] for o in h.overrides_since(since_s)]
+
+
+def drive_for(h, seconds: float, x: int = 1000) -> float:
+    """Stream the pilot's forward stick at 20 Hz for ``seconds``; when it started."""
+    start = h.now_s
+    stop = h.every(0.05, lambda _t: h.gcs.mav.manual_control_send(1, x, 0, 500, 0, 0))
+    h.run_for(seconds)
+    stop()
+    return start
+
+
+def stranger(key: bytes | None = None, sysid: int = 255, compid: int = 190) -> mavlink.MAVLink:
+    """Another sender on the link with the pilot's ids: unsigned, or signing with ``key``."""
+    mav = mavlink.MAVLink(None, srcSystem=sysid, srcComponent=compid)
+    if key is not None:
+        mav.signing.secret_key, mav.signing.sign_outgoing = key, True
+        mav.signing.timestamp = SIGNING_START_TICKS + 1000
+    return mav
+
+
+def packets(mav: mavlink.MAVLink) -> dict[str, bytes]:
+    """One packet of each input that would arm, drive, change a mode or a parameter, or
+    start a mission upload, sent by ``mav``."""
+    def pack(msg) -> bytes:
+        return bytes(msg.pack(mav))
+    return {
+        "arm": pack(mavlink.MAVLink_command_long_message(
+            1, 1, mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 0, 1, 21196, 0, 0, 0, 0, 0)),
+        "stick": pack(mavlink.MAVLink_manual_control_message(1, 1000, 0, 500, 0, 0)),
+        "param": pack(mavlink.MAVLink_param_set_message(
+            1, 1, b"OUT_RATE", 7.0, mavlink.MAV_PARAM_TYPE_REAL32)),
+        "mode": pack(mavlink.MAVLink_set_mode_message(
+            1, mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 4)),  # HOLD
+        "mission": pack(mavlink.MAVLink_mission_count_message(1, 1, 3, 0)),
+        "heartbeat": pack(mavlink.MAVLink_heartbeat_message(6, 8, 0, 0, 4, 3)),
+    }
+
+
+def test_a_signed_ground_station_arms_and_drives_the_signed_rover():
+    h = signed_rover()
+    h.gcs.arm()
+    assert h.core.vehicle.armed
+    start = drive_for(h, 0.5)
+    assert wheel_pulses(h, start)[-1] == FORWARD
+    assert h.core.refusals.counts[Refusal.SIGNATURE] == 0
+
+
+@pytest.mark.parametrize("key", [None, b"\x07" * 32], ids=["unsigned", "wrong key"])
+def test_unsigned_or_wrongly_signed_inputs_change_nothing_and_are_counted(key):
+    h = signed_rover()
+    params_before = h.core.params["OUT_RATE"]
+    mode_before = h.core.vehicle.mode
+    start, since = h.now_s, h.gcs.mark()
+    sent = packets(stranger(key))
+    for _ in range(5):
+        for packet in sent.values():
+            h.inject(packet)
+        h.run_for(0.1)
+    assert not h.core.vehicle.armed
+    assert h.core.vehicle.mode is mode_before
+    assert h.core.params["OUT_RATE"] == params_before
+    assert h.gcs.received("MISSION_REQUEST_INT", since) == []
+    assert h.gcs.received("COMMAND_ACK", since) == []
+    assert all(p == NEUTRAL for p in wheel_pulses(h, start))
+    assert h.core.refusals.counts[Refusal.SIGNATURE] == 5 * len(sent)
+    reason = ("Unsigned packet refused: signing required" if key is None
+              else "Bad signature: packet refused (wrong key?)")
+    said = [m.text for m in h.gcs.received("STATUSTEXT", since)]
+    assert said and set(said) == {reason}
+    assert len(said) <= 1  # 0.5 s of refusals: said once (at most once a second)
+
+
+def test_unsigned_packets_do_not_keep_the_ground_station_failsafe_from_firing():
+    h = signed_rover(FS_GCS_TMO=1.0)
+    h.gcs.arm()
+    h.gcs.mav.signing.sign_outgoing = False  # the pilot's station loses its key: unsigned
+    beat = packets(stranger())["heartbeat"]
+    since = h.gcs.mark()
+    stop = h.every(0.1, lambda _t: h.inject(beat))
+    assert h.run_until(lambda: h.core.vehicle.gcs_failsafe, 1.2)
+    stop()
+    assert any("GCS link lost" in m.text for m in h.gcs.received("STATUSTEXT", since))
+
+
+def test_an_exact_replay_of_a_genuine_arm_command_is_refused():
+    h = signed_rover()
+    pilot = h.gcs.mav
+    arm = bytes(mavlink.MAVLink_command_long_message(
+        1, 1, mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 0, 1, 0, 0, 0, 0, 0, 0).pack(pilot))
+    h.inject(arm)
+    assert h.run_until(lambda: h.core.vehicle.armed, 0.5)
+    h.gcs.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 0)
+    assert not h.core.vehicle.armed
+    h.inject(arm)  # recorded off the air and played back
+    h.run_for(0.3)
+    assert not h.core.vehicle.armed
+    assert h.core.refusals.counts[Refusal.SIGNATURE] == 1
+
+
+def test_one_forged_packet_from_the_future_does_not_lock_the_pilot_out():
+    """pymavlink issue #961: a garbage-signed packet with the pilot's stream ids and a
+    timestamp 1e12 ticks ahead must not make the pilot's next packets look old."""
+    h = signed_rover()
+    h.gcs.arm()
+    forged = bytearray(packets(stranger(b"\x00" * 32))["stick"])
+    forged[-12:-6] = (h.gcs.mav.signing.timestamp + 10**12).to_bytes(6, "little")
+    forged[-6:] = b"\xde\xad\xbe\xef\x00\x01"  # garbage signature
+    h.inject(bytes(forged))
+    h.run_for(0.1)
+    assert h.core.refusals.counts[Refusal.SIGNATURE] == 1
+    start = drive_for(h, 0.5)
+    assert wheel_pulses(h, start)[-1] == FORWARD
+    assert h.core.refusals.counts[Refusal.SIGNATURE] == 1
+
+
+def test_everything_the_signed_rover_sends_its_ground_station_verifies_with_the_key():
+    h = signed_rover()
+    wire = h._core_to_gcs
+    h.gcs.arm()
+    drive_for(h, 1.5)
+    assert wire.check is not None
+    assert wire.check.counts[Check.ACCEPTED] == wire.received > 20
+    assert wire.check.summary() == "none"

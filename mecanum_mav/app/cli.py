@@ -36,6 +36,7 @@ from mecanum_mav.config.params import (
     parse_assignment,
 )
 from mecanum_mav.control.pwm import PwmMap
+from mecanum_mav.io.keyfile import KeyFileError, load_signing_key
 from mecanum_mav.io.paramfile import load, save
 from mecanum_mav.mecanum.mixing import ALGORITHM_NAMES, Desaturation, mix_stick
 from mecanum_mav.mecanum.wheels import WHEEL_KEYS
@@ -270,8 +271,29 @@ DEFAULT_GCS_URL = "udpout:127.0.0.1:14550"
 """Where QGroundControl and MAVProxy listen by default."""
 
 
+SIGNING_KEY_HELP = ("MAVLink 2 signing on the ground-station link: FILE holds 64 hex digits "
+                    "(the key) or a passphrase (key = SHA-256, as MAVProxy's 'signing key'); "
+                    "it must not be readable by group or others. Only correctly signed "
+                    "packets are obeyed; everything sent is signed")
+FC_SIGNING_KEY_HELP = ("MAVLink 2 signing on the flight-controller link, for a board that "
+                       "requires it (same FILE format as --signing-key)")
+
+
+def signing_keys(args: argparse.Namespace) -> tuple[bytes | None, bytes | None]:
+    """The ground-station and flight-controller links' signing keys from ``--signing-key``
+    and ``--fc-signing-key`` (None where not given).
+
+    Raises:
+        KeyFileError: a key file is missing, not private, or holds no key.
+    """
+    gcs, fc = getattr(args, "signing_key", None), getattr(args, "fc_signing_key", None)
+    return (None if gcs is None else load_signing_key(gcs),
+            None if fc is None else load_signing_key(fc))
+
+
 def serve(params: Params, gcs_url: str, fc_url: str, param_path: Path | None,
-          tlog_path: Path | None) -> int:
+          tlog_path: Path | None,
+          keys: tuple[bytes | None, bytes | None] = (None, None)) -> int:
     """Run the companion in the foreground until SIGINT/SIGTERM; ``fc_url`` may be ``sim``.
 
     The status line (:meth:`~mecanum_mav.control.core.RoverCore.status_line`: messages
@@ -292,14 +314,17 @@ def serve(params: Params, gcs_url: str, fc_url: str, param_path: Path | None,
                 stack.callback(sim.stop)
                 fc_url = f"udpout:127.0.0.1:{sim.local_port}"
             tlog = stack.enter_context(tlog_path.open("ab")) if tlog_path else None
-            companion = Companion(params, gcs_url, fc_url, param_path=param_path, tlog=tlog)
+            companion = Companion(params, gcs_url, fc_url, param_path=param_path, tlog=tlog,
+                                  gcs_signing_key=keys[0], fc_signing_key=keys[1])
         except (OSError, ValueError) as exc:
             print(f"mecanum-mav: {exc}", file=sys.stderr)
             return 2
         stack.callback(companion.close)
-        print(f"mecanum-mav: rover system {params['SYSID_THISMAV']} on {gcs_url}, flight "
-              f"controller on {fc_url}. Ctrl-C stops (wheels to neutral, channels released).",
-              flush=True)
+        signed = " (signed)" if keys[0] is not None else ""
+        fc_signed = " (signed)" if keys[1] is not None else ""
+        print(f"mecanum-mav: rover system {params['SYSID_THISMAV']} on {gcs_url}{signed}, "
+              f"flight controller on {fc_url}{fc_signed}. Ctrl-C stops (wheels to neutral, "
+              f"channels released).", flush=True)
 
         def print_status() -> None:
             print(f"mecanum-mav: {companion.core.status_line()}", file=sys.stderr, flush=True)
@@ -310,16 +335,30 @@ def serve(params: Params, gcs_url: str, fc_url: str, param_path: Path | None,
     return 0
 
 
+def _keys_or_exit(args: argparse.Namespace) -> tuple[bytes | None, bytes | None] | None:
+    try:
+        return signing_keys(args)
+    except KeyFileError as exc:
+        print(f"mecanum-mav: {exc}", file=sys.stderr)
+        return None
+
+
 def cmd_run(args: argparse.Namespace, params: Params) -> int:
-    return serve(params, args.gcs, args.fc, args.params, args.tlog)
+    keys = _keys_or_exit(args)
+    if keys is None:
+        return 2
+    return serve(params, args.gcs, args.fc, args.params, args.tlog, keys)
 
 
 def cmd_sim(args: argparse.Namespace, params: Params) -> int:
+    keys = _keys_or_exit(args)
+    if keys is None:
+        return 2
     host_port = args.gcs.split(":", 1)[1] if ":" in args.gcs else args.gcs
     print(f"mecanum-mav sim: point a ground station at UDP {host_port} "
           f"(QGroundControl and Mission Planner listen on 14550; "
           f"MAVProxy: mavproxy.py --master=udpin:{host_port})", flush=True)
-    return serve(params, args.gcs, "sim", args.params, args.tlog)
+    return serve(params, args.gcs, "sim", args.params, args.tlog, keys)
 
 
 def cmd_demo(args: argparse.Namespace, params: Params) -> int:
@@ -404,6 +443,7 @@ def build_parser() -> argparse.ArgumentParser:
                      help=f"ground-station link (default {DEFAULT_GCS_URL})")
     sim.add_argument("--tlog", type=Path, metavar="FILE", help="record all traffic (tlog)")
     sim.add_argument("--params-reset", action="store_true", help=PARAMS_RESET_HELP)
+    sim.add_argument("--signing-key", type=Path, metavar="FILE", help=SIGNING_KEY_HELP)
     sim.set_defaults(handler=cmd_sim)
 
     demo = sub.add_parser("demo", parents=[common],
@@ -429,6 +469,8 @@ def build_parser() -> argparse.ArgumentParser:
                      "udpout:HOST:PORT), or 'sim' for the built-in simulator")
     run.add_argument("--tlog", type=Path, metavar="FILE", help="record all traffic (tlog)")
     run.add_argument("--params-reset", action="store_true", help=PARAMS_RESET_HELP)
+    run.add_argument("--signing-key", type=Path, metavar="FILE", help=SIGNING_KEY_HELP)
+    run.add_argument("--fc-signing-key", type=Path, metavar="FILE", help=FC_SIGNING_KEY_HELP)
     run.set_defaults(handler=cmd_run)
 
     setup = sub.add_parser(

@@ -58,11 +58,17 @@ class Companion:
             are saved to it and the mission beside it.
         tlog: an open binary file to record both links' traffic to, or None.
         clock: monotonic time source in seconds.
+        gcs_signing_key, fc_signing_key: each link's 32-byte MAVLink 2 signing key, or None
+            (see :class:`~mecanum_mav.io.links.Link`): with a key the link signs what it
+            sends and reads only correctly signed, fresh packets; the ones it drops are
+            counted and reported as :attr:`~mecanum_mav.control.refusals.Refusal.SIGNATURE`.
     """
 
     def __init__(self, params: Params, gcs_url: str, fc_url: str, *,
                  param_path: Path | None = None, tlog: BinaryIO | None = None,
-                 clock: Callable[[], float] = time.monotonic) -> None:
+                 clock: Callable[[], float] = time.monotonic,
+                 gcs_signing_key: bytes | None = None,
+                 fc_signing_key: bytes | None = None) -> None:
         self.clock = clock
         storage = None if param_path is None else FileStorage(param_path)
         mission, problem = ([], "") if storage is None else storage.load_mission()
@@ -71,9 +77,11 @@ class Companion:
         if problem:
             self.core.say(Severity.ERROR, problem)
         self.gcs: Link = open_link(gcs_url, source_system=self.core.identity.sysid,
-                                   source_component=COMPANION_COMPID, name="gcs")
+                                   source_component=COMPANION_COMPID, name="gcs",
+                                   signing_key=gcs_signing_key)
         self.fc: Link = open_link(fc_url, source_system=self.core.identity.fc_gcs_sysid,
-                                  source_component=FC_LINK_COMPID, name="fc")
+                                  source_component=FC_LINK_COMPID, name="fc",
+                                  signing_key=fc_signing_key)
         self._fc_mav = self.fc.mav
         if tlog is not None:
             self.gcs.record_to(tlog)
@@ -114,6 +122,9 @@ class Companion:
             out = handle(msg, now, from_fc=from_fc)
             if out is not NOTHING:  # a stick is answered by the tick, not here
                 self._write(out)
+        rejected = link.take_rejections()
+        if rejected:  # unsigned or badly signed: counted, said at most once a second
+            self.core.refuse_unsigned(rejected, now)
 
     def _write(self, out: Outbox) -> None:
         if out is NOTHING:

@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import logging
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import replace
 from functools import partial
 from typing import Any, NamedTuple, Protocol
@@ -84,6 +84,7 @@ from mecanum_mav.protocol.modes import Mode
 from mecanum_mav.protocol.outbox import MessageOutbox
 from mecanum_mav.protocol.paramservice import RESTART_REQUIRED, ParamService, ParamValue
 from mecanum_mav.protocol.rcoverride import override_fields, release_fields
+from mecanum_mav.protocol.signing import Check
 from mecanum_mav.protocol.statustext import Severity, statustext_messages
 from mecanum_mav.protocol.telemetry import (
     REQUESTABLE,
@@ -110,6 +111,14 @@ FORCE_ARM_MAGIC = 21196.0
 """MAV_CMD_COMPONENT_ARM_DISARM param2 that forces arming past the pre-arm checks (ArduPilot)."""
 
 _NEUTRAL_WHEELS = (0.0, 0.0, 0.0, 0.0)
+_SIGNATURE_REFUSED = {
+    Check.UNSIGNED: "Unsigned packet refused: signing required",
+    Check.BAD_SIGNATURE: "Bad signature: packet refused (wrong key?)",
+    Check.REPLAYED: "Replayed signed packet refused",
+    Check.TOO_OLD: "Signed packet refused: timestamp too old",
+}
+"""What a ground station is told (at most once a second) when a link with a signing key drops
+a packet; each under 50 characters, one STATUSTEXT."""
 
 
 class RcOverride(NamedTuple):
@@ -389,11 +398,20 @@ class RoverCore:
         log.log(logging.WARNING if severity <= Severity.WARNING else logging.INFO, "%s", text)
         self.to_gcs.messages.extend(statustext_messages(severity, text))
 
-    def refuse(self, kind: Refusal, text: str) -> None:
-        """Count a refused input of ``kind`` and say why (WARNING), at most once a second per
-        kind (:class:`~mecanum_mav.control.refusals.RefusalLog`)."""
-        if self.refusals.add(kind, self._now_s):
+    def refuse(self, kind: Refusal, text: str, count: int = 1) -> None:
+        """Count ``count`` refused inputs of ``kind`` and say why (WARNING), at most once a
+        second per kind (:class:`~mecanum_mav.control.refusals.RefusalLog`)."""
+        if self.refusals.add(kind, self._now_s, count):
             self.say(Severity.WARNING, text)
+
+    def refuse_unsigned(self, rejected: Mapping[Check, int], now_s: float) -> None:
+        """Packets a link's signature check dropped before they became messages (per kind,
+        :meth:`~mecanum_mav.protocol.signing.SignatureCheck.take_rejections`): counted as
+        :attr:`Refusal.SIGNATURE`; none of them reached :meth:`handle`, so none armed, drove
+        or kept the ground-station failsafe from firing."""
+        self._now_s = now_s
+        for kind, count in rejected.items():
+            self.refuse(Refusal.SIGNATURE, _SIGNATURE_REFUSED[kind], count)
 
     def status_line(self) -> str:
         """One line of counts for people: messages received, packets dropped as malformed,

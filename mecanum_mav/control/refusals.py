@@ -39,6 +39,9 @@ class Refusal(Enum):
     """A mission upload or item the mission protocol turned down."""
     ORIGIN = "origin"
     """SET_GPS_GLOBAL_ORIGIN with an impossible position."""
+    SIGNATURE = "signature"
+    """A packet a link with a signing key dropped: unsigned, badly signed, replayed, or too
+    old (:class:`~mecanum_mav.protocol.signing.Check`)."""
 
 
 class RefusalLog:
@@ -48,10 +51,10 @@ class RefusalLog:
         self.counts: dict[Refusal, int] = dict.fromkeys(Refusal, 0)
         self._said_s: dict[Refusal, float] = dict.fromkeys(Refusal, -math.inf)
 
-    def add(self, kind: Refusal, now_s: float) -> bool:
-        """Count one refusal of ``kind`` at ``now_s`` (s); whether its reason is due to be
-        said (not said for this kind within the last :data:`REFUSAL_REPEAT_S`)."""
-        self.counts[kind] += 1
+    def add(self, kind: Refusal, now_s: float, count: int = 1) -> bool:
+        """Count ``count`` refusals of ``kind`` at ``now_s`` (s); whether its reason is due to
+        be said (not said for this kind within the last :data:`REFUSAL_REPEAT_S`)."""
+        self.counts[kind] += count
         if now_s - self._said_s[kind] < REFUSAL_REPEAT_S:
             return False
         self._said_s[kind] = now_s

@@ -29,6 +29,7 @@ from typing import Any, BinaryIO
 from mecanum_mav.protocol.codec import encode_rc_override
 from mecanum_mav.protocol.dialect import mavlink, mavutil
 from mecanum_mav.protocol.framing import MessageParser
+from mecanum_mav.protocol.signing import Check, SignatureCheck, ticks_from_unix
 
 log = logging.getLogger(__name__)
 
@@ -49,15 +50,31 @@ class Link:
         source_system: system id this side sends as (1..255).
         source_component: component id this side sends as.
         name: short name for logs (``"gcs"``, ``"fc"``).
+        signing_key: the 32-byte MAVLink 2 signing key, or None. With a key everything sent
+            is signed (link id 0; the timestamp starts at the wall clock, follows it and never
+            goes backwards) and only correctly signed, fresh packets are read
+            (:class:`~mecanum_mav.protocol.signing.SignatureCheck`); the others are dropped
+            and counted (:meth:`take_rejections`).
     """
 
-    def __init__(self, url: str, *, source_system: int, source_component: int, name: str) -> None:
+    def __init__(self, url: str, *, source_system: int, source_component: int, name: str,
+                 signing_key: bytes | None = None) -> None:
         self.url = url
         self.name = name
         self.conn: Any = mavutil.mavlink_connection(
             url, source_system=source_system, source_component=source_component
         )
-        self.parser = MessageParser(self.conn.mav, name=name,
+        parse_with, check = self.conn.mav, None
+        if signing_key is not None:
+            now = ticks_from_unix(time.time())
+            self.conn.setup_signing(signing_key, sign_outgoing=True, link_id=0,
+                                    initial_timestamp=now)
+            # pymavlink checks signatures itself when its parser holds the key, recording a
+            # stream's timestamp before verifying it (pymavlink issue #961): parse keyless
+            # and let the SignatureCheck decide.
+            parse_with, check = mavlink.MAVLink(None), SignatureCheck(signing_key, now)
+        self.signature_check = check
+        self.parser = MessageParser(parse_with, name=name, check=check,
                                     datagrams=url.startswith(("udp:", "udpin:", "udpout:",
                                                               "udpbcast:")))
         self.received = 0
@@ -102,8 +119,25 @@ class Link:
         """Malformed, truncated or bad-CRC packets received (counted, never raised)."""
         return self.parser.bad
 
+    def take_rejections(self) -> dict[Check, int]:
+        """Packets the signature check dropped since the last call, per kind (empty without a
+        signing key)."""
+        check = self.signature_check
+        return {} if check is None or not check.new_rejections else check.take_rejections()
+
+    def _follow_clock(self) -> None:
+        """The signing timestamps follow the wall clock (10 us ticks), never going back."""
+        now = ticks_from_unix(time.time())
+        signing = self.conn.mav.signing
+        if signing.timestamp < now:
+            signing.timestamp = now
+        if self.signature_check is not None:
+            self.signature_check.advance(now)
+
     def read(self) -> list[Any]:
         """Every complete message waiting on the link, oldest first; never raises."""
+        if self.signature_check is not None:
+            self._follow_clock()
         messages: list[Any] = []
         for _ in range(_MAX_READS):
             try:
@@ -125,6 +159,8 @@ class Link:
 
     def send(self, msg: Any) -> bool:
         """Pack and send one message object; returns False (and counts) on failure."""
+        if self.signature_check is not None:
+            self._follow_clock()
         try:
             self.conn.mav.send(msg)
         except Exception as exc:  # a send must never take the control loop down
@@ -208,9 +244,11 @@ def follow(selector: selectors.BaseSelector, link: Link, fd: int, data: object =
     return new_fd
 
 
-def open_link(url: str, *, source_system: int, source_component: int, name: str) -> Link:
+def open_link(url: str, *, source_system: int, source_component: int, name: str,
+              signing_key: bytes | None = None) -> Link:
     """Open a :class:`Link`; raises ``OSError``/``ValueError`` with the URL on failure."""
     try:
-        return Link(url, source_system=source_system, source_component=source_component, name=name)
+        return Link(url, source_system=source_system, source_component=source_component,
+                    name=name, signing_key=signing_key)
     except (OSError, ValueError) as exc:
         raise type(exc)(f"cannot open {name} link {url!r}: {exc}") from exc

@@ -129,6 +129,9 @@ class SignatureCheck:
         self.streams: dict[tuple[int, int, int], int] = {}
         """The last accepted timestamp per (link id, system, component)."""
         self.counts: dict[Check, int] = dict.fromkeys(Check, 0)
+        self._reported: dict[Check, int] = {}
+        self.new_rejections = 0
+        """Packets refused since :meth:`take_rejections` last ran (a cheap test for the loop)."""
 
     def advance(self, now_ticks: int) -> None:
         """The clock moved on: the local timestamp never goes backwards."""
@@ -139,7 +142,18 @@ class SignatureCheck:
         """Decide on one whole received packet (its bytes as they arrived); counted."""
         result = self._check(packet)
         self.counts[result] += 1
+        if result is not Check.ACCEPTED:
+            self.new_rejections += 1
         return result
+
+    def take_rejections(self) -> dict[Check, int]:
+        """The refusals per kind since the last call (kinds with a count only)."""
+        taken: dict[Check, int] = {
+            kind: n - self._reported.get(kind, 0) for kind, n in self.counts.items()
+            if kind is not Check.ACCEPTED and n > self._reported.get(kind, 0)}
+        self._reported = dict(self.counts)
+        self.new_rejections = 0
+        return taken
 
     def _check(self, packet: bytes | bytearray) -> Check:
         if (len(packet) < _HEADER_LEN + 2 + SIGNATURE_BLOCK_LEN or packet[0] != 0xFD

@@ -42,6 +42,7 @@ from mecanum_mav.protocol.dialect import mavlink
 from mecanum_mav.protocol.framing import MessageParser
 from mecanum_mav.protocol.mission import MissionItem
 from mecanum_mav.protocol.outbox import MessageOutbox
+from mecanum_mav.protocol.signing import TICKS_PER_S, SignatureCheck, ticks_from_unix
 from mecanum_mav.sim.board import SimBoard, SimState
 from mecanum_mav.sim.groundstation import GCS_COMPID, GCS_SYSID, ScriptedGroundStation
 
@@ -59,14 +60,37 @@ class OverrideSeen(NamedTuple):
     source_system: int
 
 
-class _Wire:
-    """One direction of a virtual link: bytes queued by a sender, parsed by the receiver."""
+SIGNING_START_TICKS = ticks_from_unix(1_790_000_000.0)
+"""The signing timestamp at virtual time 0 (a date in 2026); it counts on with virtual time."""
 
-    def __init__(self, sysid: int, compid: int, *, name: str) -> None:
+
+class _Wire:
+    """One direction of a virtual link: bytes queued by a sender, parsed by the receiver.
+
+    With ``signing_key`` the sender signs (as a link with that key does) and the receiver keeps
+    only correctly signed, fresh packets (:class:`~mecanum_mav.protocol.signing.SignatureCheck`).
+    """
+
+    def __init__(self, sysid: int, compid: int, *, name: str,
+                 signing_key: bytes | None = None) -> None:
         self.sender = mavlink.MAVLink(self, srcSystem=sysid, srcComponent=compid)
-        self.parser = MessageParser(mavlink.MAVLink(None), datagrams=True, name=name)
+        self.check = None
+        if signing_key is not None:
+            signing = self.sender.signing
+            signing.secret_key, signing.sign_outgoing = signing_key, True
+            signing.link_id, signing.timestamp = 0, SIGNING_START_TICKS
+            self.check = SignatureCheck(signing_key, SIGNING_START_TICKS)
+        self.parser = MessageParser(mavlink.MAVLink(None), datagrams=True, name=name,
+                                    check=self.check)
         self.queue: list[bytes] = []
         self.received = 0
+
+    def follow_clock(self, now_s: float) -> None:
+        """Signing timestamps follow virtual time, as a link's follow the wall clock."""
+        if self.check is not None:
+            now = SIGNING_START_TICKS + int(now_s * TICKS_PER_S)
+            self.check.advance(now)
+            self.sender.signing.timestamp = max(self.sender.signing.timestamp, now)
 
     def write(self, data: bytes) -> None:
         """The sender's ``file.write``: one datagram on the wire."""
@@ -121,16 +145,22 @@ class Lockstep:
         dt_s: the virtual time step, seconds.
         mission: the mission the core starts with.
         storage: where the core keeps accepted parameters and missions.
+        signing_key: sign the ground-station link with this 32-byte key, as ``--signing-key``
+            does: the scripted ground station and the core sign what they send, the core keeps
+            only correctly signed packets (:meth:`inject` puts others on the wire).
     """
 
     def __init__(self, params: Params | None = None, *, dt_s: float = 0.002,
-                 mission: Sequence[MissionItem] = (), storage: Storage | None = None) -> None:
+                 mission: Sequence[MissionItem] = (), storage: Storage | None = None,
+                 signing_key: bytes | None = None) -> None:
         self.params = params if params is not None else Params()
         self.dt_s = dt_s
         self.now_s = 0.0
         p = self.params
-        self._gcs_to_core = _Wire(GCS_SYSID, GCS_COMPID, name="gcs->core")
-        self._core_to_gcs = _Wire(int(p["SYSID_THISMAV"]), COMPANION_COMPID, name="core->gcs")
+        self._gcs_to_core = _Wire(GCS_SYSID, GCS_COMPID, name="gcs->core",
+                                  signing_key=signing_key)
+        self._core_to_gcs = _Wire(int(p["SYSID_THISMAV"]), COMPANION_COMPID, name="core->gcs",
+                                  signing_key=signing_key)
         self._core_to_fc = _Wire(int(p["FC_GCS_SYSID"]), FC_LINK_COMPID, name="core->fc")
         self._fc_to_core = _Wire(int(p["FC_SYSID"]), int(p["FC_COMPID"]), name="fc->core")
         self.core = RoverCore(p, now_s=0.0, mission=mission, storage=storage,
@@ -157,9 +187,14 @@ class Lockstep:
         self.gcs.on_time(now)
         core = self.core
         woke = False
-        for msg in self._gcs_to_core.deliver():
+        gcs_wire = self._gcs_to_core
+        gcs_wire.follow_clock(now)
+        self._core_to_gcs.follow_clock(now)
+        for msg in gcs_wire.deliver():
             self._write(core.handle(msg, now))
             woke = True
+        if gcs_wire.check is not None and gcs_wire.check.new_rejections:
+            core.refuse_unsigned(gcs_wire.check.take_rejections(), now)
         for msg in self._fc_to_core.deliver() if self.fc_link_up else self._fc_to_core.drop():
             self._write(core.handle(msg, now, from_fc=True))
             woke = True
