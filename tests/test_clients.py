@@ -23,6 +23,7 @@ from mecanum_mav.config.params import SCHEMA, Params
 from mecanum_mav.io.links import mavlink
 from mecanum_mav.mecanum.geo import GlobalOrigin
 from mecanum_mav.mecanum.geometry import Pose2d
+from mecanum_mav.protocol.signing import key_from_text
 from mecanum_mav.sim.board import ORIGIN
 from mecanum_mav.sim.simfc import SimFlightController
 
@@ -35,15 +36,15 @@ def free_udp_port() -> int:
 
 
 @contextmanager
-def rover_for_client(port: int, pose: Pose2d = ORIGIN
+def rover_for_client(port: int, pose: Pose2d = ORIGIN, signing_key: bytes | None = None
                      ) -> Iterator[tuple[SimFlightController, Companion, Params]]:
     """Simulator (its chassis starting at ``pose``) + companion whose ground-station link goes
-    to a client on ``port``."""
+    to a client on ``port`` (signed with ``signing_key``, if given)."""
     params = Params()
     sim = SimFlightController("udpin:127.0.0.1:0", params, pose)
     sim.start()
     companion = Companion(params, f"udpout:127.0.0.1:{port}",
-                          f"udpout:127.0.0.1:{sim.local_port}")
+                          f"udpout:127.0.0.1:{sim.local_port}", gcs_signing_key=signing_key)
     companion.start()
     try:
         yield sim, companion, params
@@ -65,12 +66,12 @@ def wait_until(condition: Callable[[], object], timeout_s: float) -> object:
 class MavProxy:
     """MAVProxy headless, driven through a pipe, its output collected line by line."""
 
-    def __init__(self, port: int, workdir: Path) -> None:
+    def __init__(self, port: int, workdir: Path, *options: str) -> None:
         exe = shutil.which("mavproxy.py", path=str(Path(sys.executable).parent))
         if exe is None:
             pytest.skip("MAVProxy is not installed (pip install '.[test]')")
         self.proc = subprocess.Popen(
-            [sys.executable, exe, f"--master=udpin:127.0.0.1:{port}", "--nowait"],
+            [sys.executable, exe, f"--master=udpin:127.0.0.1:{port}", "--nowait", *options],
             stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
             bufsize=1, cwd=workdir)
         self.lines: list[str] = []
@@ -96,6 +97,29 @@ class MavProxy:
             self.proc.wait(10)
         except subprocess.TimeoutExpired:
             self.proc.kill()
+
+
+def test_mavproxy_with_the_passphrase_arms_and_drives_the_signed_rover_and_without_it_cannot(
+        tmp_path):
+    """``signing key PASSPHRASE`` in MAVProxy and the same passphrase in --signing-key's file
+    give the same key. Before MAVProxy has it, its arm request is refused and said so."""
+    port = free_udp_port()
+    passphrase = "rover-on-a-shared-radio"
+    with rover_for_client(port, signing_key=key_from_text(passphrase)) as (sim, companion, _):
+        mavproxy = MavProxy(port, tmp_path)
+        try:
+            assert mavproxy.saw("Detected vehicle", 30.0), mavproxy.lines
+            mavproxy.send("arm throttle")
+            assert mavproxy.saw("Unsigned packet refused: signing required"), mavproxy.lines
+            assert not companion.core.vehicle.armed
+            mavproxy.send(f"signing key {passphrase}")
+            mavproxy.send("arm throttle")
+            assert mavproxy.saw("ARMED"), mavproxy.lines
+            mavproxy.send("rc 3 1800")  # throttle channel: forward
+            assert wait_until(lambda: sim.snapshot().pose.x_m > 0.3, 5.0)
+            mavproxy.send("rc 3 1500")
+        finally:
+            mavproxy.close()
 
 
 def test_mavproxy_fetches_params_sets_one_arms_and_drives_by_rc_velocity_and_position(
@@ -210,6 +234,36 @@ async def _mavsdk_scenario(port: int, grpc_port: int, sim: SimFlightController,
     assert abs(pv.position.east_m - truth.y_m) < 0.05
     await drone.offboard.stop()
     await drone.action.disarm()
+
+
+async def _mavsdk_arm(port: int, grpc_port: int) -> None:
+    from mavsdk import System
+
+    drone = System(port=grpc_port)
+    await drone.connect(system_address=f"udpin://127.0.0.1:{port}")
+    state = await _first(drone.core.connection_state())
+    while not state.is_connected:
+        state = await _first(drone.core.connection_state())
+    await drone.action.arm()
+
+
+def test_mavsdk_behind_mavproxy_with_the_key_arms_the_signed_rover(tmp_path):
+    """MAVSDK cannot sign; MAVProxy signs what it forwards (its mavfwd_signing setting). It
+    re-packs what it signs with its own system and component ids, so it is given MAVSDK's
+    (245, 190): the rover's answers are addressed to those, and MAVSDK takes only its own."""
+    pytest.importorskip("mavsdk")
+    port, out_port, grpc_port = free_udp_port(), free_udp_port(), free_tcp_port()
+    passphrase = "rover-on-a-shared-radio"
+    with rover_for_client(port, signing_key=key_from_text(passphrase)) as (_, companion, _):
+        mavproxy = MavProxy(port, tmp_path, f"--out=udp:127.0.0.1:{out_port}",
+                            "--source-system=245", "--source-component=190")
+        try:
+            assert mavproxy.saw("Detected vehicle", 30.0), mavproxy.lines
+            mavproxy.send(f"signing key {passphrase}")
+            asyncio.run(asyncio.wait_for(_mavsdk_arm(out_port, grpc_port), 60.0))
+            assert wait_until(lambda: companion.core.vehicle.armed, 5.0)
+        finally:
+            mavproxy.close()
 
 
 def test_mavsdk_connects_sets_params_arms_and_drives_manual_and_offboard():
