@@ -58,6 +58,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import cProfile
+import hashlib
 import io
 import logging
 import multiprocessing as mp
@@ -104,6 +105,10 @@ FC_HEARTBEAT_PERIOD_S = 0.5
 MANUAL_Z = 500
 BASELINE = "baseline"
 COMPANION = "companion"
+SIGNED = "signed"
+"""The companion with ``--signing-key`` on the ground-station link; its harness signs."""
+BENCH_KEY = hashlib.sha256(b"mecanum-mav bench").digest()
+GOAL_SIGNED_RATIO = 1.10  # signed p50 / unsigned p50 (the SHA-256 is ~1 us of ~100 us)
 
 
 @dataclass(frozen=True)
@@ -209,7 +214,8 @@ def sut_main(kind: str, gcs_url: str, fc_url: str, ctl: Connection, profile: boo
         else:
             from mecanum_mav.app.companion import Companion
 
-            companion = Companion(Params(), gcs_url, fc_url)
+            companion = Companion(Params(), gcs_url, fc_url,
+                                  gcs_signing_key=BENCH_KEY if kind == SIGNED else None)
             loop = companion.run if profiler is None else lambda: profiler.runcall(companion.run)
             thread = threading.Thread(target=loop, name="companion", daemon=True)
 
@@ -357,10 +363,11 @@ class SutResult:
 class Harness:
     """The ground station and the flight controller, in this process."""
 
-    def __init__(self, match_channel: int, encode: Callable[[int], int], cycle: list[int]
-                 ) -> None:
+    def __init__(self, match_channel: int, encode: Callable[[int], int], cycle: list[int],
+                 signing_key: bytes | None = None) -> None:
         self.gcs: Link = open_link("udpin:127.0.0.1:0", source_system=HARNESS_GCS_ID[0],
-                                   source_component=HARNESS_GCS_ID[1], name="gcs")
+                                   source_component=HARNESS_GCS_ID[1], name="gcs",
+                                   signing_key=signing_key)
         self.fc: Link = open_link("udpin:127.0.0.1:0", source_system=HARNESS_FC_ID[0],
                                   source_component=HARNESS_FC_ID[1], name="fc")
         self.fc_sock: socket.socket = self.fc.conn.port
@@ -545,7 +552,7 @@ def pump_all(harnesses: dict[str, Harness], deadline: float) -> None:
 
 
 def measure_all(plan: PhasePlan, cycle: list[int], profile: bool) -> dict[str, SutResult]:
-    """Run both SUTs side by side and drive them in alternating rounds.
+    """Run the SUTs side by side and drive them in alternating rounds.
 
     Interleaving puts machine drift (other processes, frequency changes) on both systems
     alike, so the ratio of their medians measures the companion, not the minute it ran in.
@@ -554,15 +561,16 @@ def measure_all(plan: PhasePlan, cycle: list[int], profile: bool) -> dict[str, S
     """
     harnesses: dict[str, Harness] = {}
     suts: dict[str, SutProcess] = {}
-    results = {kind: SutResult(kind) for kind in (BASELINE, COMPANION)}
+    results = {kind: SutResult(kind) for kind in (BASELINE, COMPANION, SIGNED)}
     try:
-        for kind in (BASELINE, COMPANION):
+        for kind in results:
             channel, encode = (1, relay_pulse) if kind == BASELINE else companion_pulse_fn(Params())
-            harnesses[kind] = Harness(channel, encode, cycle)
+            harnesses[kind] = Harness(channel, encode, cycle,
+                                      signing_key=BENCH_KEY if kind == SIGNED else None)
             suts[kind] = SutProcess(kind, *harnesses[kind].urls,
                                     profile=profile and kind == COMPANION)
             harnesses[kind].connect()
-            if kind == COMPANION:
+            if kind != BASELINE:
                 harnesses[kind].arm()
             harnesses[kind].run_input(200.0, plan.warmup_commands, drain_s=0.05)
         for name, rate, count, rounds in (("50 Hz", 50.0, plan.slow_commands, SLOW_ROUNDS),
@@ -603,6 +611,65 @@ def measure_all(plan: PhasePlan, cycle: list[int], profile: bool) -> dict[str, S
             sut.kill()
         for harness in harnesses.values():
             harness.close()
+
+
+# ---------------------------------------------------------------------------- signing cost
+
+def signing_costs_us(count: int = 20_000, repeats: int = 7) -> dict[str, float]:
+    """What signing adds to the two fast paths, timed in this process (best of ``repeats``,
+    microseconds per message): MANUAL_CONTROL through the datagram parser with and without
+    a signature check, the override encoder with and without signing, and one SHA-256 of a
+    signed packet (what the check cannot do without)."""
+    from mecanum_mav.protocol.codec import encode_rc_override
+    from mecanum_mav.protocol.framing import MessageParser
+    from mecanum_mav.protocol.signing import SignatureCheck, ticks_from_unix
+
+    now = ticks_from_unix(time.time())
+
+    def sender(signed: bool) -> Any:
+        mav = mavlink.MAVLink(None, srcSystem=HARNESS_GCS_ID[0], srcComponent=HARNESS_GCS_ID[1])
+        if signed:
+            mav.signing.secret_key, mav.signing.sign_outgoing = BENCH_KEY, True
+            mav.signing.timestamp = now
+        return mav
+
+    def packets(signed: bool) -> list[bytes]:
+        mav = sender(signed)
+        return [bytes(mavlink.MAVLink_manual_control_message(1, i % 1000, 0, MANUAL_Z, 0, 0)
+                      .pack(mav)) for i in range(count)]
+
+    def best(run: Callable[[], object]) -> float:
+        times = []
+        for _ in range(repeats):
+            start = time.perf_counter_ns()
+            run()
+            times.append((time.perf_counter_ns() - start) / count / 1000.0)
+        return min(times)
+
+    signed_packets, unsigned_packets = packets(True), packets(False)
+
+    def parse(data: list[bytes], signed: bool) -> Callable[[], object]:
+        def run() -> None:
+            check = SignatureCheck(BENCH_KEY, now) if signed else None
+            parser = MessageParser(mavlink.MAVLink(None), datagrams=True, check=check)
+            for packet in data:
+                parser.parse(packet)
+        return run
+
+    channels = [1500] * 4 + [0] * 14
+
+    def encode(signed: bool) -> Callable[[], object]:
+        mav = sender(signed)
+        return lambda: [encode_rc_override(mav, 1, 1, channels) for _ in range(count)]
+
+    return {
+        "parse signed": best(parse(signed_packets, True)),
+        "parse unsigned": best(parse(unsigned_packets, False)),
+        "encode signed": best(encode(True)),
+        "encode unsigned": best(encode(False)),
+        "sha256": best(lambda: [hashlib.sha256(BENCH_KEY + p[:-6]).digest()
+                                for p in signed_packets]),
+    }
 
 
 # ---------------------------------------------------------------------------- report
@@ -651,6 +718,20 @@ def report(results: dict[str, SutResult], plan: PhasePlan, profile: bool) -> Non
     for name in ("50 Hz", "1 kHz"):
         print(f"companion CPU per message at {name}: {comp.phases[name].cpu_per_msg_us:.0f} us "
               f"(baseline {base.phases[name].cpu_per_msg_us:.0f} us)")
+    signed = results[SIGNED]
+    for name in ("50 Hz", "1 kHz"):
+        ratio = signed.phases[name].pct(50) / comp.phases[name].pct(50)
+        print(f"signed/unsigned companion p50 delay at {name}: {ratio:.2f} "
+              f"(goal <= {GOAL_SIGNED_RATIO:.2f}): {_verdict(ratio <= GOAL_SIGNED_RATIO)}; "
+              f"CPU per message {signed.phases[name].cpu_per_msg_us:.0f} us signed, "
+              f"{comp.phases[name].cpu_per_msg_us:.0f} us unsigned")
+    costs = signing_costs_us()
+    print(f"signing on the fast paths, in process (best of 7): MANUAL_CONTROL decode + check "
+          f"{costs['parse signed']:.2f} us signed vs {costs['parse unsigned']:.2f} us "
+          f"unsigned (+{costs['parse signed'] - costs['parse unsigned']:.2f}); override encode "
+          f"{costs['encode signed']:.2f} vs {costs['encode unsigned']:.2f} us "
+          f"(+{costs['encode signed'] - costs['encode unsigned']:.2f}); one SHA-256 of a "
+          f"packet {costs['sha256']:.2f} us")
     if profile:
         print("\nNOTE: the companion ran under cProfile; its delays and CPU are inflated.")
         print(f"\n# cProfile of the companion loop (all phases)\n{comp.profile}")

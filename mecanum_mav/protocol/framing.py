@@ -28,6 +28,8 @@ log = logging.getLogger(__name__)
 
 __all__ = ["MessageParser"]
 
+_ACCEPTED = Check.ACCEPTED
+
 
 class MessageParser:
     """Parses what one link receives.
@@ -57,13 +59,13 @@ class MessageParser:
         if self.datagrams:
             fast = decode_manual_control(data)
             if fast is not None:
-                if check is None or check.check(data) is Check.ACCEPTED:
+                if check is None or check.check(data) is _ACCEPTED:
                     return [fast]
                 return []
         messages = self._parse_general(data)
         if check is None or not messages:
             return messages
-        return [m for m in messages if check.check(m.get_msgbuf()) is Check.ACCEPTED]
+        return [m for m in messages if check.check(m.get_msgbuf()) is _ACCEPTED]
 
     def _parse_general(self, data: bytes) -> list[Any]:
         try:

@@ -18,10 +18,10 @@ Pure: the caller passes the time (:func:`ticks_from_unix`) and the packet bytes.
 
 from __future__ import annotations
 
-import hashlib
 import hmac
 import string
 from enum import Enum
+from hashlib import sha256
 
 __all__ = [
     "EPOCH_2015_UNIX_S",
@@ -83,13 +83,13 @@ def key_from_text(text: str) -> bytes:
         if len(body) != 2 * KEY_LEN:
             raise SigningKeyError(f"{len(body)} hex digits: a key is exactly {2 * KEY_LEN}")
         return bytes.fromhex(body)
-    return hashlib.sha256(body.encode("utf-8")).digest()
+    return sha256(body.encode("utf-8")).digest()
 
 
 def signature(key: bytes, signed_part: bytes) -> bytes:
     """The 6-byte signature of ``signed_part``: the packet up to and including the link id
     and timestamp."""
-    return hashlib.sha256(key + signed_part).digest()[:6]
+    return sha256(key + signed_part).digest()[:6]
 
 
 def signature_block(key: bytes, packet: bytes, link_id: int, timestamp: int) -> bytes:
@@ -115,6 +115,9 @@ class Check(Enum):
 class SignatureCheck:
     """Accepts incoming packets that are correctly signed with ``key`` and not replayed.
 
+    On the control path (one check per MANUAL_CONTROL) it costs the SHA-256 and little else:
+    plain integers for the stream key and the tallies (hashing an Enum runs Python code).
+
     Args:
         key: the 32-byte secret key.
         now_ticks: the local timestamp to start from (:func:`ticks_from_unix` of the clock).
@@ -126,12 +129,23 @@ class SignatureCheck:
         self.key = key
         self.timestamp = now_ticks
         """The local timestamp: the clock, or the newest verified packet's if that is later."""
-        self.streams: dict[tuple[int, int, int], int] = {}
-        """The last accepted timestamp per (link id, system, component)."""
-        self.counts: dict[Check, int] = dict.fromkeys(Check, 0)
-        self._reported: dict[Check, int] = {}
+        self.streams: dict[int, int] = {}
+        """The last accepted timestamp per stream (:meth:`last_timestamp`)."""
+        self.accepted = 0
+        self._rejected = [0] * len(_REJECTIONS)
+        self._reported = [0] * len(_REJECTIONS)
         self.new_rejections = 0
         """Packets refused since :meth:`take_rejections` last ran (a cheap test for the loop)."""
+
+    @property
+    def counts(self) -> dict[Check, int]:
+        """Packets checked so far, per outcome."""
+        return {Check.ACCEPTED: self.accepted, **dict(zip(_REJECTIONS, self._rejected,
+                                                          strict=True))}
+
+    def last_timestamp(self, link_id: int, system: int, component: int) -> int | None:
+        """The last accepted timestamp of a stream, or None if none was accepted."""
+        return self.streams.get(link_id | system << 8 | component << 16)
 
     def advance(self, now_ticks: int) -> None:
         """The clock moved on: the local timestamp never goes backwards."""
@@ -140,43 +154,48 @@ class SignatureCheck:
 
     def check(self, packet: bytes | bytearray) -> Check:
         """Decide on one whole received packet (its bytes as they arrived); counted."""
-        result = self._check(packet)
-        self.counts[result] += 1
-        if result is not Check.ACCEPTED:
-            self.new_rejections += 1
-        return result
+        if (len(packet) < _MIN_SIGNED_LEN or packet[0] != 0xFD
+                or not packet[2] & IFLAG_SIGNED):
+            return self._reject(_UNSIGNED)
+        if not hmac.compare_digest(sha256(self.key + packet[:-6]).digest()[:6], packet[-6:]):
+            return self._reject(_BAD_SIGNATURE)
+        timestamp = int.from_bytes(packet[-12:-6], "little")
+        stream = packet[-13] | packet[5] << 8 | packet[6] << 16  # link id, system, component
+        streams = self.streams
+        last = streams.get(stream)
+        if last is not None:
+            if timestamp <= last:
+                return self._reject(_REPLAYED)
+        elif timestamp + NEW_STREAM_WINDOW_TICKS < self.timestamp:
+            return self._reject(_TOO_OLD)
+        # only now, with the signature verified, does the packet move any timestamp
+        streams[stream] = timestamp
+        if timestamp > self.timestamp:
+            self.timestamp = min(timestamp, _MAX_TIMESTAMP)
+        self.accepted += 1
+        return _ACCEPTED
+
+    def _reject(self, index: int) -> Check:
+        self._rejected[index] += 1
+        self.new_rejections += 1
+        return _REJECTIONS[index]
 
     def take_rejections(self) -> dict[Check, int]:
         """The refusals per kind since the last call (kinds with a count only)."""
-        taken: dict[Check, int] = {
-            kind: n - self._reported.get(kind, 0) for kind, n in self.counts.items()
-            if kind is not Check.ACCEPTED and n > self._reported.get(kind, 0)}
-        self._reported = dict(self.counts)
+        taken = {kind: now - before for kind, now, before
+                 in zip(_REJECTIONS, self._rejected, self._reported, strict=True) if now > before}
+        self._reported = list(self._rejected)
         self.new_rejections = 0
         return taken
 
-    def _check(self, packet: bytes | bytearray) -> Check:
-        if (len(packet) < _HEADER_LEN + 2 + SIGNATURE_BLOCK_LEN or packet[0] != 0xFD
-                or not packet[2] & IFLAG_SIGNED):
-            return Check.UNSIGNED
-        link_id = packet[-13]
-        timestamp = int.from_bytes(packet[-12:-6], "little")
-        if not hmac.compare_digest(signature(self.key, bytes(packet[:-6])), bytes(packet[-6:])):
-            return Check.BAD_SIGNATURE
-        stream = (link_id, packet[5], packet[6])
-        last = self.streams.get(stream)
-        if last is not None:
-            if timestamp <= last:
-                return Check.REPLAYED
-        elif timestamp + NEW_STREAM_WINDOW_TICKS < self.timestamp:
-            return Check.TOO_OLD
-        # only now, with the signature verified, does the packet move any timestamp
-        self.streams[stream] = timestamp
-        if timestamp > self.timestamp:
-            self.timestamp = min(timestamp, _MAX_TIMESTAMP)
-        return Check.ACCEPTED
-
     def summary(self) -> str:
         """``"unsigned 3, bad signature 1"`` (rejections with a count) or ``"none"``."""
-        parts = [f"{c.value} {n}" for c, n in self.counts.items() if n and c is not Check.ACCEPTED]
+        parts = [f"{kind.value} {n}" for kind, n in zip(_REJECTIONS, self._rejected, strict=True)
+                 if n]
         return ", ".join(parts) or "none"
+
+
+_ACCEPTED = Check.ACCEPTED
+_REJECTIONS = (Check.UNSIGNED, Check.BAD_SIGNATURE, Check.REPLAYED, Check.TOO_OLD)
+_UNSIGNED, _BAD_SIGNATURE, _REPLAYED, _TOO_OLD = range(len(_REJECTIONS))
+_MIN_SIGNED_LEN = _HEADER_LEN + 2 + SIGNATURE_BLOCK_LEN
