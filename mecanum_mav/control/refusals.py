@@ -1,4 +1,4 @@
-"""What the rover refused from its ground station, by kind: counted, and said sparingly.
+"""What the rover refused from its links, by kind: counted, and said sparingly.
 
 Every input the rover turns down is one of the kinds of :class:`Refusal`. Each refusal is
 counted (the status line of ``mecanum-mav run`` and SYS_STATUS ``errors_comm`` /
@@ -39,6 +39,9 @@ class Refusal(Enum):
     """A mission upload or item the mission protocol turned down."""
     ORIGIN = "origin"
     """SET_GPS_GLOBAL_ORIGIN with an impossible position."""
+    SENSOR = "sensor"
+    """WHEEL_DISTANCE or ATTITUDE from the flight controller that is not finite or not
+    physically possible (the estimator does not use it)."""
 
 
 class RefusalLog:
