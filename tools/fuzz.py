@@ -238,6 +238,10 @@ class Peers:
             self.pump(min(0.05, left))
         return True
 
+    def seen_heartbeat(self) -> bool:
+        """Whether the rover's HEARTBEAT arrived since the watch began."""
+        return self.watch.heartbeats > 0
+
     def new_watch(self) -> SafetyWatch:
         """Start a new watch (a phase); returns the one that ends."""
         old = self.watch
@@ -369,7 +373,7 @@ def run(seed: int, gcs_count: int, fc_count: int, workdir: Path) -> tuple[list[P
             peers.new_watch()
             phase = Phase(name)
             send_paced(peers, companion, phase, gcs_sock, gcs_dest, gcs_port, count, make)
-            peers.wait(lambda: False, 1.0)  # let the heartbeat and streams show
+            peers.wait(peers.seen_heartbeat, 1.5)  # a short phase: one heartbeat at least
             phase.status = companion.status(peers.wait)
             phase.watch = peers.new_watch()
             phases.append(phase)
@@ -399,7 +403,7 @@ def run(seed: int, gcs_count: int, fc_count: int, workdir: Path) -> tuple[list[P
         assert dest is not None
         send_paced(peers, companion, phase, peers.fc.conn.port, dest, dest[1], fc_count,
                    fuzzer.fc_datagram)
-        peers.wait(lambda: False, 1.0)
+        peers.wait(peers.seen_heartbeat, 1.5)
         phase.status = companion.status(peers.wait)
         phase.counts = dict(fuzzer.counts)
         beat = peers.heartbeat
