@@ -80,3 +80,32 @@ def test_odometry_heading_follows_the_gyro_when_fresh_and_the_wheels_otherwise()
     wheels_only.on_wheel_distance([0.0] * 4, 0.1)
     assert wheels_only.pose.yaw_rad == pytest.approx(0.0)
     assert math.isfinite(est.yaw_rate)
+
+
+def test_wheel_distances_not_finite_beyond_1e7_m_or_a_step_no_wheel_can_roll_move_nothing():
+    # Found by tools/fuzz.py: WHEEL_DISTANCE of 1e308 m moved the pose out of float32's range,
+    # and ODOMETRY could no longer be packed.
+    est = WheelOdometryEstimator(Params())  # WHL_MAX_SPD 1 m/s
+    assert est.on_wheel_distance([0.0] * 4, 0.0) is None
+    for bad in ([1e308, 0.0, 0.0, 0.0], [math.nan] * 4, [0.0, -math.inf, 0.0, 0.0],
+                [1.1e7] * 4):
+        assert est.on_wheel_distance(bad, 0.05) is not None
+    assert est.pose == (0.0, 0.0, 0.0)
+    # 0.5 m in 0.1 s on one wheel: beyond 2 x 1 m/s x 0.1 s + 0.2 m: re-anchored, not driven
+    assert "jumped" in est.on_wheel_distance([0.5, 0.0, 0.0, 0.0], 0.1)
+    assert est.pose == (0.0, 0.0, 0.0)
+    assert est.on_wheel_distance([0.6, 0.1, 0.1, 0.1], 0.2) is None  # from the new anchor
+    assert est.pose.x_m == pytest.approx(0.1)
+
+
+def test_attitude_with_a_yaw_beyond_2_pi_or_a_rate_beyond_50_rad_s_is_not_used():
+    est = WheelOdometryEstimator(Params())
+    est.on_attitude(0.0, 0.0, 0.0)
+    est.on_wheel_distance([0.0] * 4, 0.0)
+    for yaw, rate in ((1e38, 0.0), (0.4, 3.4e38), (math.nan, 0.0), (0.4, -math.inf)):
+        assert est.on_attitude(yaw, rate, 0.05) is not None
+    est.on_wheel_distance([0.0] * 4, 0.1)
+    assert est.pose.yaw_rad == 0.0 and est.yaw_rate == 0.0
+    assert est.on_attitude(0.4, 1.0, 0.15) is None
+    est.on_wheel_distance([0.0] * 4, 0.2)
+    assert est.pose.yaw_rad == pytest.approx(0.4)

@@ -9,6 +9,7 @@ import pytest
 from conftest import lockstep
 from test_end_to_end import sticks_for, stream_sticks
 
+from mecanum_mav.control.refusals import Refusal
 from mecanum_mav.io.links import mavlink
 from mecanum_mav.sim.board import SimState
 from mecanum_mav.sim.lockstep import Lockstep
@@ -85,3 +86,22 @@ def test_moving_north_shows_as_north_velocity():
     assert state is not None
     local = h.gcs.wait("LOCAL_POSITION_NED", lambda m: m.vx > 0.5, 1.0, since)
     assert local is not None and abs(local.vy) < 1e-3
+
+
+def test_impossible_wheel_distances_and_attitudes_are_counted_and_odometry_stays_finite():
+    # Found by tools/fuzz.py (issue 11.1): the estimator took any finite number.
+    h = lockstep()
+    fc = h._fc_to_core.sender  # the board's side of the wire
+    since = h.gcs.mark()
+    for step in range(50):
+        fc.wheel_distance_send(0, 4, [1e308 * (-1) ** step] * 4 + [0.0] * 12)
+        fc.attitude_send(0, 0.0, 0.0, 1e38, 0.0, 0.0, -3.4e38)
+        h.step()
+    h.run_for(0.5)
+    assert h.core.refusals.counts[Refusal.SENSOR] == 100
+    texts = [m.text for m in h.gcs.received("STATUSTEXT", since)]
+    assert any(t.startswith("Ignored: WHEEL_DISTANCE") for t in texts)
+    odometry = h.gcs.received("ODOMETRY", since)
+    assert odometry and all(math.isfinite(v) for m in odometry
+                            for v in (m.x, m.y, m.vx, m.vy, m.yawspeed, *m.q))
+    assert all(abs(v) < 1.0 for v in h.core.estimator.pose)

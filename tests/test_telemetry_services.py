@@ -259,3 +259,19 @@ def test_without_the_flight_controller_motors_and_ahrs_are_unhealthy_and_the_bat
     assert s.onboard_control_sensors_health & FENCE == FENCE
     assert s.onboard_control_sensors_present == MOTORS | AHRS
     assert (s.voltage_battery, s.current_battery, s.battery_remaining) == (65535, -1, -1)
+
+
+def test_a_message_interval_too_long_for_int32_microseconds_is_denied_and_get_still_answers(
+        harness):
+    # Found by tools/fuzz.py: 1e38 us was taken, and GET_MESSAGE_INTERVAL's answer then
+    # could not be packed (MESSAGE_INTERVAL.interval_us is int32).
+    h = harness
+    odometry = CMD.MAVLINK_MSG_ID_ODOMETRY
+    for interval_us in (1e38, 2.0**31, math.inf, math.nan):
+        ack = h.gcs.command(CMD.MAV_CMD_SET_MESSAGE_INTERVAL, odometry, interval_us)
+        assert ack.result == DENIED
+    ack = h.gcs.command(CMD.MAV_CMD_SET_MESSAGE_INTERVAL, odometry, 2e9)  # exact in float32
+    assert ack.result == ACCEPTED
+    since = h.gcs.mark()
+    assert h.gcs.command(CMD.MAV_CMD_GET_MESSAGE_INTERVAL, odometry).result == ACCEPTED
+    assert [m.interval_us for m in h.gcs.received("MESSAGE_INTERVAL", since)] == [2_000_000_000]

@@ -537,11 +537,15 @@ class RoverCore:
             self._battery_s = now_s
 
     def _on_attitude(self, msg: AttitudeMsg, now_s: float) -> None:
-        self.estimator.on_attitude(msg.yaw, msg.yawspeed, now_s)
+        problem = self.estimator.on_attitude(msg.yaw, msg.yawspeed, now_s)
+        if problem is not None:
+            self.refuse(Refusal.SENSOR, f"Ignored: {problem}")
 
     def _on_wheel_distance(self, msg: WheelDistanceMsg, now_s: float) -> None:
         if msg.count >= 4:
-            self.estimator.on_wheel_distance(msg.distance[:4], now_s)
+            problem = self.estimator.on_wheel_distance(msg.distance[:4], now_s)
+            if problem is not None:
+                self.refuse(Refusal.SENSOR, f"Ignored: {problem}")
 
     # ================================================================== sticks and setpoints
 

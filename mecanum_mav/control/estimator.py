@@ -15,6 +15,14 @@ squares (:class:`~mecanum_mav.mecanum.kinematics.MecanumKinematics`) and the SE(
 Everything is in the local NED frame (x north, y east, yaw clockwise from north) with the
 origin where the companion started or was last reset; velocities are body FRD. Time is passed
 in (monotonic seconds).
+
+The flight controller's numbers are checked before they are used: a WHEEL_DISTANCE that is not
+finite, beyond +-:data:`MAX_WHEEL_DISTANCE_M`, or a step no wheel can roll in the time since the
+last one (faster than :data:`JUMP_SPEED_FACTOR` x ``WHEEL_MAX_SPD`` plus :data:`JUMP_MARGIN_M`:
+an encoder glitch, a rebooted flight controller's counters back at 0) moves nothing: a step too
+far re-anchors the distances, as after a gap. An ATTITUDE whose yaw is not within +-2 pi or
+whose yaw rate is not within +-:data:`MAX_YAW_RATE` is not used. Each such input is reported
+(the methods return the reason) so the core can count it.
 """
 
 from __future__ import annotations
@@ -36,6 +44,14 @@ SOURCE_AUTO, SOURCE_WHEEL_DISTANCE, SOURCE_COMMANDED = 0, 1, 2
 """``ODOM_SRC`` values."""
 COMMANDED_UPDATE_S = 0.02
 """Commanded speeds are integrated every tick but fed to the odometry at most this often."""
+MAX_WHEEL_DISTANCE_M = 1e7
+"""A cumulative wheel distance beyond +- this (m, 10,000 km) is not a measurement."""
+JUMP_SPEED_FACTOR = 2.0
+JUMP_MARGIN_M = 0.2
+"""A fresh WHEEL_DISTANCE step longer than ``JUMP_SPEED_FACTOR x WHL_MAX_SPD x dt +
+JUMP_MARGIN_M`` (m) on any wheel is a jump: re-anchored, not driven."""
+MAX_YAW_RATE = 50.0
+"""An ATTITUDE yaw rate beyond +- this (rad/s, 8 turns a second) is not a measurement."""
 
 
 class WheelOdometryEstimator:
@@ -89,24 +105,36 @@ class WheelOdometryEstimator:
             return None
         return self._yaw
 
-    def on_attitude(self, yaw_rad: float, yaw_rate: float, now_s: float) -> None:
-        """ATTITUDE from the flight controller: yaw (rad, clockwise from north) and rate."""
-        if math.isfinite(yaw_rad) and math.isfinite(yaw_rate):
-            self._yaw, self._yaw_rate_gyro, self._attitude_s = yaw_rad, yaw_rate, now_s
+    def on_attitude(self, yaw_rad: float, yaw_rate: float, now_s: float) -> str | None:
+        """ATTITUDE from the flight controller: yaw (rad, clockwise from north) and rate
+        (rad/s); the reason it was not used, or None."""
+        if not (abs(yaw_rad) <= 2 * math.pi and abs(yaw_rate) <= MAX_YAW_RATE):  # NaN too
+            return f"ATTITUDE yaw {yaw_rad:g} rad, rate {yaw_rate:g} rad/s"
+        self._yaw, self._yaw_rate_gyro, self._attitude_s = yaw_rad, yaw_rate, now_s
+        return None
 
-    def on_wheel_distance(self, distances_m: Sequence[float], now_s: float) -> None:
-        """WHEEL_DISTANCE: cumulative metres FL, FR, RL, RR from the flight controller."""
-        if self.config.source == SOURCE_COMMANDED or not all(
-                math.isfinite(d) for d in distances_m):
-            return
-        fresh = now_s - self._measured_s <= FRESH_S
-        if self._measured is not None and fresh:
-            for i in range(4):
-                self._virtual[i] += distances_m[i] - self._measured[i]
-        # After a gap the commanded speeds covered it: re-anchor without a jump.
+    def on_wheel_distance(self, distances_m: Sequence[float], now_s: float) -> str | None:
+        """WHEEL_DISTANCE: cumulative metres FL, FR, RL, RR from the flight controller; the
+        reason it moved nothing (not a measurement, or a jump), or None."""
+        if not all(abs(d) <= MAX_WHEEL_DISTANCE_M for d in distances_m):  # NaN too
+            return f"WHEEL_DISTANCE {list(distances_m)} m"
+        if self.config.source == SOURCE_COMMANDED:
+            return None
+        elapsed = now_s - self._measured_s
+        problem = None
+        if self._measured is not None and elapsed <= FRESH_S:
+            reach = JUMP_SPEED_FACTOR * self.config.wheel_speed_max_mps * elapsed + JUMP_MARGIN_M
+            steps = [d - m for d, m in zip(distances_m, self._measured, strict=True)]
+            if all(abs(step) <= reach for step in steps):
+                for i in range(4):
+                    self._virtual[i] += steps[i]
+            else:
+                problem = f"WHEEL_DISTANCE jumped {max(steps, key=abs):+g} m in {elapsed:g} s"
+        # After a gap (or a jump) the commanded speeds covered it: re-anchor, no jump.
         self._measured = list(distances_m)
         self._measured_s = now_s
         self._update(now_s)
+        return problem
 
     def on_commanded(self, wheel_commands: Sequence[float], dt_s: float, now_s: float) -> None:
         """Commanded wheels (normalized, FL, FR, RL, RR) held for ``dt_s`` seconds.

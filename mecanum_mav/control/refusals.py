@@ -1,4 +1,4 @@
-"""What the rover refused from its ground station, by kind: counted, and said sparingly.
+"""What the rover refused from its links, by kind: counted, and said sparingly.
 
 Every input the rover turns down is one of the kinds of :class:`Refusal`. Each refusal is
 counted (the status line of ``mecanum-mav run`` and SYS_STATUS ``errors_comm`` /
@@ -42,6 +42,9 @@ class Refusal(Enum):
     SIGNATURE = "signature"
     """A packet a link with a signing key dropped: unsigned, badly signed, replayed, or too
     old (:class:`~mecanum_mav.protocol.signing.Check`)."""
+    SENSOR = "sensor"
+    """WHEEL_DISTANCE or ATTITUDE from the flight controller that is not finite or not
+    physically possible (the estimator does not use it)."""
 
 
 class RefusalLog:

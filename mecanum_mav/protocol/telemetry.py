@@ -38,6 +38,10 @@ STREAMS: dict[str, str] = {
 }
 """Streamed messages and the parameter that sets each one's default rate (Hz)."""
 
+MAX_INTERVAL_US = 2**31 - 1
+"""The longest interval MESSAGE_INTERVAL can report (int32 microseconds, ~36 min): a longer
+one is refused, as is one that is not a number."""
+
 _NAME_BY_ID = {getattr(mavlink, f"MAVLINK_MSG_ID_{name}"): name for name in STREAMS}
 
 
@@ -57,9 +61,11 @@ class StreamSchedule:
         return 1.0 / rate if rate > 0.0 else None
 
     def set_interval(self, message_id: int, interval_us: float) -> bool:
-        """MAV_CMD_SET_MESSAGE_INTERVAL; False if ``message_id`` is not a stream we send."""
+        """MAV_CMD_SET_MESSAGE_INTERVAL (``interval_us`` in microseconds, -1 stop, 0 default);
+        False if ``message_id`` is not a stream we send or the interval is not a number or
+        beyond :data:`MAX_INTERVAL_US`."""
         name = _NAME_BY_ID.get(message_id)
-        if name is None or not math.isfinite(interval_us):
+        if name is None or not interval_us <= MAX_INTERVAL_US:  # NaN too
             return False
         if interval_us == 0:
             self.overrides.pop(name, None)
