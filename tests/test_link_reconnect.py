@@ -9,11 +9,12 @@ What the core decides meanwhile is tested in virtual time in test_link_drops.py.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import socket
 import time
 import tty
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -193,19 +194,30 @@ def test_an_unplugged_serial_flight_controller_is_reported_once_costs_no_cpu_and
     assert reopened_s < 1.0  # one reopen period (0.5 s) and the loop's wake-up
 
 
-def companion_with_fc(fc_url: str) -> tuple[Companion, Pilot, Any]:
+@contextlib.contextmanager
+def companion_with_fc(fc_url: str) -> Iterator[Pilot]:
+    """An in-process companion between a UDP ground station and ``fc_url``; the pilot."""
     gcs, port = udp_ground_station()
     companion = Companion(Params(), port.url, fc_url)
     companion.start()
-    return companion, Pilot(gcs), port
+    pilot = Pilot(gcs)
+    try:
+        yield pilot
+    finally:
+        companion.close()
+        port.close()
+        if pilot.fc is not None:
+            pilot.fc.close()
 
 
 def test_a_tcp_flight_controller_that_closes_is_reported_once_and_reconnected(
         tmp_path: Path) -> None:
     server = socket.create_server(("127.0.0.1", 0))
     address = server.getsockname()
-    companion, pilot, port = companion_with_fc(f"tcp:{address[0]}:{address[1]}")
-    try:
+    servers = [server]
+    with contextlib.ExitStack() as cleanup, companion_with_fc(
+            f"tcp:{address[0]}:{address[1]}") as pilot:
+        cleanup.callback(lambda: [s.close() for s in servers])
         pilot.fc = FcEnd.on_socket(server.accept()[0])
         assert pilot.run_until(lambda: pilot.said("Flight controller link up"), 5.0)
         assert pilot.arm() and pilot.drive()
@@ -218,6 +230,7 @@ def test_a_tcp_flight_controller_that_closes_is_reported_once_and_reconnected(
         assert pilot.run_until(lambda: pilot.said(FC_DOWN, since), 2.0)
         pilot.run_until(lambda: None, 1.5)  # connects are refused meanwhile
         server = socket.create_server(address)  # back on the same port
+        servers.append(server)
         server.setblocking(False)
         back = time.monotonic()
 
@@ -237,10 +250,6 @@ def test_a_tcp_flight_controller_that_closes_is_reported_once_and_reconnected(
         assert pilot.run_until(lambda: pilot.said("Flight controller link up", since), 3.0)
         assert pilot.arm() and pilot.drive()
         said = pilot.said("FC link", since)
-    finally:
-        companion.close()
-        port.close()
-        server.close()
     print(f"tcp: reconnected {reconnect_s:.3f} s after the server was back "
           f"({back - closed:.1f} s away)")
     assert said == ["FC link down: closed by the peer; reconnecting", "FC link reconnected"]
@@ -250,8 +259,7 @@ def test_a_tcp_flight_controller_that_closes_is_reported_once_and_reconnected(
 def test_a_tcpin_flight_controller_client_that_leaves_is_reported_once_and_a_new_one_heard(
         ) -> None:
     tcp_port = free_port(socket.SOCK_STREAM)
-    companion, pilot, port = companion_with_fc(f"tcpin:127.0.0.1:{tcp_port}")
-    try:
+    with companion_with_fc(f"tcpin:127.0.0.1:{tcp_port}") as pilot:
         pilot.fc = FcEnd.on_socket(socket.create_connection(("127.0.0.1", tcp_port)))
         assert pilot.run_until(lambda: pilot.said("Flight controller link up"), 5.0)
         since = pilot.gcs.mark()
@@ -268,11 +276,6 @@ def test_a_tcpin_flight_controller_client_that_leaves_is_reported_once_and_a_new
         assert pilot.run_until(lambda: pilot.said("Flight controller link up", since), 3.0)
         assert pilot.arm() and pilot.drive()
         said = pilot.said("FC link", since)
-    finally:
-        companion.close()
-        port.close()
-        if pilot.fc is not None:
-            pilot.fc.close()
     print(f"tcpin: the new client heard after {heard_s:.3f} s")
     assert said == ["FC link down: client left; reconnecting", "FC link reconnected"]
 

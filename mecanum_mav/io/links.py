@@ -310,7 +310,9 @@ class Link:
                 conn.port.close()
             conn.port = None
             conn.fd = conn.listen.fileno()
-        else:
+        else:  # closed now: a USB serial node still held open keeps its name from the next plug
+            with contextlib.suppress(OSError):
+                conn.port.close()
             self.next_reopen_s = time.monotonic() + REOPEN_PERIOD_S
 
     def _came_up(self) -> None:
