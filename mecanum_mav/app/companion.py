@@ -12,6 +12,13 @@ One thread, one loop (:meth:`Companion.run`), top to bottom:
    odometry, telemetry, heartbeats and status texts.
 4. On stop (SIGINT, SIGTERM, :meth:`Companion.stop`): neutral, then the channels released.
 
+A link that breaks (serial device gone, TCP connection closed) is reported to the core once
+(``core.link_down``: its failsafe fires now), leaves the selector (its dead descriptor would
+wake the loop at once, forever), and is reopened on its own timer
+(:meth:`~mecanum_mav.io.links.Link.reopen`, every 0.5 s, never blocking); when it is back the
+core is told (``core.link_up``) before anything else is sent, so the flight controller's first
+override is neutral. A ``tcpin`` link waits for its next client instead.
+
 A send that fails is counted per link, logged at WARNING at most once a second per link, and
 reported in SYS_STATUS ``errors_comm`` and the status line; it never stops the loop.
 """
@@ -86,6 +93,7 @@ class Companion:
         if tlog is not None:
             self.gcs.record_to(tlog)
             self.fc.record_to(tlog)
+        self._up = {self.gcs: True, self.fc: True}
         self._stop = threading.Event()
         self._wake_r, self._wake_w = os.pipe()
         self._thread: threading.Thread | None = None
@@ -95,20 +103,24 @@ class Companion:
         core = self.core
         selector = selectors.DefaultSelector()
         selector.register(self._wake_r, selectors.EVENT_READ, None)
-        registered = {self.gcs: self.gcs.fileno(), self.fc: self.fc.fileno()}
-        for link, fd in registered.items():
-            selector.register(fd, selectors.EVENT_READ, link)
+        gcs, fc = self.gcs, self.fc
+        registered = {link: follow(selector, link, None, link) for link in (gcs, fc)}
         try:
             while not self._stop.is_set():
-                for key, _ in selector.select(max(0.0, core.next_due_s() - self.clock())):
+                due = min(core.next_due_s(), gcs.next_reopen_s, fc.next_reopen_s)
+                for key, _ in selector.select(max(0.0, due - self.clock())):
                     if key.data is None:
                         os.read(self._wake_r, 64)
                     else:
                         self._drain(key.data)
                 now = self.clock()
+                for link in registered:
+                    if not link.up and link.reopen(now):
+                        self._report(link, now)  # before anything else goes out on it
                 self._write(core.tick(now))  # the override first,
                 self._write(core.housekeeping(now))  # then everything else
                 for link, fd in registered.items():
+                    self._report(link, now)
                     registered[link] = follow(selector, link, fd, link)
         finally:
             selector.close()
@@ -118,13 +130,26 @@ class Companion:
 
     def _drain(self, link: Link) -> None:
         now, from_fc, handle = self.clock(), link is self.fc, self.core.handle
-        for msg in link.read():
+        messages = link.read()
+        self._report(link, now)  # it broke, or a tcpin client connected: the core first
+        for msg in messages:
             out = handle(msg, now, from_fc=from_fc)
             if out is not NOTHING:  # a stick is answered by the tick, not here
                 self._write(out)
         rejected = link.take_rejections()
         if rejected:  # unsigned or badly signed: counted, said at most once a second
             self.core.refuse_unsigned(rejected, now)
+
+    def _report(self, link: Link, now: float) -> None:
+        """Tell the core once when ``link`` went down or came back up."""
+        up = link.up
+        if up is self._up[link]:
+            return
+        self._up[link] = up
+        if up:
+            self._write(self.core.link_up(link.name, now))
+        else:
+            self._write(self.core.link_down(link.name, link.down_reason or "", now))
 
     def _write(self, out: Outbox) -> None:
         if out is NOTHING:

@@ -41,8 +41,7 @@ class FcSession:
         self.link: Link = open_link(url, source_system=int(params["FC_GCS_SYSID"]),
                                     source_component=FC_LINK_COMPID, name="fc")
         self._selector = selectors.DefaultSelector()
-        self._fd = self.link.fileno()
-        self._selector.register(self._fd, selectors.EVENT_READ)
+        self._fd = follow(self._selector, self.link, None)
         self.types: dict[str, int] = {}
 
     def close(self) -> None:

@@ -15,6 +15,9 @@ it what arrives on its two links and writes what it returns; the lockstep harnes
    odometry, telemetry, heartbeats, mission protocol timeouts and status texts.
 4. :meth:`RoverCore.next_due_s`: when to call :meth:`RoverCore.tick` again if nothing arrives.
 
+When the shell finds a link broken (device gone, connection closed) it calls
+:meth:`RoverCore.link_down` once, and :meth:`RoverCore.link_up` once it has reopened it.
+
 All three return an :class:`Outbox`: pymavlink message objects for the ground station and for the
 flight controller (packed by the link that sends them, with its own sequence numbers and ids),
 and the override's 18 channel fields when one is due.
@@ -119,6 +122,7 @@ _SIGNATURE_REFUSED = {
 }
 """What a ground station is told (at most once a second) when a link with a signing key drops
 a packet; each under 50 characters, one STATUSTEXT."""
+_LINK_LABELS = {"fc": "FC", "gcs": "GCS"}
 
 
 class RcOverride(NamedTuple):
@@ -361,6 +365,31 @@ class RoverCore:
                     self.say(event.severity, event.text)
                 else:
                     self.refuse(event.refusal, event.text)
+        return self._take(None)
+
+    def link_down(self, link: str, reason: str, now_s: float) -> Outbox:
+        """The shell's ``link`` (``"fc"`` or ``"gcs"``) broke at ``now_s`` for ``reason``
+        (device gone, closed by the peer) and is being reopened: said once (WARNING), and that
+        link's failsafe fires now (:meth:`Vehicle.on_fc_link_down`,
+        :meth:`Vehicle.on_gcs_link_down`); returns what to send (on the other link)."""
+        self._now_s = now_s
+        self.say(Severity.WARNING, f"{_LINK_LABELS.get(link, link)} link down: {reason}; "
+                                   f"reconnecting")
+        if link == "fc":
+            self.vehicle.on_fc_link_down(now_s)
+        else:
+            self.vehicle.on_gcs_link_down(now_s)
+        self._next_output_s = now_s  # the output follows at once (neutral, where it can go)
+        return self._take(None)
+
+    def link_up(self, link: str, now_s: float) -> Outbox:
+        """The shell's ``link`` is open again at ``now_s``: said once (NOTICE). On the flight
+        controller's, the first thing sent is neutral, never what was output before the break
+        (driving needs the flight controller's HEARTBEAT and arming again)."""
+        self._now_s = now_s
+        self.say(Severity.NOTICE, f"{_LINK_LABELS.get(link, link)} link reconnected")
+        if link == "fc":
+            return self._take(self._override(self.pwm.neutral(), now_s))
         return self._take(None)
 
     def next_due_s(self) -> float:

@@ -16,6 +16,10 @@ Failsafes (each a parameter):
   disarms. Like ArduPilot, the rover stays in HOLD when the link returns: the pilot chooses.
 - Flight-controller loss (``FS_FC_TMO``): no flight-controller HEARTBEAT for the timeout (or
   never one) reports CRITICAL, disarms, and refuses to arm until it is back.
+
+A link that breaks (the shell saw its device vanish or its connection close) needs no
+timeout: nothing can arrive on it, so :meth:`Vehicle.on_fc_link_down` and
+:meth:`Vehicle.on_gcs_link_down` fire its failsafe at once.
 """
 
 from __future__ import annotations
@@ -115,6 +119,22 @@ class Vehicle:
             self.input_stale = False
             if self.armed and self.mode is Mode.MANUAL:
                 self._say(Severity.INFO, "Manual input resumed")
+
+    def on_fc_link_down(self, now_s: float) -> None:
+        """The flight controller's link broke (device gone, connection closed): no HEARTBEAT
+        can arrive, so the flight controller is lost now, not at the timeout (disarm; arming
+        is refused until its HEARTBEAT is back)."""
+        self.fc_seen_s = None
+        self.update(now_s)
+
+    def on_gcs_link_down(self, now_s: float) -> None:
+        """The ground station's link broke: no stick and no HEARTBEAT can arrive, so the stick
+        input is stale now (wheels neutral) and, once a ground station was seen, its failsafe
+        fires now (``FS_GCS_ACTION``)."""
+        self.input_s = None
+        if self.gcs_seen_s is not None:
+            self.gcs_seen_s = -math.inf
+        self.update(now_s)
 
     # ----------------------------------------------------------------- commands
 

@@ -13,18 +13,35 @@ too: the control path never waits on pymavlink's pure-Python parser and packer. 
 bytes, bad CRCs and truncated packets are counted in :attr:`Link.bad`, never raised; a send
 that fails (peer gone, no route) is counted in :attr:`Link.send_errors` and logged at WARNING
 at most once a second per link.
+
+Stream links that break come back by themselves. A serial device that vanishes (USB unplugged,
+board rebooting: reads and writes fail with EIO/ENXIO), a ``tcp:`` connection the peer closed
+or reset, and a ``tcpin:`` client that left put the link *down* (:attr:`Link.down_reason`):
+its dead descriptor, which would be readable forever, is no longer waited on
+(:meth:`Link.wait_fd`, :func:`follow`), what is sent meanwhile is dropped and counted in
+:attr:`Link.unsent`, and :meth:`Link.reopen` opens the same device path or address again
+every :data:`REOPEN_PERIOD_S` without ever blocking (a TCP connect is non-blocking, and
+completes on a later attempt). A ``tcpin:`` link keeps listening and is up again as soon as a
+new client connects. The shell tells the core about both transitions (it reports them once).
+A ``udpin:`` link answers every address it has heard (pymavlink keeps the set), so a ground
+station that restarts on a new port is answered from its first packet on.
 """
 
 from __future__ import annotations
 
 import contextlib
+import errno
+import functools
 import logging
 import math
 import selectors
 import socket
 import struct
 import time
+from pathlib import Path
 from typing import Any, BinaryIO
+
+import serial
 
 from mecanum_mav.protocol.codec import encode_rc_override
 from mecanum_mav.protocol.dialect import mavlink, mavutil
@@ -33,13 +50,47 @@ from mecanum_mav.protocol.signing import Check, SignatureCheck, ticks_from_unix
 
 log = logging.getLogger(__name__)
 
-__all__ = ["Link", "follow", "mavlink", "mavutil", "open_link"]
+__all__ = ["REOPEN_PERIOD_S", "Link", "LinkDownError", "follow", "mavlink", "mavutil", "open_link"]
 
 _READ_CHUNK = 4096
 _TLOG_STAMP = struct.Struct(">Q")
 SEND_WARNING_PERIOD_S = 1.0
 """A link that keeps failing to send is logged at WARNING at most this often."""
 _MAX_READS = 64  # per readiness event: bounded work, the selector calls again if more waits
+REOPEN_PERIOD_S = 0.5
+"""A link that is down tries to open its device or address again this often (seconds)."""
+TCP_CONNECT_TIMEOUT_S = 3.0
+"""A TCP connect still pending after this long (seconds) is abandoned and started again."""
+_SERIAL, _TCP, _TCP_SERVER, _DATAGRAM = "serial", "tcp", "tcpin", "datagram"
+_AGAIN = (BlockingIOError, InterruptedError)
+
+
+def _writable(sock: socket.socket) -> bool:
+    with selectors.DefaultSelector() as sel:
+        sel.register(sock, selectors.EVENT_WRITE)
+        return bool(sel.select(0))
+
+
+def _gone(kind: str) -> str:
+    """Why a stream link broke, in a few words (a STATUSTEXT has 50 characters)."""
+    return ("device gone" if kind == _SERIAL else
+            "client left" if kind == _TCP_SERVER else "connection lost")
+
+
+class LinkDownError(OSError):
+    """Raised by :meth:`Link.write` while the link is down: the packet was not sent."""
+
+
+def _kind(conn: Any) -> str:
+    """How a pymavlink connection breaks and comes back: serial device, TCP client, TCP
+    server, or connectionless (UDP and the rest, which never go down)."""
+    if isinstance(conn, mavutil.mavserial):
+        return _SERIAL
+    if type(conn) is mavutil.mavtcp:  # not its Unix-socket subclass
+        return _TCP
+    if isinstance(conn, mavutil.mavtcpin):
+        return _TCP_SERVER
+    return _DATAGRAM
 
 
 class Link:
@@ -82,6 +133,25 @@ class Link:
         self.sent = 0
         self.send_errors = 0
         self._tlog: BinaryIO | None = None
+        self.conn.mav.file = self  # every packet goes out through write(), which sees a break
+
+    down_reason: str | None = None
+    """Why the link is down (device gone, peer closed), or None while it is up."""
+    next_reopen_s = math.inf
+    """When :meth:`reopen` tries next (monotonic s); inf while up or when it needs no timer."""
+    unsent = 0
+    """Packets dropped because the link was down."""
+    _connecting: socket.socket | None = None
+    _connect_s = 0.0
+
+    @property
+    def up(self) -> bool:
+        """False from a break until the link is open again."""
+        return self.down_reason is None
+
+    @functools.cached_property
+    def _kind(self) -> str:
+        return _kind(self.conn)
 
     def record_to(self, tlog: BinaryIO) -> None:
         """Record every message received and sent to ``tlog`` in the telemetry-log format
@@ -114,6 +184,14 @@ class Link:
         """File descriptor to wait on (may change for ``tcpin`` after a client connects)."""
         return int(self.conn.fd)
 
+    def wait_fd(self) -> int | None:
+        """The descriptor to wait on, or None while there is none: a link that is down
+        waits for :meth:`reopen` (its dead descriptor would be readable forever), except a
+        ``tcpin`` link, which waits on its listening socket for the next client."""
+        if self.down_reason is not None and self._kind != _TCP_SERVER:
+            return None
+        return self.fileno()
+
     @property
     def bad(self) -> int:
         """Malformed, truncated or bad-CRC packets received (counted, never raised)."""
@@ -141,7 +219,9 @@ class Link:
         messages: list[Any] = []
         for _ in range(_MAX_READS):
             try:
-                data = self.conn.recv(_READ_CHUNK)
+                data = self._receive()
+            except LinkDownError:
+                break
             except OSError as exc:
                 log.debug("%s: read failed: %s", self.name, exc)
                 break
@@ -157,12 +237,64 @@ class Link:
         self.received += len(messages)
         return messages
 
+    def _receive(self) -> bytes:
+        """What is waiting (b"" if nothing); raises :class:`LinkDownError` when the link broke
+        (it is then down), other ``OSError`` for a passing failure."""
+        kind, conn = self._kind, self.conn
+        if kind == _DATAGRAM:
+            return conn.recv(_READ_CHUNK) or b""  # (pymavlink's UDP gives "" for nothing)
+        if kind == _TCP_SERVER and conn.port is None and not self._accept():
+            return b""
+        if self.down_reason is not None:
+            raise LinkDownError(self.down_reason)
+        try:
+            data = conn.port.read(_READ_CHUNK) if kind == _SERIAL else conn.port.recv(_READ_CHUNK)
+        except _AGAIN:
+            return b""
+        except OSError as exc:  # pyserial's SerialException is one
+            self._went_down(_gone(kind), f"read: {exc}")
+            raise LinkDownError(self.down_reason) from exc
+        if not data and kind != _SERIAL:  # a stream readable with nothing in it: closed
+            self._went_down("client left" if kind == _TCP_SERVER else "closed by the peer",
+                            "end of stream")
+            raise LinkDownError(self.down_reason)
+        return bytes(data)
+
+    def write(self, buf: bytes) -> None:
+        """Write one packet (the pymavlink ``MAVLink`` object writes through here too).
+
+        Raises:
+            LinkDownError: the link is down, or broke now (it is then down): the packet is lost.
+            OSError: it could not be written this time (a full buffer, no route).
+        """
+        kind, conn = self._kind, self.conn
+        if self.down_reason is not None:
+            raise LinkDownError(self.down_reason)
+        if kind == _DATAGRAM:
+            conn.write(buf)
+            return
+        if conn.port is None:  # tcpin before its first client: nobody to send to
+            raise LinkDownError("no client connected")
+        try:
+            if kind == _SERIAL:
+                conn.port.write(buf)
+            else:
+                conn.port.send(buf)
+        except _AGAIN:
+            raise
+        except OSError as exc:
+            self._went_down(_gone(kind), f"write: {exc}")
+            raise LinkDownError(self.down_reason) from exc
+
     def send(self, msg: Any) -> bool:
         """Pack and send one message object; returns False (and counts) on failure."""
         if self.signature_check is not None:
             self._follow_clock()
         try:
             self.conn.mav.send(msg)
+        except LinkDownError:
+            self.unsent += 1
+            return False
         except Exception as exc:  # a send must never take the control loop down
             self._send_failed(exc)
             return False
@@ -188,7 +320,10 @@ class Link:
                 target_system, target_component, *channels))
             return
         try:
-            self.conn.write(packet)
+            self.write(packet)
+        except LinkDownError:
+            self.unsent += 1
+            return
         except Exception as exc:  # a send must never take the control loop down
             self._send_failed(exc)
             return
@@ -196,6 +331,109 @@ class Link:
         if self._tlog is not None:
             with contextlib.suppress(OSError, ValueError):
                 self._tlog.write(_TLOG_STAMP.pack(int(time.time() * 1e6)) + packet)
+
+    # ----------------------------------------------------------------- breaks and reopening
+
+    def _went_down(self, reason: str, detail: object = "") -> None:
+        """The link broke: mark it down (the shell reports it once) and stop using it."""
+        if self.down_reason is not None:
+            return
+        self.down_reason = reason
+        log.info("%s: %s: %s", self.name, reason, detail)
+        kind, conn = self._kind, self.conn
+        if kind == _TCP_SERVER:  # back to listening: the next client brings it up
+            with contextlib.suppress(OSError):
+                conn.port.close()
+            conn.port = None
+            conn.fd = conn.listen.fileno()
+        else:  # closed now: a USB serial node still held open keeps its name from the next plug
+            with contextlib.suppress(OSError):
+                conn.port.close()
+            self.next_reopen_s = time.monotonic() + REOPEN_PERIOD_S
+
+    def _came_up(self) -> None:
+        log.debug("%s: up again (was down: %s)", self.name, self.down_reason)
+        self.down_reason = None
+        self.next_reopen_s = math.inf
+        self.parser.reset()  # a partial packet from before the break is not completed now
+
+    def reopen(self, now_s: float) -> bool:
+        """While the link is down, once :attr:`next_reopen_s` has come, try to open the same
+        device path or TCP address again (never blocking); whether the link is up now."""
+        if self.down_reason is None:
+            return True
+        if now_s < self.next_reopen_s:
+            return False
+        self.next_reopen_s = now_s + REOPEN_PERIOD_S
+        kind = self._kind
+        opened = (self._reopen_serial() if kind == _SERIAL else
+                  self._reopen_tcp(now_s) if kind == _TCP else False)
+        if opened:
+            self._came_up()
+        return opened
+
+    def _reopen_serial(self) -> bool:
+        conn = self.conn
+        if not Path(conn.device).exists():
+            return False
+        try:  # as pymavlink opens it: at 1200 baud first (a Linux driver bug), then the rate
+            port = serial.Serial(conn.device, 1200, timeout=0, dsrdtr=False, rtscts=False,
+                                 xonxoff=False)
+        except (OSError, ValueError) as exc:  # not ready yet (permissions, enumeration)
+            log.debug("%s: reopening %s failed: %s", self.name, conn.device, exc)
+            return False
+        with contextlib.suppress(OSError):
+            conn.port.close()
+        conn.port = port
+        conn.set_baudrate(conn.baud)
+        conn.fd = port.fileno()
+        mavutil.set_close_on_exec(conn.fd)
+        conn.portdead = False
+        return True
+
+    def _reopen_tcp(self, now_s: float) -> bool:
+        """One step of a non-blocking connect: start one, or see whether it completed."""
+        sock = self._connecting
+        if sock is not None and now_s - self._connect_s > TCP_CONNECT_TIMEOUT_S:
+            sock.close()
+            sock = self._connecting = None
+        if sock is None:
+            sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+            sock.setblocking(False)
+            code = sock.connect_ex(self.conn.destination_addr)
+            if code not in (0, errno.EINPROGRESS):
+                sock.close()
+                return False
+            self._connecting, self._connect_s = sock, now_s
+        if not _writable(sock):
+            return False  # still connecting: the next attempt looks again
+        self._connecting = None
+        if sock.getsockopt(socket.SOL_SOCKET, socket.SO_ERROR):  # refused, unreachable
+            sock.close()
+            return False
+        sock.setsockopt(socket.SOL_TCP, socket.TCP_NODELAY, 1)
+        mavutil.set_close_on_exec(sock.fileno())
+        with contextlib.suppress(OSError):
+            self.conn.port.close()
+        self.conn.port = sock
+        self.conn.fd = sock.fileno()
+        return True
+
+    def _accept(self) -> bool:
+        """A ``tcpin`` link without a client: take the one waiting, if any."""
+        conn = self.conn
+        try:
+            port, _ = conn.listen.accept()
+        except OSError:  # nobody waiting
+            return False
+        port.setsockopt(socket.SOL_TCP, socket.TCP_NODELAY, 1)
+        port.setblocking(False)
+        mavutil.set_close_on_exec(port.fileno())
+        conn.port = port
+        conn.fd = port.fileno()
+        if self.down_reason is not None:
+            self._came_up()
+        return True
 
     def close(self, *, linger_s: float = 0.0) -> None:
         """Close the connection; idempotent.
@@ -213,6 +451,9 @@ class Link:
                 self._flush_out(linger_s)
         with contextlib.suppress(OSError):
             self.conn.close()
+        if self._connecting is not None:
+            self._connecting.close()
+            self._connecting = None
 
     def _flush_out(self, linger_s: float) -> None:
         port = getattr(self.conn, "port", None)
@@ -233,14 +474,20 @@ class Link:
             port.flush()
 
 
-def follow(selector: selectors.BaseSelector, link: Link, fd: int, data: object = None) -> int:
-    """Keep ``selector`` watching ``link`` whose descriptor was ``fd``; the current one.
+def follow(selector: selectors.BaseSelector, link: Link, fd: int | None,
+           data: object = None) -> int | None:
+    """Keep ``selector`` watching ``link`` whose registered descriptor was ``fd`` (None: not
+    registered); returns the one registered now (:meth:`Link.wait_fd`).
 
-    A ``tcpin`` link swaps its descriptor when a client connects: re-register it then."""
-    new_fd = link.fileno()
+    A ``tcpin`` link swaps its descriptor when a client connects or leaves, and a link that
+    went down has none until it is reopened: re-register, or unregister, then. (A reopened
+    link may get its old descriptor number back; it was unregistered in between.)"""
+    new_fd = link.wait_fd()
     if new_fd != fd:
-        selector.unregister(fd)
-        selector.register(new_fd, selectors.EVENT_READ, data)
+        if fd is not None:
+            selector.unregister(fd)
+        if new_fd is not None:
+            selector.register(new_fd, selectors.EVENT_READ, data)
     return new_fd
 
 

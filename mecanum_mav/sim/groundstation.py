@@ -146,7 +146,8 @@ class ScriptedGroundStation:
             if ack is not None and ack.result == mavlink.MAV_RESULT_ACCEPTED:
                 return
             retry_s = self.port.now() + 0.2
-            while self.port.now() < retry_s:  # wait out the interval, not the first message
+            # wait out the interval, not the first message (to within a virtual clock's rounding)
+            while self.port.now() < retry_s - 1e-9:
                 self.pump(retry_s - self.port.now())
         raise RuntimeError("the vehicle never accepted arming")
 

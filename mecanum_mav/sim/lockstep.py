@@ -242,6 +242,22 @@ class Lockstep:
         self.on_step.append(tick)
         return lambda: self.on_step.remove(tick) if tick in self.on_step else None
 
+    def link_down(self, link: str, reason: str = "device gone") -> None:
+        """Break ``link`` (``"fc"`` or ``"gcs"``) as the companion finds a link broken (USB
+        unplugged, connection closed) and tell the core once, as its shell does
+        (:meth:`RoverCore.link_down`). The flight controller's wire is cut too; the ground
+        station's is not (a test stops sending instead)."""
+        if link == "fc":
+            self.fc_link_up = False
+        self._write(self.core.link_down(link, reason, self.now_s))
+
+    def link_up(self, link: str) -> None:
+        """``link`` is open again: the core is told first, as the shell does when it has
+        reopened it (:meth:`RoverCore.link_up`)."""
+        if link == "fc":
+            self.fc_link_up = True
+        self._write(self.core.link_up(link, self.now_s))
+
     def inject(self, data: bytes, *, from_fc: bool = False) -> None:
         """Put raw bytes on the wire to the core, as the ground station (or the flight
         controller) would send them: garbage, truncated or hand-made packets."""

@@ -106,8 +106,7 @@ class SimFlightController:
         dropped."""
         board, link = self.board, self._link
         with selectors.DefaultSelector() as selector:
-            fd = link.fileno()
-            selector.register(fd, selectors.EVENT_READ)
+            fd = follow(selector, link, None)
             while not (stop.is_set() or self._stop_event.is_set()):
                 timeout = max(0.0, board.next_due_s() - time.monotonic())
                 if selector.select(timeout) and board.receive(link.read(), time.monotonic()):

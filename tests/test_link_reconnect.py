@@ -1,0 +1,305 @@
+"""Links that drop and come back, on real ptys, sockets and a real process (issue 11.2).
+
+The flight controller is played by the test on the far end of a serial pty (behind a symlink
+the test owns, as udev's /dev/serial/by-id names are), a TCP server or a TCP client. Pulling
+the cable: close the pty's master and remove the symlink (the companion's end then reads EIO),
+or close the socket. Plugging it back: a new pty behind the same symlink, or a new connection.
+What the core decides meanwhile is tested in virtual time in test_link_drops.py.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import socket
+import time
+import tty
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any
+
+from sitl import CompanionProcess, free_port
+from test_end_to_end import ARM, NEUTRAL, STICK_PERIOD_S, WHEELS, channels
+
+from mecanum_mav.app.companion import Companion
+from mecanum_mav.config.params import Params
+from mecanum_mav.io.links import mavlink
+from mecanum_mav.protocol.rcoverride import override_fields
+from mecanum_mav.sim.groundstation import ScriptedGroundStation, udp_ground_station
+
+FORWARD = override_fields(WHEELS, [2000] * 4)
+BEAT_PERIOD_S = 0.1
+CPU_WINDOW_S = 2.0
+FC_DOWN = "FC link down"
+
+
+class FcEnd:
+    """The flight controller's end of one connection (a pty master or a socket): sends
+    HEARTBEAT every ``BEAT_PERIOD_S`` when pumped, parses what the companion sends."""
+
+    def __init__(self, read: Callable[[], bytes], write: Callable[[bytes], Any],
+                 close: Callable[[], None]) -> None:
+        self._read, self._write, self.close = read, write, close
+        self.mav = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
+        self.mav.robust_parsing = True
+        self.messages: list[Any] = []
+        self.first_byte_s: float | None = None
+        self._beat_s = -1.0
+
+    @classmethod
+    def on_socket(cls, sock: socket.socket) -> FcEnd:
+        sock.setblocking(False)
+        return cls(lambda: sock.recv(4096), sock.send, sock.close)
+
+    def pump(self) -> None:
+        now = time.monotonic()
+        if now - self._beat_s >= BEAT_PERIOD_S:
+            self._beat_s = now
+            self._write(self.mav.heartbeat_encode(
+                mavlink.MAV_TYPE_GROUND_ROVER, mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA, 0, 0,
+                mavlink.MAV_STATE_STANDBY).pack(self.mav))
+        while True:
+            try:
+                data = self._read()
+            except (BlockingIOError, InterruptedError):
+                return
+            if not data:
+                return
+            if self.first_byte_s is None:
+                self.first_byte_s = time.monotonic()
+            self.messages += [m for m in self.mav.parse_buffer(data) or []
+                              if m.get_type() != "BAD_DATA"]
+
+    def overrides(self) -> list[list[int]]:
+        return [channels(m) for m in self.messages if m.get_type() == "RC_CHANNELS_OVERRIDE"]
+
+
+class PtyCable:
+    """A pseudo-terminal behind ``path`` (a symlink): the companion opens the path."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        master, slave = os.openpty()
+        tty.setraw(slave)  # no echo, no CR/LF translation
+        os.set_blocking(master, False)
+        path.symlink_to(os.ttyname(slave))
+        self.fds = (master, slave)  # the slave stays open here: no EIO before the companion
+        self.fc = FcEnd(lambda: os.read(master, 4096), lambda b: os.write(master, b),
+                        self.unplug)
+
+    def unplug(self) -> None:
+        """The USB cable is pulled: the device node vanishes, the companion's end reads EIO."""
+        self.path.unlink(missing_ok=True)
+        for fd in self.fds:
+            os.close(fd)
+        self.fds = ()
+
+
+class Pilot:
+    """The test's loop: the ground station (pumped, sticks at 50 Hz while ``stick`` is set)
+    and the flight controller's end (``fc``, pumped when set)."""
+
+    def __init__(self, gcs: ScriptedGroundStation) -> None:
+        self.gcs = gcs
+        self.fc: FcEnd | None = None
+        self.stick: tuple[int, int, int] | None = None
+        self._stick_s = 0.0
+
+    def run_until(self, done: Callable[[], Any], timeout_s: float) -> Any:
+        deadline = time.monotonic() + timeout_s
+        while True:
+            if self.fc is not None:
+                self.fc.pump()
+            result = done()
+            now = time.monotonic()
+            if result or now > deadline:
+                return result
+            if self.stick is not None and now - self._stick_s >= STICK_PERIOD_S:
+                self._stick_s = now
+                x, y, r = self.stick
+                self.gcs.mav.manual_control_send(1, x, y, 500, r, 0)
+            self.gcs.pump(0.01)
+
+    def said(self, text: str, since: int = 0) -> list[str]:
+        return [m.text for m in self.gcs.received("STATUSTEXT", since) if text in m.text]
+
+    def arm(self) -> bool:
+        """Arm (the sticks left alone, as a pilot does)."""
+        self.stick = None
+
+        def armed() -> bool:
+            ack = self.gcs.command(ARM, 1, timeout_s=0.1)
+            return ack is not None and ack.result == mavlink.MAV_RESULT_ACCEPTED
+
+        return bool(self.run_until(armed, 5.0))
+
+    def drive(self) -> bool:
+        """Full stick forward until the flight controller gets full forward."""
+        assert self.fc is not None
+        self.stick = (1000, 0, 0)
+        fc = self.fc
+        return bool(self.run_until(lambda: FORWARD in fc.overrides(), 3.0))
+
+
+def cpu_s(pid: int) -> float:
+    """User + system CPU time of process ``pid`` so far (s), from /proc/PID/stat."""
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def test_an_unplugged_serial_flight_controller_is_reported_once_costs_no_cpu_and_is_reopened(
+        tmp_path: Path) -> None:
+    device = tmp_path / "ttyFC"
+    cable = PtyCable(device)
+    gcs, port = udp_ground_station()
+    pilot = Pilot(gcs)
+    pilot.fc = cable.fc
+    try:
+        with CompanionProcess(port.url, f"{device},57600", tmp_path) as companion:
+            assert pilot.run_until(lambda: pilot.said("Flight controller link up"), 15.0), (
+                companion.log())
+            assert pilot.arm() and pilot.drive(), companion.log()
+            # pull the cable while driving, the pilot still pushing the stick
+            since = gcs.mark()
+            cable.unplug()
+            pilot.fc = None
+            assert pilot.run_until(lambda: pilot.said(FC_DOWN, since), 2.0), companion.log()
+            before = cpu_s(companion.proc.pid)
+            pilot.run_until(lambda: None, CPU_WINDOW_S)
+            cpu_share = (cpu_s(companion.proc.pid) - before) / CPU_WINDOW_S
+            # plug it back in: the same path, a new pty
+            cable = PtyCable(device)
+            pilot.fc = cable.fc
+            plugged = time.monotonic()
+            fc = cable.fc
+            assert pilot.run_until(lambda: fc.messages, 3.0), companion.log()
+            reopened_s = (fc.first_byte_s or plugged) - plugged
+            first = fc.messages[0]
+            assert first.get_type() == "RC_CHANNELS_OVERRIDE" and channels(first) == NEUTRAL
+            assert pilot.run_until(lambda: pilot.said("Flight controller link up", since), 3.0)
+            assert all(o == NEUTRAL for o in fc.overrides())  # the stick is still pushed
+            assert pilot.arm() and pilot.drive(), companion.log()
+            said = [m.text for m in gcs.received("STATUSTEXT", since)]
+            log = companion.log()
+            assert companion.proc.poll() is None, log
+    finally:
+        cable.unplug()
+        port.close()
+    print(f"serial: companion CPU while the device was gone {100 * cpu_share:.1f} % of a core; "
+          f"first byte {reopened_s:.3f} s after the device reappeared")
+    assert said.count("FC link down: device gone; reconnecting") == 1, said
+    assert said.count("FC link reconnected") == 1, said
+    assert log.count(FC_DOWN) == 1, log
+    assert cpu_share < 0.05
+    assert reopened_s < 1.0  # one reopen period (0.5 s) and the loop's wake-up
+
+
+@contextlib.contextmanager
+def companion_with_fc(fc_url: str) -> Iterator[Pilot]:
+    """An in-process companion between a UDP ground station and ``fc_url``; the pilot."""
+    gcs, port = udp_ground_station()
+    companion = Companion(Params(), port.url, fc_url)
+    companion.start()
+    pilot = Pilot(gcs)
+    try:
+        yield pilot
+    finally:
+        companion.close()
+        port.close()
+        if pilot.fc is not None:
+            pilot.fc.close()
+
+
+def test_a_tcp_flight_controller_that_closes_is_reported_once_and_reconnected(
+        tmp_path: Path) -> None:
+    server = socket.create_server(("127.0.0.1", 0))
+    address = server.getsockname()
+    servers = [server]
+    with contextlib.ExitStack() as cleanup, companion_with_fc(
+            f"tcp:{address[0]}:{address[1]}") as pilot:
+        cleanup.callback(lambda: [s.close() for s in servers])
+        pilot.fc = FcEnd.on_socket(server.accept()[0])
+        assert pilot.run_until(lambda: pilot.said("Flight controller link up"), 5.0)
+        assert pilot.arm() and pilot.drive()
+        # the flight controller goes away altogether: its connection and its server
+        since = pilot.gcs.mark()
+        pilot.fc.close()
+        server.close()
+        pilot.fc = None
+        closed = time.monotonic()
+        assert pilot.run_until(lambda: pilot.said(FC_DOWN, since), 2.0)
+        pilot.run_until(lambda: None, 1.5)  # connects are refused meanwhile
+        server = socket.create_server(address)  # back on the same port
+        servers.append(server)
+        server.setblocking(False)
+        back = time.monotonic()
+
+        def accepted() -> socket.socket | None:
+            try:
+                return server.accept()[0]
+            except BlockingIOError:
+                return None
+
+        sock = pilot.run_until(accepted, 2.0)
+        assert sock is not None
+        reconnect_s = time.monotonic() - back
+        pilot.fc = fc = FcEnd.on_socket(sock)
+        assert pilot.run_until(lambda: fc.messages, 1.0)
+        assert fc.overrides()[:1] == [NEUTRAL] and fc.messages[0].get_type() == (
+            "RC_CHANNELS_OVERRIDE")
+        assert pilot.run_until(lambda: pilot.said("Flight controller link up", since), 3.0)
+        assert pilot.arm() and pilot.drive()
+        said = pilot.said("FC link", since)
+    print(f"tcp: reconnected {reconnect_s:.3f} s after the server was back "
+          f"({back - closed:.1f} s away)")
+    assert said == ["FC link down: closed by the peer; reconnecting", "FC link reconnected"]
+    assert reconnect_s < 1.0
+
+
+def test_a_tcpin_flight_controller_client_that_leaves_is_reported_once_and_a_new_one_heard(
+        ) -> None:
+    tcp_port = free_port(socket.SOCK_STREAM)
+    with companion_with_fc(f"tcpin:127.0.0.1:{tcp_port}") as pilot:
+        pilot.fc = FcEnd.on_socket(socket.create_connection(("127.0.0.1", tcp_port)))
+        assert pilot.run_until(lambda: pilot.said("Flight controller link up"), 5.0)
+        since = pilot.gcs.mark()
+        pilot.fc.close()
+        pilot.fc = None
+        assert pilot.run_until(lambda: pilot.said(FC_DOWN, since), 2.0)
+        start = time.monotonic()
+        pilot.fc = fc = FcEnd.on_socket(socket.create_connection(("127.0.0.1", tcp_port)))
+        assert pilot.run_until(lambda: pilot.said("FC link reconnected", since), 2.0)
+        heard_s = time.monotonic() - start
+        assert pilot.run_until(lambda: fc.messages, 1.0)
+        assert fc.messages[0].get_type() == "RC_CHANNELS_OVERRIDE"
+        assert channels(fc.messages[0]) == NEUTRAL
+        assert pilot.run_until(lambda: pilot.said("Flight controller link up", since), 3.0)
+        assert pilot.arm() and pilot.drive()
+        said = pilot.said("FC link", since)
+    print(f"tcpin: the new client heard after {heard_s:.3f} s")
+    assert said == ["FC link down: client left; reconnecting", "FC link reconnected"]
+
+
+def test_a_ground_station_restarting_on_a_new_port_is_heard_and_answered_at_once() -> None:
+    companion = Companion(Params(), "udpin:127.0.0.1:0", "udpin:127.0.0.1:0")
+    companion.start()
+    target = f"udpout:127.0.0.1:{companion.gcs.local_port}"
+    stations = []
+    try:
+        for _ in range(2):  # the ground station, then the same after a restart
+            gcs, gcs_port = udp_ground_station(target)
+            stations.append(gcs_port)
+            start = time.monotonic()
+            gcs.mav.heartbeat_send(mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID, 0, 0, 0)
+            gcs.mav.param_request_read_send(1, 1, b"SYSID_THISMAV", -1)
+            value = gcs.wait("PARAM_VALUE", timeout_s=1.0, since=0)
+            answered_s = time.monotonic() - start
+            assert value is not None and value.param_id == "SYSID_THISMAV"
+            assert answered_s < 0.2, answered_s  # no timeout waited out
+            assert gcs.wait("HEARTBEAT", lambda m: m.get_srcSystem() == 1, 1.5, since=0)
+            assert gcs_port.link.local_port not in {s.link.local_port for s in stations[:-1]}
+            gcs_port.close()
+    finally:
+        companion.close()
+        for gcs_port in stations:
+            gcs_port.close()
