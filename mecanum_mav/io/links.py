@@ -23,8 +23,12 @@ its dead descriptor, which would be readable forever, is no longer waited on
 every :data:`REOPEN_PERIOD_S` without ever blocking (a TCP connect is non-blocking, and
 completes on a later attempt). A ``tcpin:`` link keeps listening and is up again as soon as a
 new client connects. The shell tells the core about both transitions (it reports them once).
-A ``udpin:`` link answers every address it has heard (pymavlink keeps the set), so a ground
-station that restarts on a new port is answered from its first packet on.
+A ``udpin:`` link answers the peers it has heard a valid message from (with a signing key:
+a correctly signed one), so a ground station that restarts on a new port is answered from its
+first packet on, while garbage or unsigned datagrams from other addresses make no one a peer
+(they get nothing back, and cannot make the rover send everything many times over). A peer
+silent for :data:`PEER_TIMEOUT_S` is forgotten once another peer is heard; at most
+:data:`MAX_PEERS` are kept (the longest silent goes first).
 """
 
 from __future__ import annotations
@@ -57,6 +61,10 @@ _TLOG_STAMP = struct.Struct(">Q")
 SEND_WARNING_PERIOD_S = 1.0
 """A link that keeps failing to send is logged at WARNING at most this often."""
 _MAX_READS = 64  # per readiness event: bounded work, the selector calls again if more waits
+PEER_TIMEOUT_S = 10.0
+"""A ``udpin:`` peer not heard from for this long is no longer sent to, once another is heard."""
+MAX_PEERS = 8
+"""A ``udpin:`` link sends to at most this many peers."""
 REOPEN_PERIOD_S = 0.5
 """A link that is down tries to open its device or address again this often (seconds)."""
 TCP_CONNECT_TIMEOUT_S = 3.0
@@ -134,6 +142,11 @@ class Link:
         self.send_errors = 0
         self._tlog: BinaryIO | None = None
         self.conn.mav.file = self  # every packet goes out through write(), which sees a break
+        self._udp_server = bool(getattr(self.conn, "udp_server", False))
+        self._from: Any = None  # the address the last datagram came from (udpin)
+        self._peers_s: dict[Any, float] = {}  # udpin peers -> when last heard (monotonic s)
+        self.peer_timeout_s = PEER_TIMEOUT_S
+        self._next_prune_s = -math.inf
 
     down_reason: str | None = None
     """Why the link is down (device gone, peer closed), or None while it is up."""
@@ -230,6 +243,8 @@ class Link:
             if self.conn.first_byte:
                 self.conn.auto_mavlink_version(data)
             parsed = self.parser.parse(data)
+            if self._udp_server and parsed:
+                self._heard(self._from)
             if self._tlog is not None:
                 for msg in parsed:
                     self._record(msg)
@@ -242,6 +257,12 @@ class Link:
         (it is then down), other ``OSError`` for a passing failure."""
         kind, conn = self._kind, self.conn
         if kind == _DATAGRAM:
+            if self._udp_server:  # pymavlink's recv would make every sender a peer
+                try:
+                    data, self._from = conn.port.recvfrom(_READ_CHUNK)
+                except _AGAIN:
+                    return b""
+                return bytes(data)
             return conn.recv(_READ_CHUNK) or b""  # (pymavlink's UDP gives "" for nothing)
         if kind == _TCP_SERVER and conn.port is None and not self._accept():
             return b""
@@ -259,6 +280,25 @@ class Link:
                             "end of stream")
             raise LinkDownError(self.down_reason)
         return bytes(data)
+
+    def _heard(self, address: Any) -> None:
+        """A valid message came from ``address`` on a ``udpin:`` link: it is a peer (sent
+        to); peers silent for :attr:`peer_timeout_s` are dropped, at most :data:`MAX_PEERS`
+        kept."""
+        now = time.monotonic()
+        peers = self._peers_s
+        known = address in peers
+        peers[address] = now
+        if known and now < self._next_prune_s:  # the common case: a peer already sent to
+            return
+        self._next_prune_s = now + 1.0
+        clients = self.conn.clients
+        clients.add(address)
+        for old in [a for a, seen in peers.items() if now - seen > self.peer_timeout_s]:
+            del peers[old]
+        while len(peers) > MAX_PEERS:
+            del peers[min(peers, key=peers.__getitem__)]
+        clients.intersection_update(peers)
 
     def write(self, buf: bytes) -> None:
         """Write one packet (the pymavlink ``MAVLink`` object writes through here too).

@@ -1,0 +1,110 @@
+"""Who a ``udpin:`` link answers: peers that sent a valid (and, with a key, correctly signed)
+message; garbage and unsigned datagrams make no one a peer; silent peers are forgotten."""
+
+from __future__ import annotations
+
+import hashlib
+import selectors
+import socket
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+
+from mecanum_mav.io import links
+from mecanum_mav.io.links import Link, open_link
+from mecanum_mav.protocol.dialect import mavlink
+from mecanum_mav.protocol.signing import ticks_from_unix
+
+KEY = hashlib.sha256(b"peers").digest()
+
+
+@contextmanager
+def rover_link(signing_key: bytes | None = None) -> Iterator[Link]:
+    link = open_link("udpin:127.0.0.1:0", source_system=1, source_component=1, name="gcs",
+                     signing_key=signing_key)
+    try:
+        yield link
+    finally:
+        link.close()
+
+
+@contextmanager
+def senders(count: int) -> Iterator[list[socket.socket]]:
+    socks = [socket.socket(socket.AF_INET, socket.SOCK_DGRAM) for _ in range(count)]
+    for sock in socks:
+        sock.bind(("127.0.0.1", 0))
+        sock.setblocking(False)
+    try:
+        yield socks
+    finally:
+        for sock in socks:
+            sock.close()
+
+
+def heartbeat(key: bytes | None = None) -> bytes:
+    mav = mavlink.MAVLink(None, srcSystem=255, srcComponent=190)
+    if key is not None:
+        mav.signing.secret_key, mav.signing.sign_outgoing = KEY, True
+        mav.signing.timestamp = ticks_from_unix(time.time())
+    return bytes(mavlink.MAVLink_heartbeat_message(6, 8, 0, 0, 4, 3).pack(mav))
+
+
+def deliver(link: Link, sock: socket.socket, data: bytes) -> list:
+    """Send ``data`` from ``sock`` to the link and read it there (waiting for it)."""
+    sock.sendto(data, ("127.0.0.1", link.local_port))
+    with selectors.DefaultSelector() as selector:
+        selector.register(link.fileno(), selectors.EVENT_READ)
+        assert selector.select(2.0), "the datagram never arrived"
+    return link.read()
+
+
+def who_gets_the_next_message(link: Link, socks: list[socket.socket]) -> list[int]:
+    """Send one message from the link; the indices of ``socks`` that receive it (the last
+    listed sender is always a peer, so its arrival bounds the wait for the others)."""
+    link.mav.heartbeat_send(6, 8, 0, 0, 4, 3)
+    with selectors.DefaultSelector() as selector:
+        selector.register(socks[-1], selectors.EVENT_READ)
+        assert selector.select(2.0), "the peer heard nothing"
+    got = []
+    for i, sock in enumerate(socks):
+        try:
+            sock.recv(4096)
+            got.append(i)
+        except BlockingIOError:
+            pass
+    return got
+
+
+def test_garbage_makes_no_peer_and_a_valid_message_does():
+    with rover_link() as link, senders(3) as (junk, truncated, gcs):
+        assert deliver(link, junk, bytes(range(200))) == []
+        assert deliver(link, truncated, heartbeat()[:-4]) == []
+        assert [m.get_type() for m in deliver(link, gcs, heartbeat())] == ["HEARTBEAT"]
+        assert who_gets_the_next_message(link, [junk, truncated, gcs]) == [2]
+
+
+def test_on_a_signed_link_only_a_correctly_signed_sender_becomes_a_peer():
+    with rover_link(KEY) as link, senders(3) as (unsigned, wrong_key, pilot):
+        assert deliver(link, unsigned, heartbeat()) == []
+        forged = bytearray(heartbeat(KEY))
+        forged[-1] ^= 0xFF
+        assert deliver(link, wrong_key, bytes(forged)) == []
+        assert [m.get_type() for m in deliver(link, pilot, heartbeat(KEY))] == ["HEARTBEAT"]
+        assert who_gets_the_next_message(link, [unsigned, wrong_key, pilot]) == [2]
+
+
+def test_a_silent_peer_is_forgotten_once_another_is_heard():
+    with rover_link() as link, senders(2) as (old, new):
+        link.peer_timeout_s = 0.0  # every earlier peer is "silent too long"
+        deliver(link, old, heartbeat())
+        assert who_gets_the_next_message(link, [old]) == [0]
+        deliver(link, new, heartbeat())
+        assert who_gets_the_next_message(link, [old, new]) == [1]
+
+
+def test_at_most_max_peers_are_sent_to_the_longest_silent_dropped_first():
+    count = links.MAX_PEERS + 2
+    with rover_link() as link, senders(count) as socks:
+        for sock in socks:
+            deliver(link, sock, heartbeat())
+        assert who_gets_the_next_message(link, socks) == list(range(2, count))
