@@ -16,6 +16,7 @@ from pathlib import Path
 import pytest
 from sitl import CompanionProcess, Rig, Sitl, find_sitl
 
+from mecanum_mav.protocol.dialect import mavlink
 from mecanum_mav.protocol.signing import key_from_text, ticks_from_unix
 from mecanum_mav.sim.groundstation import udp_ground_station
 
@@ -44,17 +45,21 @@ def key_file(tmp_path: Path) -> Path:
 
 
 @pytest.fixture
-def board(request) -> Iterator[Sitl]:
-    """Firmware with the key set, its companion port on SERIAL1; ``request.param`` is how far
-    ahead of the clock SETUP_SIGNING's initial timestamp is (s)."""
+def board() -> Iterator[Sitl]:
+    """Firmware with its companion port on SERIAL1, no key yet (:func:`set_key`)."""
     assert BINARY is not None
     with Sitl(BINARY, "udp", receiver=RECEIVER, boot_timeout_s=BOOT_S, fc_serial=1) as fc:
-        assert fc.monitor is not None
-        started = time.monotonic()
-        fc.monitor.setup_signing(KEY, ticks_from_unix(time.time() + request.param), BOOT_S)
-        print(f"boot {fc.boot_s:.2f} s, SETUP_SIGNING -> signed HEARTBEAT "
-              f"{time.monotonic() - started:.2f} s")
         yield fc
+
+
+def set_key(board: Sitl, ahead_s: float = 0.0) -> None:
+    """SETUP_SIGNING with KEY and an initial timestamp ``ahead_s`` ahead of the clock (0: as
+    MAVProxy's ``signing setup`` sends it), until the firmware's HEARTBEATs come signed."""
+    assert board.monitor is not None
+    started = time.monotonic()
+    board.monitor.setup_signing(KEY, ticks_from_unix(time.time() + ahead_s), BOOT_S)
+    print(f"boot {board.boot_s:.2f} s, SETUP_SIGNING -> signed HEARTBEAT "
+          f"{time.monotonic() - started:.2f} s")
 
 
 class Companion(Rig):
@@ -92,15 +97,25 @@ def run_companion(fc: Sitl, workdir: Path, *extra: str) -> Iterator[Companion]:
         port.close()
 
 
-@pytest.mark.parametrize("board", [0.0], indirect=True)
 def test_a_board_that_requires_signing_obeys_the_companion_only_with_fc_signing_key(
         board, tmp_path):
-    """SETUP_SIGNING as MAVProxy's ``signing setup`` sends it (initial timestamp: now).
-    Without the key the companion still hears the firmware (its HEARTBEATs are signed, not
-    encrypted) and arms, but ArduPilot drops its unsigned overrides: SERVO1..4 stay at the
-    receiver's pulse while it streams full forward. With the key it drives."""
+    """Before the board has the key, the companion with --fc-signing-key refuses its unsigned
+    HEARTBEATs, says so and will not arm. The key is set as MAVProxy's ``signing setup`` sets
+    it (initial timestamp: now). Without --fc-signing-key the companion still hears the board
+    (its HEARTBEATs are signed, not encrypted) and arms, but ArduPilot drops its unsigned
+    overrides (SERVO1..4 stay at the receiver's pulse while it streams full forward) and
+    parameter requests. With the key it drives."""
     monitor = board.monitor
     assert monitor is not None
+    key = str(key_file(tmp_path))
+    with run_companion(board, tmp_path / "no-key-yet", "--fc-signing-key", key) as companion:
+        assert companion.said("FC sent unsigned: board has no signing key"), companion.why()
+        ack = companion.gcs.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 1, timeout_s=REACT_S)
+        assert ack is not None and ack.result == mavlink.MAV_RESULT_DENIED, companion.why()
+        assert not any(m.get_type() == "STATUSTEXT" and m.text == "Flight controller link up"
+                       for m in companion.gcs.messages)
+        companion.stop()
+    set_key(board)
     with run_companion(board, tmp_path / "unsigned") as companion:
         companion.arm()
         since = monitor.mark()
@@ -111,7 +126,6 @@ def test_a_board_that_requires_signing_obeys_the_companion_only_with_fc_signing_
         # its parameter requests went unanswered too
         assert companion.said("FC setup not checked: no parameters from the")
         companion.stop()
-    key = str(key_file(tmp_path))
     with run_companion(board, tmp_path / "signed", "--fc-signing-key", key) as companion:
         companion.arm()
         forward_s = companion.drive(1000, 0, 0, FORWARD)
@@ -128,7 +142,6 @@ def test_a_board_that_requires_signing_obeys_the_companion_only_with_fc_signing_
         assert released.t - sent < RELEASE_LIMIT_S, companion.why()
 
 
-@pytest.mark.parametrize("board", [600.0], indirect=True)
 def test_a_board_whose_signing_clock_is_ahead_obeys_the_companion_and_its_restart(
         board, tmp_path):
     """ArduPilot signs from its stored timestamp + 60 s (after every reboot too) and drops a
@@ -136,6 +149,7 @@ def test_a_board_whose_signing_clock_is_ahead_obeys_the_companion_and_its_restar
     companion's clock. The companion sends with the newest timestamp of the firmware's
     verified packets, as the MAVLink C library and pymavlink do, so ArduPilot takes it; so
     does a restarted companion, whose stream ArduPilot already knows."""
+    set_key(board, ahead_s=600.0)
     key = str(key_file(tmp_path))
     for run in ("first", "restarted"):
         with run_companion(board, tmp_path / run, "--fc-signing-key", key) as companion:
