@@ -29,11 +29,14 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from types import TracebackType
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from pymavlink import mavutil
 
-__all__ = ["CompanionProcess", "Monitor", "PtyCable", "Sample", "Sitl", "find_sitl"]
+if TYPE_CHECKING:
+    from mecanum_mav.sim.groundstation import ScriptedGroundStation
+
+__all__ = ["CompanionProcess", "Monitor", "PtyCable", "Rig", "Sample", "Sitl", "find_sitl"]
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
 DEFAULT_BINARY = REPO_ROOT.parent / "shared" / "ardupilot-sitl" / "ardurover"
@@ -101,6 +104,8 @@ class Monitor:
                                                source_system=MONITOR_SYSID, source_component=191)
         self.samples: list[Sample] = []
         self.heartbeats = 0
+        self.signed_heartbeats = 0
+        """The firmware's HEARTBEATs that came signed (it has a signing key)."""
         self._acks: list[Any] = []
         self._cond = threading.Condition()
         self._stop = threading.Event()
@@ -128,6 +133,7 @@ class Monitor:
                                                          msg.servo3_raw, msg.servo4_raw)))
                     elif kind == "HEARTBEAT" and msg.get_srcSystem() == 1:
                         self.heartbeats += 1
+                        self.signed_heartbeats += msg.get_msgbuf()[2] & 1  # signed flag
                     elif kind == "COMMAND_ACK":
                         self._acks.append(msg)
                 self._cond.notify_all()
@@ -155,6 +161,24 @@ class Monitor:
     def wait_heartbeat(self, timeout_s: float) -> bool:
         """Whether the firmware's HEARTBEAT came within ``timeout_s``."""
         return bool(self._wait_for(lambda: self.heartbeats > 0, timeout_s))
+
+    def setup_signing(self, key: bytes, initial_timestamp: int, timeout_s: float) -> None:
+        """SETUP_SIGNING with ``key`` (32 bytes) and ``initial_timestamp`` (10 us ticks since
+        2015), sent unsigned (only SERIAL0 takes unsigned packets once a key is set), and
+        resent until the firmware's HEARTBEATs come signed. ArduPilot does not acknowledge it.
+
+        Raises:
+            TimeoutError: not within ``timeout_s``.
+        """
+        with self._cond:
+            signed_before = self.signed_heartbeats
+
+        def send() -> None:
+            self.conn.mav.setup_signing_send(1, 1, list(key), initial_timestamp)
+
+        if not self._wait_for(lambda: self.signed_heartbeats > signed_before, timeout_s,
+                              tick=send, period_s=1.0):
+            raise TimeoutError("the firmware's HEARTBEATs never came signed after SETUP_SIGNING")
 
     def request_servo_output(self, timeout_s: float, interval_us: int = SERVO_INTERVAL_US) -> None:
         """MAV_CMD_SET_MESSAGE_INTERVAL for SERVO_OUTPUT_RAW, retried until accepted and the
@@ -295,9 +319,12 @@ class Sitl:
     """``ardurover`` with pass-through parameters, a monitor and an RC receiver.
 
     Use as a context manager; the process group is killed on every way out (also when the
-    start fails). ``transport`` is the flight-controller port (SERIAL0): ``udp``
-    (``udpclient:``, the companion uses ``udpin:``), ``tcp`` (SITL listens) or ``serial``
-    (a pty :class:`PtyCable`). :attr:`fc_url` is the companion's ``--fc``.
+    start fails). ``transport`` is the flight-controller port (SERIAL0, or SERIAL1 with
+    ``fc_serial=1``; the monitor is on the other one): ``udp`` (``udpclient:``, the companion
+    uses ``udpin:``), ``tcp`` (SITL listens) or ``serial`` (a pty :class:`PtyCable`).
+    :attr:`fc_url` is the companion's ``--fc``. Once a signing key is set, ArduPilot takes
+    unsigned packets on SERIAL0 only: ``fc_serial=1`` puts the companion where signing is
+    required and leaves the monitor able to send SETUP_SIGNING unsigned.
 
     The simulated receiver (``--rc-in-port``) is fed ``receiver`` on channels 1-4 every
     50 ms, so that "released to the radio" reads differently from neutral; ``receiver=None``
@@ -306,9 +333,13 @@ class Sitl:
 
     def __init__(self, binary: Path, transport: str = "udp", *,
                  receiver: Sequence[int] | None = (1600, 1600, 1600, 1600),
-                 extra_params: Sequence[str] = (), boot_timeout_s: float = 20.0) -> None:
+                 extra_params: Sequence[str] = (), boot_timeout_s: float = 20.0,
+                 fc_serial: int = 0) -> None:
         if transport not in TRANSPORTS:
             raise ValueError(f"transport {transport!r}: one of {TRANSPORTS}")
+        if fc_serial not in (0, 1):
+            raise ValueError(f"fc_serial {fc_serial}: 0 or 1")
+        self.fc_serial = fc_serial
         self.binary = binary
         self.transport = transport
         self.receiver = None if receiver is None else tuple(receiver)
@@ -348,7 +379,7 @@ class Sitl:
                  tb: TracebackType | None) -> None:
         self.close()
 
-    def _serial0(self) -> str:
+    def _fc_port(self) -> str:
         if self.transport == "udp":
             port = free_port(socket.SOCK_DGRAM)
             self.fc_url = f"udpin:127.0.0.1:{port}"
@@ -371,9 +402,11 @@ class Sitl:
         defaults.append(str(extra))
         mon_port = free_port(socket.SOCK_DGRAM)
         self.rc_port = free_port(socket.SOCK_DGRAM, "")  # SITL binds it on all interfaces
+        ports = [self._fc_port(), f"udpclient:127.0.0.1:{mon_port}"]
+        serial0, serial1 = ports if self.fc_serial == 0 else ports[::-1]
         self.command = [str(self.binary), "-w", "--model", "rover", "--speedup", "1",
-                        "--defaults", ",".join(defaults), "--serial0", self._serial0(),
-                        "--serial1", f"udpclient:127.0.0.1:{mon_port}", "--serial2", "none",
+                        "--defaults", ",".join(defaults), "--serial0", serial0,
+                        "--serial1", serial1, "--serial2", "none",
                         *(["--rc-in-port", str(self.rc_port)] if self.receiver else [])]
         self.monitor = Monitor(mon_port)
         started = time.monotonic()
@@ -465,3 +498,47 @@ class CompanionProcess:
     def __exit__(self, kind: type[BaseException] | None, exc: BaseException | None,
                  tb: TracebackType | None) -> None:
         _kill_group(self.proc)
+
+
+# --------------------------------------------------------------------------- the three
+
+
+class Rig:
+    """The firmware, a companion process on it, and a ground station on the companion.
+
+    Deadlines are generous (:attr:`boot_s`, :attr:`react_s`): the suite must hold on a loaded
+    2-core machine.
+    """
+
+    boot_s = 20.0
+    react_s = 10.0
+
+    def __init__(self, fc: Sitl, gcs: ScriptedGroundStation, companion: CompanionProcess):
+        self.fc = fc
+        self.gcs = gcs
+        self.companion = companion
+        assert fc.monitor is not None
+        self.monitor = fc.monitor
+
+    def why(self) -> str:
+        return (f"last SERVO1..4: {self.monitor.last()}\ncompanion: {self.companion.log()}"
+                f"\nsitl ({' '.join(self.fc.command)}):\n{self.fc.log()}")
+
+    def arm(self) -> None:
+        try:
+            self.gcs.arm(timeout_s=self.boot_s)
+        except RuntimeError:
+            raise AssertionError(f"the companion never armed\n{self.why()}") from None
+
+    def drive(self, x: int, y: int, r: int, expected: tuple[int, ...]) -> float:
+        """Stream the sticks until SERVO1..4 read ``expected``; when they did (monotonic s)."""
+        sample = self.monitor.wait_servos(lambda s: s == expected, self.react_s,
+                                          tick=lambda: self.gcs.sticks(x, y, r))
+        assert sample is not None, f"sticks {(x, y, r)} never gave {expected}\n{self.why()}"
+        return sample.t
+
+    def said(self, start: str) -> bool:
+        """Whether the companion told the ground station a STATUSTEXT starting with ``start``
+        (waiting for it; a STATUSTEXT holds 50 characters, longer texts come in pieces)."""
+        return self.gcs.wait("STATUSTEXT", lambda m: m.text.startswith(start), self.react_s,
+                             0) is not None

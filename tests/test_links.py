@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import select
 import socket
 import threading
 import time
@@ -13,6 +14,7 @@ from mecanum_mav.control.core import LinkCounts, RoverCore
 from mecanum_mav.io import links
 from mecanum_mav.io.links import open_link
 from mecanum_mav.protocol.dialect import mavlink
+from mecanum_mav.protocol.signing import TICKS_PER_S, ticks_from_unix
 
 
 class FakeClock:
@@ -123,3 +125,40 @@ def wait_until(condition, timeout_s: float) -> bool:
             return True
         threading.Event().wait(0.01)
     return False
+
+
+def test_a_signing_link_signs_no_earlier_than_the_newest_verified_packet_it_received():
+    """ArduPilot signs from its stored timestamp + 60 s and drops a new stream more than a
+    minute behind its own timestamp: the link takes the peer's verified timestamp, as the
+    MAVLink C library and pymavlink do (tests/test_sitl_signing.py with the real firmware).
+    A packet that fails the signature check moves nothing."""
+    key, now = bytes(range(32)), ticks_from_unix(time.time())
+    link = open_link("udpin:127.0.0.1:0", source_system=255, source_component=190, name="fc",
+                     signing_key=key)
+    board = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    board.settimeout(5.0)
+    try:
+        def beat(secret: bytes, timestamp: int) -> bytes:
+            mav = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
+            mav.signing.secret_key, mav.signing.sign_outgoing = secret, True
+            mav.signing.link_id, mav.signing.timestamp = 1, timestamp
+            return bytes(mavlink.MAVLink_heartbeat_message(10, 3, 0, 0, 3, 3).pack(mav))
+
+        def sent_timestamps() -> list[int]:
+            link.send(mavlink.MAVLink_heartbeat_message(6, 8, 0, 0, 0, 3))
+            link.send_rc_override(1, 1, [1500] * 18)
+            return [int.from_bytes(board.recv(300)[-12:-6], "little") for _ in range(2)]
+
+        ahead = now + 600 * TICKS_PER_S
+        forged = beat(bytes(32), now + 86_400 * TICKS_PER_S)  # another key, a day ahead
+        for packet in (beat(key, ahead), forged):
+            board.sendto(packet, ("127.0.0.1", link.local_port))
+            deadline = time.monotonic() + 5.0
+            while not link.read() and link.signature_check.new_rejections == 0:
+                assert time.monotonic() < deadline, "the link never read the packet"
+                select.select([link.fileno()], [], [], 0.05)
+        stamps = sent_timestamps()
+        assert ahead <= stamps[0] < stamps[1] < ahead + TICKS_PER_S, stamps
+    finally:
+        board.close()
+        link.close()

@@ -364,3 +364,18 @@ def test_everything_the_signed_rover_sends_its_ground_station_verifies_with_the_
     assert wire.check is not None
     assert wire.check.counts[Check.ACCEPTED] == wire.received > 20
     assert wire.check.summary() == "none"
+
+
+def test_packets_the_flight_controller_link_drops_are_said_as_the_boards():
+    """With --fc-signing-key the link to the board drops what is not signed with it; the
+    ground station is told it was the board's (tests/test_sitl_signing.py: a board without the
+    key), once a second at most like the ground-station link's."""
+    h = lockstep()
+    since = h.gcs.mark()
+    h.core.refuse_unsigned({Check.UNSIGNED: 3}, h.now_s, from_fc=True)
+    h.run_for(0.1)
+    h.core.refuse_unsigned({Check.BAD_SIGNATURE: 1}, h.now_s, from_fc=True)
+    h.run_for(0.1)
+    said = [m.text for m in h.gcs.received("STATUSTEXT", since)]
+    assert said == ["FC sent unsigned: board has no signing key"]
+    assert h.core.refusals.counts[Refusal.SIGNATURE] == 4

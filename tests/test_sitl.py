@@ -15,10 +15,10 @@ import time
 from collections.abc import Iterator
 
 import pytest
-from sitl import CompanionProcess, Sitl, find_sitl
+from sitl import CompanionProcess, Rig, Sitl, find_sitl
 
 from mecanum_mav.protocol.dialect import mavlink
-from mecanum_mav.sim.groundstation import ScriptedGroundStation, udp_ground_station
+from mecanum_mav.sim.groundstation import udp_ground_station
 
 BINARY, WHY_NOT = find_sitl()
 if BINARY is None:
@@ -40,34 +40,6 @@ def sitl(request) -> Iterator[Sitl]:
     assert BINARY is not None
     with Sitl(BINARY, request.param, receiver=RECEIVER, boot_timeout_s=BOOT_S) as fc:
         yield fc
-
-
-class Rig:
-    """The firmware, a companion process on it, and a ground station on the companion."""
-
-    def __init__(self, fc: Sitl, gcs: ScriptedGroundStation, companion: CompanionProcess):
-        self.fc = fc
-        self.gcs = gcs
-        self.companion = companion
-        assert fc.monitor is not None
-        self.monitor = fc.monitor
-
-    def why(self) -> str:
-        return (f"last SERVO1..4: {self.monitor.last()}\ncompanion: {self.companion.log()}"
-                f"\nsitl ({' '.join(self.fc.command)}):\n{self.fc.log()}")
-
-    def arm(self) -> None:
-        try:
-            self.gcs.arm(timeout_s=BOOT_S)
-        except RuntimeError:
-            pytest.fail(f"the companion never armed\n{self.why()}")
-
-    def drive(self, x: int, y: int, r: int, expected: tuple[int, ...]) -> float:
-        """Stream the sticks until SERVO1..4 read ``expected``; when they did."""
-        sample = self.monitor.wait_servos(lambda s: s == expected, REACT_S,
-                                          tick=lambda: self.gcs.sticks(x, y, r))
-        assert sample is not None, f"sticks {(x, y, r)} never gave {expected}\n{self.why()}"
-        return sample.t
 
 
 @pytest.fixture

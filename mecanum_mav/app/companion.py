@@ -138,7 +138,7 @@ class Companion:
                 self._write(out)
         rejected = link.take_rejections()
         if rejected:  # unsigned or badly signed: counted, said at most once a second
-            self.core.refuse_unsigned(rejected, now)
+            self.core.refuse_unsigned(rejected, now, from_fc=from_fc)
 
     def _report(self, link: Link, now: float) -> None:
         """Tell the core once when ``link`` went down or came back up."""

@@ -123,6 +123,14 @@ _SIGNATURE_REFUSED = {
 """What a ground station is told (at most once a second) when a link with a signing key drops
 a packet; each under 50 characters, one STATUSTEXT."""
 _LINK_LABELS = {"fc": "FC", "gcs": "GCS"}
+_FC_SIGNATURE_REFUSED = {
+    Check.UNSIGNED: "FC sent unsigned: board has no signing key",
+    Check.BAD_SIGNATURE: "FC bad signature: wrong --fc-signing-key?",
+    Check.REPLAYED: "FC replayed signed packet refused",
+    Check.TOO_OLD: "FC signed packet refused: timestamp too old",
+}
+"""The same for the flight-controller link (``--fc-signing-key``): unsigned packets from it
+mean the board has no key (SETUP_SIGNING was never sent to it)."""
 
 
 class RcOverride(NamedTuple):
@@ -433,14 +441,17 @@ class RoverCore:
         if self.refusals.add(kind, self._now_s, count):
             self.say(Severity.WARNING, text)
 
-    def refuse_unsigned(self, rejected: Mapping[Check, int], now_s: float) -> None:
+    def refuse_unsigned(self, rejected: Mapping[Check, int], now_s: float, *,
+                        from_fc: bool = False) -> None:
         """Packets a link's signature check dropped before they became messages (per kind,
         :meth:`~mecanum_mav.protocol.signing.SignatureCheck.take_rejections`): counted as
         :attr:`Refusal.SIGNATURE`; none of them reached :meth:`handle`, so none armed, drove
-        or kept the ground-station failsafe from firing."""
+        or kept the ground-station failsafe from firing (or, ``from_fc``, brought the
+        flight-controller link up)."""
         self._now_s = now_s
+        texts = _FC_SIGNATURE_REFUSED if from_fc else _SIGNATURE_REFUSED
         for kind, count in rejected.items():
-            self.refuse(Refusal.SIGNATURE, _SIGNATURE_REFUSED[kind], count)
+            self.refuse(Refusal.SIGNATURE, texts[kind], count)
 
     def status_line(self) -> str:
         """One line of counts for people: messages received, packets dropped as malformed,

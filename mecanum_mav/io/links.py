@@ -110,10 +110,14 @@ class Link:
         source_component: component id this side sends as.
         name: short name for logs (``"gcs"``, ``"fc"``).
         signing_key: the 32-byte MAVLink 2 signing key, or None. With a key everything sent
-            is signed (link id 0; the timestamp starts at the wall clock, follows it and never
-            goes backwards) and only correctly signed, fresh packets are read
+            is signed (link id 0; the timestamp starts at the wall clock, follows it and the
+            newest timestamp of the verified packets received, and never goes backwards) and
+            only correctly signed, fresh packets are read
             (:class:`~mecanum_mav.protocol.signing.SignatureCheck`); the others are dropped
-            and counted (:meth:`take_rejections`).
+            and counted (:meth:`take_rejections`). Taking the peer's timestamp is what the
+            MAVLink C library and pymavlink do; ArduPilot relies on it: it drops a new stream
+            more than a minute behind its own timestamp, which starts a minute ahead of the one
+            it stored (tests/test_sitl_signing.py).
     """
 
     def __init__(self, url: str, *, source_system: int, source_component: int, name: str,
@@ -216,19 +220,24 @@ class Link:
         check = self.signature_check
         return {} if check is None or not check.new_rejections else check.take_rejections()
 
-    def _follow_clock(self) -> None:
-        """The signing timestamps follow the wall clock (10 us ticks), never going back."""
-        now = ticks_from_unix(time.time())
+    def _follow_clock(self, check: SignatureCheck) -> None:
+        """The signing timestamps follow the wall clock (10 us ticks) and the newest verified
+        packet's, never going back."""
+        check.advance(ticks_from_unix(time.time()))
+        self._catch_up(check)
+
+    def _catch_up(self, check: SignatureCheck) -> None:
+        """What is sent next is signed no earlier than the local timestamp (the clock, or the
+        newest verified packet's if that is later)."""
         signing = self.conn.mav.signing
-        if signing.timestamp < now:
-            signing.timestamp = now
-        if self.signature_check is not None:
-            self.signature_check.advance(now)
+        if signing.timestamp < check.timestamp:
+            signing.timestamp = check.timestamp
 
     def read(self) -> list[Any]:
         """Every complete message waiting on the link, oldest first; never raises."""
-        if self.signature_check is not None:
-            self._follow_clock()
+        check = self.signature_check
+        if check is not None:
+            self._follow_clock(check)
         messages: list[Any] = []
         for _ in range(_MAX_READS):
             try:
@@ -249,6 +258,8 @@ class Link:
                 for msg in parsed:
                     self._record(msg)
             messages += parsed
+        if check is not None:
+            self._catch_up(check)
         self.received += len(messages)
         return messages
 
@@ -329,7 +340,7 @@ class Link:
     def send(self, msg: Any) -> bool:
         """Pack and send one message object; returns False (and counts) on failure."""
         if self.signature_check is not None:
-            self._follow_clock()
+            self._follow_clock(self.signature_check)
         try:
             self.conn.mav.send(msg)
         except LinkDownError:
