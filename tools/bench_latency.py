@@ -384,6 +384,7 @@ class Harness:
         self.fc_peer: tuple[str, int] | None = None
         self.gcs_messages: list[Any] = []
         self.overrides = 0
+        self.override_rx_ns: list[int] | None = None  # when a list: every override's rx stamp
         self._on_override: Callable[[int, int], None] = lambda pulse, rx_ns: None
         self._closed = threading.Event()
         self._beat_thread = threading.Thread(target=self._beat, daemon=True)
@@ -404,18 +405,25 @@ class Harness:
 
     # ------------------------------------------------------------------ I/O
 
+    def send_fc(self, msg: Any) -> None:
+        """Send one message as the flight controller (once the SUT has spoken on that link).
+        Only the FC thread (:meth:`_beat`) may call it: it owns the link's sequence number."""
+        peer, mav = self.fc_peer, self.fc.mav
+        if peer is None:
+            return
+        with contextlib.suppress(OSError):
+            self.fc_sock.sendto(msg.pack(mav), peer)
+        mav.seq = (mav.seq + 1) % 256
+
     def _beat(self) -> None:
-        """The flight controller's HEARTBEAT at 2 Hz (this thread is the FC link's only sender)."""
+        """The flight controller's HEARTBEAT at 2 Hz (this thread is the FC link's only sender).
+        Subclasses may send more here (see tools/soak.py)."""
         mav = self.fc.mav
         while True:
             peer = self.fc_peer
-            if peer is not None:
-                msg = mav.heartbeat_encode(mavlink.MAV_TYPE_GROUND_ROVER,
-                                           mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA, 0, 0,
-                                           mavlink.MAV_STATE_ACTIVE)
-                with contextlib.suppress(OSError):
-                    self.fc_sock.sendto(msg.pack(mav), peer)
-                mav.seq = (mav.seq + 1) % 256
+            self.send_fc(mav.heartbeat_encode(mavlink.MAV_TYPE_GROUND_ROVER,
+                                              mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA, 0, 0,
+                                              mavlink.MAV_STATE_ACTIVE))
             if self._closed.wait(FC_HEARTBEAT_PERIOD_S if peer is not None else 0.02):
                 return
 
@@ -441,6 +449,8 @@ class Harness:
             for msg in mav.parse_buffer(data) or ():
                 if msg.get_type() == "RC_CHANNELS_OVERRIDE":
                     self.overrides += 1
+                    if self.override_rx_ns is not None:
+                        self.override_rx_ns.append(rx_ns)
                     self._on_override(getattr(msg, self.chan_attr), rx_ns)
 
     def _read_gcs(self) -> None:
@@ -509,10 +519,12 @@ class Harness:
         self.gcs_sock.sendto(buf, self.gcs_peer)
         return t_ns
 
-    def run_input(self, rate_hz: float, count: int, drain_s: float) -> tuple[list[float | None],
-                                                                            int]:
-        """Send ``count`` commands at ``rate_hz`` on an absolute schedule; per-command delays
-        (microseconds, None = dropped) and the number of overrides received."""
+    def run_input(self, rate_hz: float, count: int, drain_s: float, start: float | None = None
+                  ) -> tuple[list[float | None], int]:
+        """Send ``count`` commands at ``rate_hz`` on an absolute schedule (from ``start``,
+        perf_counter s, default now); per-command delays (microseconds, None = dropped) and
+        the number of overrides received. Calls continue each other's schedule when ``start``
+        is the previous call's plus ``count / rate_hz`` and ``drain_s`` is under a period."""
         sent_ns = [0] * count
         delays: list[float | None] = [None] * count
         pending: dict[int, int] = {}  # expected pulse -> index of the newest command sending it
@@ -525,7 +537,8 @@ class Harness:
         self._on_override = on_override
         overrides_before = self.overrides
         period_s = 1.0 / rate_hz
-        start = time.perf_counter() + 0.002
+        if start is None:
+            start = time.perf_counter() + 0.002
         i = 0
         while i < count:
             wait = start + i * period_s - time.perf_counter()
