@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import array
 import bisect
+import contextlib
 import fcntl
 import importlib.util
 import os
@@ -24,14 +25,17 @@ import threading
 import time
 import tty
 from collections import defaultdict
+from collections.abc import Iterator
 from pathlib import Path
 from types import ModuleType
+from typing import Any
 
 import numpy as np
 from sitl import CompanionProcess
 
 from mecanum_mav.config.params import Params
-from mecanum_mav.io.links import mavlink
+from mecanum_mav.io import links
+from mecanum_mav.io.links import Link, mavlink, open_link
 from mecanum_mav.sim.groundstation import udp_ground_station
 
 BAUD = 57600
@@ -165,3 +169,109 @@ def test_at_57600_baud_1khz_sticks_reach_the_board_at_most_20ms_old_and_heartbea
     assert backlog <= GOAL_AGE_P99_S * WIRE_BYTES_PER_S
     assert p99 <= GOAL_AGE_P99_S
     assert gaps.max() < GOAL_HEARTBEAT_GAP_S
+
+
+# --------------------------------------------------------------------------- the link alone
+
+
+class UnreadPty:
+    """A pty whose far side reads only when asked: what the link handed to the kernel."""
+
+    def __init__(self) -> None:
+        self.master, self.slave = os.openpty()
+        tty.setraw(self.slave)
+        os.set_blocking(self.master, False)
+        self.path = os.ttyname(self.slave)
+        self.mav = mavlink.MAVLink(None)
+        self.mav.robust_parsing = True
+
+    def messages(self, count: int, timeout_s: float = 1.0) -> list[Any]:
+        """Read until ``count`` messages came (a pty passes bytes on a moment after they
+        were written) or ``timeout_s`` passed, and 50 ms more for any extra."""
+        out: list[Any] = []
+        deadline = time.monotonic() + timeout_s
+        while (now := time.monotonic()) < deadline:
+            if not select.select([self.master], [], [], deadline - now)[0]:
+                break
+            data = os.read(self.master, 65536)
+            out += [m for m in self.mav.parse_buffer(data) or () if m.get_type() != "BAD_DATA"]
+            if len(out) >= count:
+                deadline = min(deadline, time.monotonic() + 0.05)
+        return out
+
+    def close(self) -> None:
+        os.close(self.master)
+        os.close(self.slave)
+
+
+def hand_over_all(link: Link, timeout_s: float = 2.0) -> None:
+    """Flush ``link`` on its pacing timer until nothing waits in it."""
+    deadline = time.monotonic() + timeout_s
+    while link.pending and time.monotonic() < deadline:
+        threading.Event().wait(max(0.0, min(link.next_send_s, deadline) - time.monotonic()))
+        link.flush()
+    assert not link.pending
+
+
+def override(pulse: int) -> list[int]:
+    return [pulse] * 4 + [65535] * 4 + [0] * 10
+
+
+def summary(messages: list[Any]) -> list[Any]:
+    return [m.chan1_raw if m.get_type() == "RC_CHANNELS_OVERRIDE" else m.get_type()
+            for m in messages]
+
+
+@contextlib.contextmanager
+def serial_link(baud: int = BAUD) -> Iterator[tuple[Link, UnreadPty]]:
+    board = UnreadPty()
+    link = open_link(f"{board.path},{baud}", source_system=255, source_component=190,
+                     name="fc")
+    try:
+        yield link, board
+    finally:
+        link.close()
+        board.close()
+
+
+def test_an_override_waiting_for_the_wire_is_replaced_by_a_newer_one_and_others_keep_order():
+    with serial_link() as (link, board):
+        beat = link.mav.heartbeat_encode(6, 8, 0, 0, 4)
+        link.send_rc_override(1, 1, override(1001))  # the wire is free: handed over at once
+        link.send(beat)
+        link.send_rc_override(1, 1, override(1002))
+        link.send(link.mav.param_request_read_encode(1, 1, b"RCMAP_THROTTLE", -1))
+        link.send_rc_override(1, 1, override(1003))
+        assert summary(board.messages(1)) == [1001]  # the rest waits in the link
+        hand_over_all(link)
+        # overrides and queued packets take turns; the waiting override was replaced
+        assert summary(board.messages(3)) == ["HEARTBEAT", 1003, "PARAM_REQUEST_READ"]
+        assert link.superseded == 1
+
+
+def test_the_last_overrides_at_close_all_reach_a_slow_serial_board_in_order():
+    with serial_link() as (link, board):
+        link.send_rc_override(1, 1, override(2000))  # on the wire
+        link.send_rc_override(1, 1, override(1900))  # waiting: superseded by the last words
+        for pulse in (1500, 1500, 0):  # neutral, neutral, release
+            link.send_rc_override(1, 1, override(pulse), replace=False)
+        link.close(linger_s=0.3)
+        assert summary(board.messages(4)) == [2000, 1500, 1500, 0]
+        assert link.superseded == 1
+
+
+def test_a_board_that_stops_reading_never_blocks_the_sender_and_excess_is_dropped_and_counted():
+    with serial_link(baud=9600) as (link, board):
+        start = time.monotonic()
+        for i in range(1000):  # ~37 KB of messages, ~40 s of a 9600-baud wire
+            link.send(link.mav.param_request_read_encode(1, 1, b"RCMAP_THROTTLE", i))
+            link.send_rc_override(1, 1, override(1000 + i))
+        took_s = time.monotonic() - start
+        handed = board.messages(1)
+    print(f"1000 overrides and 1000 other packets offered in {took_s * 1e3:.0f} ms; "
+          f"{len(handed)} handed to the kernel; {link.send_errors} dropped")
+    assert summary(handed) == ["PARAM_REQUEST_READ"]  # the first, at once; the rest waits
+    assert link.superseded == 999  # all overrides but the newest
+    fits = links.QUEUE_MIN_BYTES // len(handed[0].get_msgbuf())  # the queue's bound (4 KB)
+    assert link.send_errors == 1000 - 1 - fits
+    assert took_s < 1.0
