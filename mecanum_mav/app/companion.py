@@ -10,7 +10,16 @@ One thread, one loop (:meth:`Companion.run`), top to bottom:
    out at once. Under overload this drains the queue and the core acts on the newest stick.
 3. ``core.tick``: its RC_CHANNELS_OVERRIDE goes out at once; then ``core.housekeeping``:
    odometry, telemetry, heartbeats and status texts.
-4. On stop (SIGINT, SIGTERM, :meth:`Companion.stop`): neutral, then the channels released.
+4. Each link hands over what still waits in it (:func:`~mecanum_mav.io.links.follow`).
+5. On stop (SIGINT, SIGTERM, :meth:`Companion.stop`): neutral, then the channels released.
+
+A write never blocks the loop. On a stream link (a serial flight controller, TCP) what is sent
+waits in the link and goes to the kernel paced to what the wire carries (the baud rate),
+with the override *newest wins*: at 57600 baud one override takes ~5 ms on the wire, so with
+1 kHz input the board gets the newest command each time the wire is free, never a queue of old
+ones, and the ground-station link never waits for the flight controller's (see
+:mod:`mecanum_mav.io.links`). The loop wakes for the pacing too
+(:attr:`~mecanum_mav.io.links.Link.next_send_s`).
 
 A link that breaks (serial device gone, TCP connection closed) is reported to the core once
 (``core.link_down``: its failsafe fires now), leaves the selector (its dead descriptor would
@@ -107,11 +116,12 @@ class Companion:
         registered = {link: follow(selector, link, None, link) for link in (gcs, fc)}
         try:
             while not self._stop.is_set():
-                due = min(core.next_due_s(), gcs.next_reopen_s, fc.next_reopen_s)
-                for key, _ in selector.select(max(0.0, due - self.clock())):
+                due = min(core.next_due_s(), gcs.next_reopen_s, fc.next_reopen_s,
+                          gcs.next_send_s, fc.next_send_s)
+                for key, events in selector.select(max(0.0, due - self.clock())):
                     if key.data is None:
                         os.read(self._wake_r, 64)
-                    else:
+                    elif events & selectors.EVENT_READ:  # (writable: follow() flushes)
                         self._drain(key.data)
                 now = self.clock()
                 for link in registered:
@@ -125,8 +135,8 @@ class Companion:
         finally:
             selector.close()
             self.fc.mav.srcSystem = core.identity.fc_gcs_sysid
-            for override in core.shutdown():
-                self.fc.send_rc_override(*override)
+            for override in core.shutdown():  # all of them, in order (close() lingers)
+                self.fc.send_rc_override(*override, replace=False)
 
     def _drain(self, link: Link) -> None:
         now, from_fc, handle = self.clock(), link is self.fc, self.core.handle

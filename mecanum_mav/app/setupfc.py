@@ -50,8 +50,9 @@ class FcSession:
         self.link.close(linger_s=0.2)
 
     def _receive(self, timeout_s: float) -> list[Any]:
-        self._fd = follow(self._selector, self.link, self._fd)
-        if not self._selector.select(max(0.0, timeout_s)):
+        self._fd = follow(self._selector, self.link, self._fd)  # (and hands over what waits)
+        wake_s = min(timeout_s, self.link.next_send_s - time.monotonic())  # paced writes
+        if not self._selector.select(max(0.0, wake_s)):
             return []
         return [m for m in self.link.read() if m.get_srcSystem() == self.target[0]]
 

@@ -29,19 +29,44 @@ first packet on, while garbage or unsigned datagrams from other addresses make n
 (they get nothing back, and cannot make the rover send everything many times over). A peer
 silent for :data:`PEER_TIMEOUT_S` is forgotten once another peer is heard; at most
 :data:`MAX_PEERS` are kept (the longest silent goes first).
+
+Stream links (serial, TCP) never block the loop on a write, and keep no standing queue in the
+kernel. What is sent waits in the link (:meth:`Link.flush` hands it over); a packet goes to
+the kernel only when what the kernel already holds would be on the wire within
+:data:`PACING_LEAD_S`. On a serial link that is judged from the baud rate in the URL (8N1:
+``baud / 10`` bytes/s, the time the bytes handed over need on the wire) and from the tty's
+own output queue (``TIOCOUTQ``), whichever is longer; a pty, a USB-CDC board or any device
+faster than its nominal rate is thus paced to the nominal rate too. On TCP the kernel's unsent
+bytes (``SIOCOUTQNSD``) must be at most :data:`TCP_UNSENT_LIMIT`. The kernel's own buffers
+(4 KB of tty, about 0.7 s at 57600 baud; a pty's 20 KB, ~4 s) would otherwise be a standing
+queue. RC_CHANNELS_OVERRIDE is *newest wins*: an override still waiting in the link is
+replaced by a newer one (counted in :attr:`Link.superseded`, never packed, so the sequence
+numbers the board sees have no gaps); everything else queues in order, at most
+:data:`QUEUE_S` of the wire (TCP: :data:`TCP_QUEUE_BYTES`); a packet that does not fit is
+dropped and counted as a send error. Overrides and queued packets take turns, so a 1 kHz
+override stream never starves the heartbeat. A loop waits for :attr:`Link.next_send_s` (the
+pacing timer) and calls :func:`follow` once per pass, which flushes and watches the descriptor
+for writing while the kernel refuses more (``EAGAIN``). :meth:`Link.close` with a linger hands
+over what is still waiting, paced, before it closes.
 """
 
 from __future__ import annotations
 
+import array
 import contextlib
 import errno
+import fcntl
 import functools
 import logging
 import math
+import os
+import select
 import selectors
 import socket
 import struct
+import termios
 import time
+from collections import deque
 from pathlib import Path
 from typing import Any, BinaryIO
 
@@ -69,6 +94,22 @@ REOPEN_PERIOD_S = 0.5
 """A link that is down tries to open its device or address again this often (seconds)."""
 TCP_CONNECT_TIMEOUT_S = 3.0
 """A TCP connect still pending after this long (seconds) is abandoned and started again."""
+PACING_LEAD_S = 0.002
+"""A stream link hands the kernel the next packet only when what the kernel holds already
+would be on the wire within this time (seconds): its standing queue is at most this plus
+one packet."""
+QUEUE_S = 1.0
+"""A serial link queues at most this much wire time (seconds; at least
+:data:`QUEUE_MIN_BYTES`) of packets other than the newest override; more is dropped."""
+QUEUE_MIN_BYTES = 4096
+TCP_QUEUE_BYTES = 65536
+"""A TCP link queues at most this many bytes besides the newest override."""
+TCP_UNSENT_LIMIT = 1024
+"""A TCP link hands over more only while the kernel holds at most this many unsent bytes."""
+TCP_POLL_S = 0.01
+"""How soon a TCP link over :data:`TCP_UNSENT_LIMIT` looks again (seconds): the kernel has
+no readiness event for "the unsent queue shrank"."""
+_SIOCOUTQNSD = 0x894B  # Linux: bytes of a TCP socket's queue not yet sent
 _SERIAL, _TCP, _TCP_SERVER, _DATAGRAM = "serial", "tcp", "tcpin", "datagram"
 _AGAIN = (BlockingIOError, InterruptedError)
 
@@ -83,6 +124,17 @@ def _gone(kind: str) -> str:
     """Why a stream link broke, in a few words (a STATUSTEXT has 50 characters)."""
     return ("device gone" if kind == _SERIAL else
             "client left" if kind == _TCP_SERVER else "connection lost")
+
+
+def _queued_bytes(fd: int, request: int) -> int:
+    """What the kernel holds unsent for ``fd`` (``TIOCOUTQ``, ``SIOCOUTQNSD``), bytes; 0 if
+    it cannot say."""
+    count = array.array("i", [0])
+    try:
+        fcntl.ioctl(fd, request, count, True)
+    except OSError:
+        return 0
+    return count[0]
 
 
 class LinkDownError(OSError):
@@ -118,6 +170,10 @@ class Link:
             MAVLink C library and pymavlink do; ArduPilot relies on it: it drops a new stream
             more than a minute behind its own timestamp, which starts a minute ahead of the one
             it stored (tests/test_sitl_signing.py).
+
+    On a stream link (serial, TCP) what is sent waits in the link until :meth:`flush` can
+    hand it to the kernel without a standing queue there (see the module's description);
+    call :func:`follow` once per loop pass and wake by :attr:`next_send_s`.
     """
 
     def __init__(self, url: str, *, source_system: int, source_component: int, name: str,
@@ -151,7 +207,27 @@ class Link:
         self._peers_s: dict[Any, float] = {}  # udpin peers -> when last heard (monotonic s)
         self.peer_timeout_s = PEER_TIMEOUT_S
         self._next_prune_s = -math.inf
+        # outgoing, stream links only (see flush)
+        self._buffered = self._kind != _DATAGRAM
+        self._head = b""  # the rest of a packet the kernel took part of: goes on first
+        self._override: tuple[int, int, list[int]] | None = None  # newest, not yet packed
+        self._queue: deque[bytes] = deque()  # everything else, in order
+        self._queued = 0  # bytes in _queue
+        self._override_turn = True  # overrides and queued packets take turns
+        self._blocked = False  # the kernel refused more: wait until writable
+        self._wire_free_s = 0.0  # when what was handed over is on the wire (monotonic s)
+        baud = int(getattr(self.conn, "baud", 0) or 0) if self._kind == _SERIAL else 0
+        self.bytes_per_s = baud / 10.0 if baud > 0 else None
+        """The wire's capacity (8N1 at the URL's baud rate; None: not known, TCP/UDP)."""
+        self._queue_limit = (TCP_QUEUE_BYTES if self.bytes_per_s is None else
+                             max(QUEUE_MIN_BYTES, int(QUEUE_S * self.bytes_per_s)))
+        self._port_fd = self._current_port_fd()  # the descriptor written to (serial, TCP)
 
+    next_send_s = math.inf
+    """When :meth:`flush` can hand over more (monotonic s); inf when nothing waits, or
+    while it waits for the descriptor to be writable (:attr:`wants_write`)."""
+    superseded = 0
+    """Overrides replaced by a newer one before they were sent (stream links)."""
     down_reason: str | None = None
     """Why the link is down (device gone, peer closed), or None while it is up."""
     next_reopen_s = math.inf
@@ -312,30 +388,30 @@ class Link:
         clients.intersection_update(peers)
 
     def write(self, buf: bytes) -> None:
-        """Write one packet (the pymavlink ``MAVLink`` object writes through here too).
+        """Send one packet (the pymavlink ``MAVLink`` object writes through here too): a
+        datagram at once; on a stream link it queues in order and goes when :meth:`flush`
+        can hand it over.
 
         Raises:
             LinkDownError: the link is down, or broke now (it is then down): the packet is lost.
-            OSError: it could not be written this time (a full buffer, no route).
+            BlockingIOError: a stream link's queue is full: the packet is dropped.
+            OSError: it could not be sent this time (no route).
         """
-        kind, conn = self._kind, self.conn
+        self._check_open()
+        if not self._buffered:
+            self.conn.write(buf)
+            return
+        if self._queued + len(buf) > self._queue_limit:
+            raise BlockingIOError(errno.ENOBUFS, f"outgoing queue full ({self._queued} bytes)")
+        self._queue.append(buf)
+        self._queued += len(buf)
+        self.flush()
+
+    def _check_open(self) -> None:
         if self.down_reason is not None:
             raise LinkDownError(self.down_reason)
-        if kind == _DATAGRAM:
-            conn.write(buf)
-            return
-        if conn.port is None:  # tcpin before its first client: nobody to send to
-            raise LinkDownError("no client connected")
-        try:
-            if kind == _SERIAL:
-                conn.port.write(buf)
-            else:
-                conn.port.send(buf)
-        except _AGAIN:
-            raise
-        except OSError as exc:
-            self._went_down(_gone(kind), f"write: {exc}")
-            raise LinkDownError(self.down_reason) from exc
+        if self._kind == _TCP_SERVER and self.conn.port is None:
+            raise LinkDownError("no client connected")  # nobody to send to yet
 
     def send(self, msg: Any) -> bool:
         """Pack and send one message object; returns False (and counts) on failure."""
@@ -362,26 +438,153 @@ class Link:
             log.warning("%s: send failed (%d so far): %s", self.name, self.send_errors, exc)
 
     def send_rc_override(self, target_system: int, target_component: int,
-                         channels: list[int]) -> None:
-        """RC_CHANNELS_OVERRIDE with the 18 ``chanN_raw`` fields, packed by the fast codec
-        (pymavlink when the link signs); never raises."""
-        packet = encode_rc_override(self.conn.mav, target_system, target_component, channels)
-        if packet is None:
-            self.send(self.conn.mav.rc_channels_override_encode(
-                target_system, target_component, *channels))
+                         channels: list[int], *, replace: bool = True) -> None:
+        """RC_CHANNELS_OVERRIDE with the 18 ``chanN_raw`` fields, packed by the fast codec;
+        never raises.
+
+        On a stream link it is *newest wins* (``replace``): an override still waiting in the
+        link (not yet handed to the kernel) is replaced by this one, unpacked. With
+        ``replace=False`` it supersedes the waiting one and is queued in order behind what
+        else waits, and a later override does not replace it (the last words at shutdown:
+        neutral, then release, all of them reach the board)."""
+        if not self._buffered:
+            try:
+                self.write(self._pack_override(target_system, target_component, channels))
+            except LinkDownError:
+                self.unsent += 1
+            except Exception as exc:  # a send must never take the control loop down
+                self._send_failed(exc)
+            else:
+                self.sent += 1
             return
         try:
-            self.write(packet)
+            self._check_open()
         except LinkDownError:
             self.unsent += 1
             return
-        except Exception as exc:  # a send must never take the control loop down
-            self._send_failed(exc)
+        if self._override is not None:
+            self.superseded += 1
+            self._override = None
+        if replace:
+            self._override = (target_system, target_component, channels)
+            self.flush()
             return
-        self.sent += 1
+        try:
+            self.write(self._pack_override(target_system, target_component, channels))
+        except Exception as exc:  # the queue is full
+            self._send_failed(exc)
+        else:
+            self.sent += 1
+
+    def _pack_override(self, target_system: int, target_component: int,
+                       channels: list[int]) -> bytes:
+        """The packet (and the tlog's record of it): packed now, with the next sequence
+        number."""
+        packet = encode_rc_override(self.conn.mav, target_system, target_component, channels)
         if self._tlog is not None:
             with contextlib.suppress(OSError, ValueError):
                 self._tlog.write(_TLOG_STAMP.pack(int(time.time() * 1e6)) + packet)
+        return packet
+
+    # ----------------------------------------------------------------- pacing (stream links)
+
+    @property
+    def wants_write(self) -> bool:
+        """Whether the kernel refused more and something still waits: watch the descriptor
+        for writing (:func:`follow` does)."""
+        return self._blocked and self.pending
+
+    @property
+    def pending(self) -> bool:
+        """Whether anything waits in the link to be handed to the kernel."""
+        return bool(self._head) or self._override is not None or bool(self._queue)
+
+    def flush(self) -> None:
+        """Hand the kernel what waits, as far as pacing lets it (module description): the rest
+        of a packet first, then overrides and queued packets taking turns; sets
+        :attr:`next_send_s`. Never blocks or raises (a break puts the link down)."""
+        if not (self._head or self._override is not None or self._queue):
+            self.next_send_s = math.inf
+            return
+        if self.down_reason is not None:
+            self.next_send_s = math.inf
+            return
+        now = time.monotonic()
+        while True:
+            if self._head and not self._hand_over(self._head, now):
+                self.next_send_s = math.inf  # writable, or reopened, wakes it
+                return
+            if self._override is None and not self._queue:
+                self.next_send_s = math.inf
+                return
+            wait_s = self._backlog_s(now)
+            if wait_s > 0.0:
+                self.next_send_s = now + wait_s
+                return
+            self._head = self._next_packet()
+
+    def _backlog_s(self, now: float) -> float:
+        """How long (s) before the kernel may take the next packet: > 0 waits."""
+        rate = self.bytes_per_s
+        if rate is None:  # TCP: its unsent bytes
+            if _queued_bytes(self._port_fd, _SIOCOUTQNSD) > TCP_UNSENT_LIMIT:
+                return TCP_POLL_S
+            return 0.0
+        in_kernel = _queued_bytes(self._port_fd, termios.TIOCOUTQ)
+        if in_kernel:  # the device is slower than its baud rate says: follow the device
+            self._wire_free_s = max(self._wire_free_s, now + in_kernel / rate)
+        return self._wire_free_s - now - PACING_LEAD_S
+
+    def _next_packet(self) -> bytes:
+        override = self._override
+        if override is not None and (self._override_turn or not self._queue):
+            self._override = None
+            self._override_turn = False
+            self.sent += 1
+            return self._pack_override(*override)
+        packet = self._queue.popleft()
+        self._queued -= len(packet)
+        self._override_turn = True
+        return packet
+
+    def _hand_over(self, data: bytes, now: float) -> bool:
+        """Write ``data`` to the kernel; whether it took all of it (the rest stays in
+        ``_head``)."""
+        try:
+            if self._kind == _SERIAL:
+                n = os.write(self._port_fd, data)
+            else:
+                n = self.conn.port.send(data)
+        except _AGAIN:
+            self._blocked = True
+            return False
+        except OSError as exc:
+            self._went_down(_gone(self._kind), f"write: {exc}")
+            return False
+        rate = self.bytes_per_s
+        if rate is not None:
+            self._wire_free_s = max(self._wire_free_s, now) + n / rate
+        self._head = data[n:]
+        self._blocked = bool(self._head)  # the kernel took only part: it is full
+        return not self._blocked
+
+    def _current_port_fd(self) -> int:
+        port = getattr(self.conn, "port", None) if self._buffered else None
+        if port is None:
+            return -1
+        fd = int(port.fileno())
+        if self._kind == _SERIAL:
+            os.set_blocking(fd, False)  # pyserial opens it so; its writes wait, ours do not
+        return fd
+
+    def _drop_pending(self) -> None:
+        """The link broke: what waits in it is lost (counted in :attr:`unsent`)."""
+        self.unsent += len(self._queue) + (self._override is not None) + bool(self._head)
+        self._queue.clear()
+        self._queued = 0
+        self._override, self._head, self._blocked = None, b"", False
+        self._wire_free_s = 0.0
+        self.next_send_s = math.inf
 
     # ----------------------------------------------------------------- breaks and reopening
 
@@ -391,6 +594,8 @@ class Link:
             return
         self.down_reason = reason
         log.info("%s: %s: %s", self.name, reason, detail)
+        self._drop_pending()
+        self._port_fd = -1
         kind, conn = self._kind, self.conn
         if kind == _TCP_SERVER:  # back to listening: the next client brings it up
             with contextlib.suppress(OSError):
@@ -406,6 +611,7 @@ class Link:
         log.debug("%s: up again (was down: %s)", self.name, self.down_reason)
         self.down_reason = None
         self.next_reopen_s = math.inf
+        self._port_fd = self._current_port_fd()
         self.parser.reset()  # a partial packet from before the break is not completed now
 
     def reopen(self, now_s: float) -> bool:
@@ -482,6 +688,7 @@ class Link:
         mavutil.set_close_on_exec(port.fileno())
         conn.port = port
         conn.fd = port.fileno()
+        self._port_fd = port.fileno()
         if self.down_reason is not None:
             self._came_up()
         return True
@@ -490,7 +697,9 @@ class Link:
         """Close the connection; idempotent.
 
         With ``linger_s`` what was written last reaches the peer and is read before the link
-        goes: a serial port waits until its output is sent (``flush``); a TCP socket keeps the
+        goes: what still waits in the link is handed over first, paced as always, for at most
+        ``linger_s``; then a serial port waits until its output is sent (``flush``, at most
+        :data:`PACING_LEAD_S` and a packet after the pacing); a TCP socket keeps the
         connection open for ``linger_s`` seconds, reading and dropping what the peer still
         sends, then sends its end-of-stream and closes. A peer that sees the connection end
         while the last bytes are still in its buffers may drop them: measured with ArduPilot
@@ -499,12 +708,26 @@ class Link:
         """
         with contextlib.suppress(OSError, ValueError):
             if linger_s > 0.0:
+                self._hand_over_rest(time.monotonic() + linger_s)
                 self._flush_out(linger_s)
+        self._drop_pending()
         with contextlib.suppress(OSError):
             self.conn.close()
         if self._connecting is not None:
             self._connecting.close()
             self._connecting = None
+
+    def _hand_over_rest(self, deadline: float) -> None:
+        """Before closing: flush until nothing waits, the link broke, or ``deadline``."""
+        while self.pending and self.down_reason is None:
+            self.flush()
+            now = time.monotonic()
+            if not self.pending or now >= deadline:
+                return
+            if self.wants_write:
+                select.select([], [self._port_fd], [], deadline - now)
+            else:
+                time.sleep(max(0.0, min(self.next_send_s, deadline) - now))
 
     def _flush_out(self, linger_s: float) -> None:
         port = getattr(self.conn, "port", None)
@@ -530,16 +753,26 @@ def follow(selector: selectors.BaseSelector, link: Link, fd: int | None,
     """Keep ``selector`` watching ``link`` whose registered descriptor was ``fd`` (None: not
     registered); returns the one registered now (:meth:`Link.wait_fd`).
 
+    Call it once per pass of the loop: it first hands over what waits in the link
+    (:meth:`Link.flush`; the loop also wakes by :attr:`Link.next_send_s`), then watches the
+    descriptor for writing too while the kernel refuses more (:attr:`Link.wants_write`).
     A ``tcpin`` link swaps its descriptor when a client connects or leaves, and a link that
     went down has none until it is reopened: re-register, or unregister, then. (A reopened
     link may get its old descriptor number back; it was unregistered in between.)"""
+    link.flush()
     new_fd = link.wait_fd()
+    events = _READ_WRITE if link.wants_write else selectors.EVENT_READ
     if new_fd != fd:
         if fd is not None:
             selector.unregister(fd)
         if new_fd is not None:
-            selector.register(new_fd, selectors.EVENT_READ, data)
+            selector.register(new_fd, events, data)
+    elif new_fd is not None and selector.get_key(new_fd).events != events:
+        selector.modify(new_fd, events, data)
     return new_fd
+
+
+_READ_WRITE = selectors.EVENT_READ | selectors.EVENT_WRITE
 
 
 def open_link(url: str, *, source_system: int, source_component: int, name: str,

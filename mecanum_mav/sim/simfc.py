@@ -108,7 +108,8 @@ class SimFlightController:
         with selectors.DefaultSelector() as selector:
             fd = follow(selector, link, None)
             while not (stop.is_set() or self._stop_event.is_set()):
-                timeout = max(0.0, board.next_due_s() - time.monotonic())
+                due = min(board.next_due_s(), link.next_send_s)  # (paced writes: follow)
+                timeout = max(0.0, due - time.monotonic())
                 if selector.select(timeout) and board.receive(link.read(), time.monotonic()):
                     self._publish()
                 if board.on_time(time.monotonic(), link.mav):
