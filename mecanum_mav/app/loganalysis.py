@@ -21,8 +21,10 @@ ODOMETRY or MISSION_CURRENT, else of the most vehicle HEARTBEATs):
   downloads alike); items with a position from seq 1 on (item 0 is home).
 - sticks: MANUAL_CONTROL x, y, r (-1000..1000 -> -1..1). PWM: RC_CHANNELS_OVERRIDE, by sender,
   and SERVO_OUTPUT_RAW. Normalized wheel commands are not on the wire and are not shown.
-- modes: the vehicle's HEARTBEAT (``custom_mode`` and the armed flag). Failsafes: STATUSTEXT
-  of severity CRITICAL or worse, or whose text says "failsafe" or "lost".
+- modes: the vehicle's HEARTBEAT (``custom_mode`` and the armed flag); a change is placed at
+  the accepted mode or arming command (COMMAND_ACK), failsafe or reached item that caused it
+  since the heartbeat before, else at the heartbeat that first shows it. Failsafes:
+  STATUSTEXT of severity CRITICAL or worse, or whose text says "failsafe" or "lost".
 - progress: MISSION_CURRENT and MISSION_ITEM_REACHED (a reached item makes the next one
   current at once). A leg is the line from the previous mission position (or, for the first,
   from where the vehicle was when it became current) to an item; its cross-track is the
@@ -41,6 +43,7 @@ count as stick input, not as PWM.
 
 from __future__ import annotations
 
+import bisect
 import itertools
 import math
 import re
@@ -81,6 +84,8 @@ _NAV_COMMANDS = frozenset({
     mavlink.MAV_CMD_NAV_SPLINE_WAYPOINT, mavlink.MAV_CMD_NAV_LAND,
     mavlink.MAV_CMD_NAV_LOITER_TO_ALT})
 _RTL = mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH
+_MODE_COMMANDS = frozenset({mavlink.MAV_CMD_DO_SET_MODE, mavlink.MAV_CMD_COMPONENT_ARM_DISARM,
+                            mavlink.MAV_CMD_MISSION_START, 11})  # 11: SET_MODE's acknowledgement
 _NEAR_NULL_ISLAND_E7 = 10_000_000
 
 
@@ -220,6 +225,8 @@ class _Senders:
     def __init__(self) -> None:
         self._chains: dict[tuple[int, int], list[_Chain]] = defaultdict(list)
         self._anchors: dict[int, list[tuple[int, str]]] = defaultdict(list)
+        self._siblings: dict[int, list[int]] = {}
+        """chain number -> the numbers of every chain of its id."""
         self.chain_of: list[int] = []
         self._count = 0
 
@@ -237,6 +244,9 @@ class _Senders:
             best = _Chain(self._count, seq, index)
             self._count += 1
             chains.append(best)
+            siblings = self._siblings.get(chains[0].number, [])
+            siblings.append(best.number)
+            self._siblings[best.number] = siblings
             if len(chains) > MAX_SENDERS:  # forget the one silent longest
                 chains.remove(min(chains, key=lambda c: c.last_index))
         best.last_seq, best.last_index = seq, index
@@ -260,12 +270,23 @@ class _Senders:
 
     def role(self, index: int) -> str | None:
         """The role of message ``index``'s sender: "vehicle", "gcs", "other" or None
-        (unknown): the sender's last anchor before it, else its first one after."""
-        anchors = self._anchors.get(self.chain_of[index])
+        (unknown): the sender's last anchor before it; before its first anchor, that anchor's
+        role unless another sender of its id had that role then."""
+        chain = self.chain_of[index]
+        before = self._role_before(chain, index)
+        if before is not None:
+            return before
+        anchors = self._anchors.get(chain)
         if not anchors:
             return None
         role = anchors[0][1]
-        for at, kind in anchors:
+        taken = any(self._role_before(other, index) == role
+                    for other in self._siblings[chain] if other != chain)
+        return None if taken else role
+
+    def _role_before(self, chain: int, index: int) -> str | None:
+        role = None
+        for at, kind in self._anchors.get(chain, ()):
             if at > index:
                 break
             role = kind
@@ -393,20 +414,22 @@ def _planned(items: Iterable[MissionItem], origin: GlobalOrigin | None
     return out
 
 
-def _mode_spans(beats: list[tuple[float, str, bool]], end_s: float) -> list[ModeSpan]:
-    spans: list[ModeSpan] = []
-    for k, (t, mode, armed) in enumerate(beats):
-        if spans and spans[-1].mode == mode and spans[-1].armed == armed:
-            continue
-        if spans:
-            last = spans[-1]
-            spans[-1] = ModeSpan(last.start_s, t, last.mode, last.armed)
-        nxt = beats[k + 1][0] if k + 1 < len(beats) else end_s
-        spans.append(ModeSpan(t, max(nxt, t), mode, armed))
-    if spans:
-        last = spans[-1]
-        spans[-1] = ModeSpan(last.start_s, max(end_s, last.start_s), last.mode, last.armed)
-    return spans
+def _mode_spans(beats: list[tuple[float, str, bool]], causes: Sequence[float],
+                end_s: float) -> list[ModeSpan]:
+    """Spans from the vehicle's heartbeats (time, mode, armed). A change first seen in a
+    heartbeat is placed at the last of ``causes`` (sorted times of accepted mode and arming
+    commands, failsafes, reached items) since the heartbeat before, else at the heartbeat."""
+    starts: list[tuple[float, str, bool]] = []
+    previous_t = -math.inf
+    for t, mode, armed in beats:
+        if not starts or (starts[-1][1], starts[-1][2]) != (mode, armed):
+            k = bisect.bisect_right(causes, t) - 1
+            at = causes[k] if k >= 0 and causes[k] > previous_t and starts else t
+            starts.append((at, mode, armed))
+        previous_t = t
+    ends = [t for t, _, _ in starts[1:]] + [end_s]
+    return [ModeSpan(t, max(t_end, t), mode, armed)
+            for (t, mode, armed), t_end in zip(starts, ends, strict=True)]
 
 
 def _mode_at(spans: Sequence[ModeSpan], t: float) -> str | None:
@@ -469,6 +492,7 @@ def analyse(entries: Sequence[TlogEntry]) -> LogAnalysis:
     vehicle_split = any(e.msg.get_type() in _VEHICLE_ANCHORS for e in entries)
     paths: dict[str, list[PathPoint]] = defaultdict(list)
     beats: list[tuple[float, str, bool]] = []
+    causes: list[float] = []
     last_current: int | None = None
     for index, e in enumerate(entries):
         msg, kind, t = e.msg, e.msg.get_type(), e.time_s - t0
@@ -511,6 +535,9 @@ def analyse(entries: Sequence[TlogEntry]) -> LogAnalysis:
                 if msg.seq != last_current:
                     result.mission_current.append((t, msg.seq))
                     last_current = msg.seq
+            elif (kind == "COMMAND_ACK" and _from(msg, vehicle) and msg.command in _MODE_COMMANDS
+                  and msg.result == mavlink.MAV_RESULT_ACCEPTED):
+                causes.append(t)
             elif kind == "MISSION_ITEM_REACHED" and _from(msg, vehicle):
                 result.reached.append((t, msg.seq))
         except (AttributeError, TypeError, ValueError):
@@ -520,6 +547,8 @@ def analyse(entries: Sequence[TlogEntry]) -> LogAnalysis:
             result.path, result.path_source = paths[source], source
             break
     result.planned = _planned(_mission(entries), origin)
-    result.modes = _mode_spans(beats, result.duration_s)
+    causes = sorted([*causes, *(e.time_s for e in result.failsafes),
+                     *(t for t, _ in result.reached)])
+    result.modes = _mode_spans(beats, causes, result.duration_s)
     result.legs = _legs(result)
     return result

@@ -203,10 +203,12 @@ def plot_log(a: LogAnalysis, path: Path, title: str) -> Path:
     return path
 
 
-def run_log(tlog: Path, png: Path | None, out: TextIO = sys.stdout,
-            err: TextIO = sys.stderr) -> int:
-    """The ``log`` command: summary to ``out``, problems to ``err``, the PNG to ``png`` (its
-    default beside the tlog). Returns the exit status."""
+def run_log(tlog: Path, png: Path | None, out: TextIO | None = None,
+            err: TextIO | None = None) -> int:
+    """The ``log`` command: summary to ``out`` (stdout), problems to ``err`` (stderr), the
+    PNG to ``png`` (its default beside the tlog). Returns the exit status."""
+    out = out or sys.stdout
+    err = err or sys.stderr
     read = read_tlog(tlog)
     for problem in read.problems:
         print(f"mecanum-mav log: {problem}", file=err)
