@@ -5,6 +5,7 @@ Sub-commands:
     run     the companion between a ground station (--gcs) and a flight controller (--fc)
     setup-fc  check (and with --apply fix) an ArduPilot flight controller for the companion
     simfc   the simulated flight controller alone, as its own process
+    log     summarize and plot a tlog (a recorded drive)
     mix     wheel outputs (normalized and PWM) for one command, or a batch from stdin
     plot    the speed-envelope figures of seed 000 (and of our mixers) as PNGs
     params  validate a parameter file, print the parameters, or the schema as Markdown
@@ -381,6 +382,12 @@ def cmd_demo(args: argparse.Namespace, params: Params) -> int:
     return 0
 
 
+def cmd_log(args: argparse.Namespace, params: Params) -> int:
+    from mecanum_mav.app.logview import run_log
+
+    return run_log(args.tlog, args.png)
+
+
 def serve_simfc(url: str, params: Params) -> int:
     """``mecanum-mav simfc --listen URL``: serve in the foreground until SIGINT or SIGTERM.
 
@@ -514,6 +521,18 @@ def build_parser() -> argparse.ArgumentParser:
     mix.add_argument("--batch", action="store_true",
                      help="read commands from stdin, one per line (CSV or JSON lines)")
     mix.set_defaults(handler=cmd_mix)
+
+    log = sub.add_parser("log", parents=[common], help="summarize and plot a tlog",
+                         description="Read a tlog (recorded with --tlog, by MAVProxy or by "
+                         "Mission Planner), print distance, time per mode, failsafes and the "
+                         "worst cross-track per mission leg, and draw the path, sticks, PWM, "
+                         "modes, failsafes and mission progress. Damaged parts are reported "
+                         "with their byte ranges and skipped; exit status 2 if nothing could be "
+                         "read.")
+    log.add_argument("tlog", type=Path, metavar="FILE.tlog", help="the telemetry log")
+    log.add_argument("--png", type=Path, metavar="OUT",
+                     help="where to write the figure (default: FILE.png beside the tlog)")
+    log.set_defaults(handler=cmd_log)
 
     plot = sub.add_parser("plot", parents=[common], help="speed-envelope figures (PNG)")
     plot.add_argument("--out", default="figures", metavar="DIR", help="output folder")

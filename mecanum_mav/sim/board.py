@@ -23,7 +23,11 @@ wheel's trim (a stopped wheel).
 
 Telemetry, as ArduPilot Rover sends it: HEARTBEAT 1 Hz, ATTITUDE 20 Hz (true yaw, radians
 clockwise from north), WHEEL_DISTANCE 10 Hz (cumulative encoder metres FL, FR, RL, RR),
-SERVO_OUTPUT_RAW 10 Hz (the pulse width on each output) and SYS_STATUS 1 Hz (a battery).
+SERVO_OUTPUT_RAW 10 Hz (the pulse width on each output) and SYS_STATUS 1 Hz (a battery). As
+ArduPilot's simulators do, it also reports its ground truth in SIM_STATE at 5 Hz: the true
+pose (latitude and longitude about ``ORIGIN_LAT``/``ORIGIN_LON``, or about 0, 0 when no
+origin is set; yaw in radians clockwise from north) and the true velocity (north, east m/s),
+so a tlog shows where the chassis really went (``mecanum-mav log``).
 
 Physics is stepped at ``SIM_RATE`` with a zero-order hold of the wheel commands; an override
 takes effect from the moment it arrives. The socket version is
@@ -33,12 +37,14 @@ steps the same board in virtual time.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
 from mecanum_mav.config.params import Params
 from mecanum_mav.control.pwm import PwmMap
+from mecanum_mav.mecanum.geo import GlobalOrigin
 from mecanum_mav.mecanum.geometry import Pose2d
 from mecanum_mav.protocol.dialect import mavlink
 from mecanum_mav.protocol.modes import Mode
@@ -59,6 +65,8 @@ _ATTITUDE_PERIOD_S = 0.05
 _WHEEL_DISTANCE_PERIOD_S = 0.1
 _SERVO_OUTPUT_PERIOD_S = 0.1
 _SYS_STATUS_PERIOD_S = 1.0
+SIM_STATE_PERIOD_S = 0.2
+"""The simulator's ground truth (SIM_STATE) is sent this often (seconds)."""
 BATTERY_V = 12.6
 """The simulated battery's voltage (V); it reports 100 % remaining."""
 _IDLE_CURRENT_A, _WHEEL_CURRENT_A = 0.3, 2.0
@@ -160,6 +168,8 @@ class SimBoard:
         self._outputs = PwmMap.from_params(params)
         self._trims = {w.channel: w.trim for w in self._outputs.wheels}
         self.chassis = SimChassis.from_params(params, pose)
+        self._origin = GlobalOrigin.from_degrees(float(params["ORIGIN_LAT"]),
+                                                 float(params["ORIGIN_LON"]))
         self._overrides = RcOverrides(float(params["SIM_RC_TMO"]))
         self.channel_pwm: dict[int, int] = {}
         self.commands = (0.0, 0.0, 0.0, 0.0)
@@ -175,6 +185,7 @@ class SimBoard:
             (_Every(_WHEEL_DISTANCE_PERIOD_S, now_s), self._wheel_distance),
             (_Every(_SERVO_OUTPUT_PERIOD_S, now_s), self._servo_output_raw),
             (_Every(_SYS_STATUS_PERIOD_S, now_s), self._sys_status),
+            (_Every(SIM_STATE_PERIOD_S, now_s), self._sim_state),
         ]
 
     # ------------------------------------------------------------------ time
@@ -298,3 +309,17 @@ class SimBoard:
         pulses = [self.channel_pwm.get(ch, self._trims.get(ch, 0))
                   for ch in range(1, SERVO_OUTPUTS + 1)]
         mav.servo_output_raw_send(time_usec, 0, *pulses)
+
+    def _sim_state(self, mav: Any, now_s: float) -> None:
+        """SIM_STATE: the true pose and velocity (see the module docstring); level, no
+        accelerations, altitude 0."""
+        pose = self.chassis.pose
+        yaw = pose.yaw_rad
+        lat_e7, lon_e7 = self._origin.to_global(pose.x_m, pose.y_m)
+        forward, right = self.chassis.velocity_body
+        cos_y, sin_y = math.cos(yaw), math.sin(yaw)
+        v_north, v_east = forward * cos_y - right * sin_y, forward * sin_y + right * cos_y
+        mav.sim_state_send(math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2), 0.0, 0.0, yaw,
+                           0.0, 0.0, 0.0, 0.0, 0.0, self.chassis.yaw_rate,
+                           lat_e7 / 1e7, lon_e7 / 1e7, 0.0, 0.0, 0.0, v_north, v_east, 0.0,
+                           lat_e7, lon_e7)

@@ -20,13 +20,17 @@ socket would carry. One step to ``t``:
 
 So a command's answer and an override's effect are exact in virtual time, and a run of
 minutes takes a fraction of a second. Every override the board receives is logged with its
-time (:attr:`Lockstep.overrides`).
+time (:attr:`Lockstep.overrides`). With ``tlog`` every packet put on the four wires is recorded
+as ``--tlog`` records a companion's links (8-byte big-endian Unix microseconds, the raw
+packet), stamped with virtual time from :data:`TLOG_EPOCH_S`, so ``mecanum-mav log`` can be
+tried and tested on a run of the harness.
 """
 
 from __future__ import annotations
 
+import struct
 from collections.abc import Callable, Sequence
-from typing import Any, NamedTuple, TypeVar
+from typing import Any, BinaryIO, NamedTuple, TypeVar
 
 from mecanum_mav.config.params import Params
 from mecanum_mav.control.core import (
@@ -46,7 +50,7 @@ from mecanum_mav.protocol.signing import TICKS_PER_S, SignatureCheck, ticks_from
 from mecanum_mav.sim.board import SimBoard, SimState
 from mecanum_mav.sim.groundstation import GCS_COMPID, GCS_SYSID, ScriptedGroundStation
 
-__all__ = ["Lockstep", "OverrideSeen"]
+__all__ = ["TLOG_EPOCH_S", "Lockstep", "OverrideSeen"]
 
 T = TypeVar("T")
 
@@ -60,7 +64,10 @@ class OverrideSeen(NamedTuple):
     source_system: int
 
 
-SIGNING_START_TICKS = ticks_from_unix(1_790_000_000.0)
+TLOG_EPOCH_S = 1_790_000_000.0
+"""The Unix time a recorded tlog gives virtual time 0 (a date in 2026)."""
+_TLOG_STAMP = struct.Struct(">Q")
+SIGNING_START_TICKS = ticks_from_unix(TLOG_EPOCH_S)
 """The signing timestamp at virtual time 0 (a date in 2026); it counts on with virtual time."""
 
 
@@ -84,6 +91,8 @@ class _Wire:
                                     check=self.check)
         self.queue: list[bytes] = []
         self.received = 0
+        self.tlog: BinaryIO | None = None
+        self.now_s = 0.0
 
     def follow_clock(self, now_s: float) -> None:
         """Signing timestamps follow virtual time, as a link's follow the wall clock."""
@@ -93,8 +102,11 @@ class _Wire:
             self.sender.signing.timestamp = max(self.sender.signing.timestamp, now)
 
     def write(self, data: bytes) -> None:
-        """The sender's ``file.write``: one datagram on the wire."""
+        """The sender's ``file.write``: one datagram on the wire (recorded with a tlog)."""
         self.queue.append(bytes(data))
+        if self.tlog is not None:
+            stamp = round((TLOG_EPOCH_S + self.now_s) * 1e6)
+            self.tlog.write(_TLOG_STAMP.pack(stamp) + data)
 
     def drop(self) -> list[Any]:
         """Lose everything on the wire (a cut link); returns nothing."""
@@ -148,11 +160,13 @@ class Lockstep:
         signing_key: sign the ground-station link with this 32-byte key, as ``--signing-key``
             does: the scripted ground station and the core sign what they send, the core keeps
             only correctly signed packets (:meth:`inject` puts others on the wire).
+        tlog: record every packet the parties send to this open binary file (see the module
+            docstring; what :meth:`inject` puts on the wire is not recorded).
     """
 
     def __init__(self, params: Params | None = None, *, dt_s: float = 0.002,
                  mission: Sequence[MissionItem] = (), storage: Storage | None = None,
-                 signing_key: bytes | None = None) -> None:
+                 signing_key: bytes | None = None, tlog: BinaryIO | None = None) -> None:
         self.params = params if params is not None else Params()
         self.dt_s = dt_s
         self.now_s = 0.0
@@ -163,6 +177,9 @@ class Lockstep:
                                   signing_key=signing_key)
         self._core_to_fc = _Wire(int(p["FC_GCS_SYSID"]), FC_LINK_COMPID, name="core->fc")
         self._fc_to_core = _Wire(int(p["FC_SYSID"]), int(p["FC_COMPID"]), name="fc->core")
+        self._wires = (self._gcs_to_core, self._core_to_gcs, self._core_to_fc, self._fc_to_core)
+        for wire in self._wires:
+            wire.tlog = tlog
         self.core = RoverCore(p, now_s=0.0, mission=mission, storage=storage,
                               link_counts=self._link_counts)
         self.board = SimBoard(p, 0.0)
@@ -182,6 +199,8 @@ class Lockstep:
     def step(self) -> None:
         """Advance virtual time by ``dt_s`` (see the module docstring for the order)."""
         now = self.now_s = self.now_s + self.dt_s
+        for wire in self._wires:
+            wire.now_s = now
         for callback in self.on_step:
             callback(now)
         self.gcs.on_time(now)
@@ -261,7 +280,7 @@ class Lockstep:
     def inject(self, data: bytes, *, from_fc: bool = False) -> None:
         """Put raw bytes on the wire to the core, as the ground station (or the flight
         controller) would send them: garbage, truncated or hand-made packets."""
-        (self._fc_to_core if from_fc else self._gcs_to_core).write(data)
+        (self._fc_to_core if from_fc else self._gcs_to_core).queue.append(bytes(data))
 
     # ------------------------------------------------------------------ views
 

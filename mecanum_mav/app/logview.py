@@ -1,0 +1,227 @@
+"""``mecanum-mav log FILE.tlog [--png OUT]``: look at a drive.
+
+Reads a tlog (:mod:`mecanum_mav.io.tlog`: recorded with ``--tlog``, by MAVProxy or by Mission
+Planner, of this companion or of any flight controller), analyses it
+(:mod:`mecanum_mav.app.loganalysis`), prints a short summary (distance, time per mode, the
+failsafes, the worst cross-track per mission leg) and draws a PNG: the path (odometry, the
+simulator's true pose where the log has it, the planned mission), and on one time axis the
+stick input, the PWM (RC_CHANNELS_OVERRIDE and SERVO_OUTPUT_RAW; the normalized wheel commands
+are not on the wire, so PWM is shown) and the mission progress, with the modes as shaded bands
+and the failsafes as red lines. Needs matplotlib for the PNG (the ``plot`` extra); the summary
+does not.
+
+Damaged parts of the file are reported on stderr, each with its byte range, and the rest is
+read: exit status 0 when any message was read, 2 when none (unreadable, empty, or not a tlog).
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from pathlib import Path
+from typing import Any, TextIO
+
+from mecanum_mav.app.loganalysis import LogAnalysis, ModeSpan, analyse
+from mecanum_mav.io.tlog import TlogRead, read_tlog
+from mecanum_mav.protocol.dialect import mavlink
+
+__all__ = ["default_png", "plot_log", "run_log", "summary"]
+
+MODE_COLOURS = {"MANUAL": "tab:green", "HOLD": "tab:gray", "AUTO": "tab:blue",
+                "GUIDED": "tab:purple"}
+"""Band colours of the Rover modes; other modes cycle through the rest."""
+_OTHER_COLOURS = ("tab:olive", "tab:cyan", "tab:brown", "tab:pink")
+NO_OVERRIDE = (0, 65535, 65534)
+"""RC_CHANNELS_OVERRIDE values that carry no pulse (leave alone / release)."""
+MAX_CHANNELS = 8
+"""PWM channels drawn at most per source."""
+
+
+def default_png(tlog: Path) -> Path:
+    """Where the PNG goes without ``--png``: beside the tlog, ``.png`` for its suffix."""
+    return tlog.with_suffix(".png")
+
+
+def _severity(value: int) -> str:
+    entry = mavlink.enums["MAV_SEVERITY"].get(value)
+    return entry.name.removeprefix("MAV_SEVERITY_") if entry is not None else str(value)
+
+
+def summary(read: TlogRead, a: LogAnalysis) -> str:
+    """The printed summary of a tlog."""
+    when = time.strftime("%Y-%m-%d %H:%M:%S UTC", time.gmtime(a.start_unix_s))
+    vehicle = f"; vehicle {a.vehicle[0]}/{a.vehicle[1]}" if a.vehicle else "; no vehicle found"
+    lines = [f"{read.name}: {a.messages} messages over {a.duration_s:.1f} s from {when}"
+             f"{vehicle}"]
+    if read.unknown:
+        lines.append(f"{read.unknown} packets of message ids this dialect does not know "
+                     f"(skipped)")
+    if a.path:
+        line = f"distance {a.distance_m:.2f} m ({a.path_source})"
+        if a.true_path:
+            line += f"; true path {a.true_distance_m:.2f} m (simulator)"
+        lines.append(line)
+    else:
+        lines.append("distance: no position in the log")
+    if a.modes:
+        per_mode = ", ".join(f"{mode} {s:.1f} s" for mode, s in a.time_per_mode().items())
+        lines.append(f"modes: {per_mode}; armed {a.armed_s():.1f} s")
+    else:
+        lines.append("modes: no HEARTBEAT from the vehicle")
+    failsafes = a.failsafes
+    lines.append(f"failsafes: {len(failsafes)}")
+    lines += [f"  {e.time_s:8.2f} s  {_severity(e.severity):<9} {e.text}" for e in failsafes]
+    if a.planned:
+        reached = ", ".join(str(seq) for _, seq in a.reached) or "none"
+        lines.append(f"mission: {len(a.planned)} positions; reached items: {reached}")
+    if a.legs:
+        lines.append(f"{'leg':<4}{'item':>5}  {'from':>13} -> {'to':<13}{'time s':>8}"
+                     f"{'worst cross-track cm':>22}")
+        for k, leg in enumerate(a.legs, start=1):
+            lines.append(f"{k:<4}{leg.seq:>5}  ({leg.start[0]:5.2f},{leg.start[1]:5.2f}) -> "
+                         f"({leg.goal[0]:5.2f},{leg.goal[1]:5.2f}){leg.time_s:8.2f}"
+                         f"{leg.max_cross_track_m * 100:22.2f}")
+    return "\n".join(lines)
+
+
+def _mode_colour(mode: str, seen: dict[str, str]) -> str:
+    if mode not in seen:
+        seen[mode] = MODE_COLOURS.get(mode, _OTHER_COLOURS[len(seen) % len(_OTHER_COLOURS)])
+    return seen[mode]
+
+
+def _bands(ax: Any, spans: list[ModeSpan], colours: dict[str, str], *, label: bool) -> None:
+    labelled: set[str] = set()
+    for span in spans:
+        name = span.mode + ("" if span.armed else " (disarmed)")
+        ax.axvspan(span.start_s, span.end_s, color=_mode_colour(span.mode, colours),
+                   alpha=0.15 if span.armed else 0.05, lw=0,
+                   label=name if label and name not in labelled else None)
+        labelled.add(name)
+
+
+def _varying(series: list[tuple[float, list[int]]]) -> list[int]:
+    """Channel indices (0-based) that carry pulses and change, at most MAX_CHANNELS."""
+    out = []
+    for ch in range(len(series[0][1]) if series else 0):
+        values = {row[ch] for _, row in series} - set(NO_OVERRIDE)
+        if len(values) > 1:
+            out.append(ch)
+    return out[:MAX_CHANNELS]
+
+
+def _steps(ax: Any, series: list[tuple[float, list[int]]], style: str, prefix: str) -> None:
+    for ch in _varying(series):
+        points = [(t, row[ch]) for t, row in series if row[ch] not in NO_OVERRIDE]
+        if points:
+            t, v = zip(*points, strict=True)
+            ax.step(t, v, style, where="post", lw=1.0, color=f"C{ch % 10}",
+                    label=f"{prefix} ch{ch + 1}")
+
+
+def plot_log(a: LogAnalysis, path: Path, title: str) -> Path:
+    """Draw the analysis to ``path`` (PNG); see the module docstring for what is drawn."""
+    from mecanum_mav.app.plots import _pyplot
+
+    plt = _pyplot()
+    fig = plt.figure(figsize=(14, 7.5))
+    grid = fig.add_gridspec(3, 2, width_ratios=(1.0, 1.45))
+    ax_path = fig.add_subplot(grid[:, 0])
+    ax_stick = fig.add_subplot(grid[0, 1])
+    ax_pwm = fig.add_subplot(grid[1, 1], sharex=ax_stick)
+    ax_mission = fig.add_subplot(grid[2, 1], sharex=ax_stick)
+
+    if a.planned:
+        _, pn, pe = zip(*a.planned, strict=True)
+        ax_path.plot(pe, pn, "o--", color="0.6", label="planned mission")
+        for seq, n, e in a.planned:
+            ax_path.annotate(str(seq), (e, n), textcoords="offset points", xytext=(5, 5),
+                             color="0.4", fontsize=8)
+    if a.true_path:
+        _, tn, te = zip(*a.true_path, strict=True)
+        ax_path.plot(te, tn, "-", color="tab:blue", lw=2.5, alpha=0.5,
+                     label="true pose (simulator)")
+    if a.path:
+        _, on, oe = zip(*a.path, strict=True)
+        ax_path.plot(oe, on, "-", color="tab:orange", lw=1.0, label=a.path_source.lower())
+        ax_path.plot(oe[0], on[0], "k^", label="start")
+    ax_path.set_xlabel("east (m)")
+    ax_path.set_ylabel("north (m)")
+    ax_path.set_aspect("equal", adjustable="datalim")
+    ax_path.grid(True, alpha=0.3)
+    if a.planned or a.path or a.true_path:
+        ax_path.legend(loc="best", fontsize=8)
+    ax_path.set_title(f"path: {a.distance_m:.2f} m" if a.path else "path: no position")
+
+    colours: dict[str, str] = {}
+    for ax in (ax_stick, ax_pwm, ax_mission):
+        _bands(ax, a.modes, colours, label=ax is ax_mission)
+        for event in a.failsafes:
+            ax.axvline(event.time_s, color="tab:red", ls="--", lw=1.0)
+        ax.grid(True, alpha=0.3)
+    for event in a.failsafes:
+        ax_stick.annotate(event.text, (event.time_s, 1.0), xycoords=("data", "axes fraction"),
+                          rotation=90, va="top", ha="right", fontsize=7, color="tab:red")
+
+    if a.sticks:
+        t, x, y, r = zip(*a.sticks, strict=True)
+        ax_stick.step(t, x, where="post", label="x forward")
+        ax_stick.step(t, y, where="post", label="y right")
+        ax_stick.step(t, r, where="post", label="r clockwise")
+        ax_stick.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7)
+    ax_stick.set_ylim(-1.1, 1.1)
+    ax_stick.set_ylabel("stick (MANUAL_CONTROL)")
+
+    for label, series in a.overrides.items():
+        _steps(ax_pwm, series, "-", f"override {label}")
+    _steps(ax_pwm, a.gcs_overrides, "--", "GCS RC override")
+    _steps(ax_pwm, a.servo, ":", "SERVO_OUTPUT_RAW")
+    ax_pwm.set_ylabel("PWM (us)")
+    if ax_pwm.lines:
+        ax_pwm.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=6)
+
+    if a.mission_current:
+        t_cur, seq_cur = zip(*a.mission_current, strict=True)
+        ax_mission.step([*t_cur, a.duration_s], [*seq_cur, seq_cur[-1]], where="post",
+                        color="tab:blue", label="current item")
+    if a.reached:
+        t_reached, seq_reached = zip(*a.reached, strict=True)
+        ax_mission.plot(t_reached, seq_reached, "kx", label="item reached")
+    ax_mission.set_ylabel("mission item")
+    ax_mission.set_xlabel("time (s from the log's start)")
+    ax_mission.set_xlim(0.0, max(a.duration_s, 1e-3))
+    ax_mission.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7)
+    worst = max((leg.max_cross_track_m for leg in a.legs), default=None)
+    ax_mission.set_title("mission progress" + (
+        f": worst cross-track {worst * 100:.1f} cm" if worst is not None else ""), fontsize=9)
+
+    fig.suptitle(title)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=80)
+    plt.close(fig)
+    return path
+
+
+def run_log(tlog: Path, png: Path | None, out: TextIO | None = None,
+            err: TextIO | None = None) -> int:
+    """The ``log`` command: summary to ``out`` (stdout), problems to ``err`` (stderr), the
+    PNG to ``png`` (its default beside the tlog). Returns the exit status."""
+    out = out or sys.stdout
+    err = err or sys.stderr
+    read = read_tlog(tlog)
+    for problem in read.problems:
+        print(f"mecanum-mav log: {problem}", file=err)
+    if not read.entries:
+        print(f"mecanum-mav log: {tlog}: no MAVLink messages read", file=err)
+        return 2
+    analysis = analyse(read.entries)
+    print(summary(read, analysis), file=out)
+    target = png or default_png(tlog)
+    try:
+        print(f"wrote {plot_log(analysis, target, tlog.name)}", file=out)
+    except RuntimeError as exc:  # no matplotlib
+        print(f"mecanum-mav log: no PNG: {exc}", file=err)
+    except OSError as exc:
+        print(f"mecanum-mav log: cannot write {target}: {exc}", file=err)
+    return 0
