@@ -114,6 +114,7 @@ class Companion:
         selector.register(self._wake_r, selectors.EVENT_READ, None)
         gcs, fc = self.gcs, self.fc
         registered = {link: follow(selector, link, None, link) for link in (gcs, fc)}
+        streams = {link: fd for link, fd in registered.items() if not link.steady}
         try:
             while not self._stop.is_set():
                 due = min(core.next_due_s(), gcs.next_reopen_s, fc.next_reopen_s,
@@ -124,14 +125,14 @@ class Companion:
                     elif events & selectors.EVENT_READ:  # (writable: follow() flushes)
                         self._drain(key.data)
                 now = self.clock()
-                for link in registered:
+                for link in streams:  # (a datagram link never goes down)
                     if not link.up and link.reopen(now):
                         self._report(link, now)  # before anything else goes out on it
                 self._write(core.tick(now))  # the override first,
                 self._write(core.housekeeping(now))  # then everything else
-                for link, fd in registered.items():
+                for link, fd in streams.items():
                     self._report(link, now)
-                    registered[link] = follow(selector, link, fd, link)
+                    streams[link] = follow(selector, link, fd, link)
         finally:
             selector.close()
             self.fc.mav.srcSystem = core.identity.fc_gcs_sysid

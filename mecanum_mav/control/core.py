@@ -244,6 +244,8 @@ class RoverCore:
         self._autopilot_active = False
         self._next_output_s = now_s
         self._next_heartbeat_s = now_s
+        self._housekeeping_due_s = -math.inf
+        """Before this no timer of :meth:`housekeeping` is due (-inf: look at them all)."""
         self._fc_streams_asked = False
         self.fc_check = FcSetupCheck()
         """The read-only check of the flight controller's setup, run when it appears."""
@@ -299,14 +301,19 @@ class RoverCore:
                     if fc_handler is not None:
                         fc_handler(msg, now_s)
             else:
-                handler = self._gcs_handlers.get(msg.get_type())
+                kind = msg.get_type()
+                handler = self._gcs_handlers.get(kind)
                 if handler is not None and msg.get_srcSystem() != self.identity.sysid:
                     handler(msg, now_s)
+                if kind == "MANUAL_CONTROL":  # the one message that sets no timer
+                    return NOTHING if not (self.to_gcs.messages or self.to_fc.messages) else (
+                        self._take(None))
         except Exception:  # never let one message take the control path down
             log.exception("error handling %s", msg.get_type())
             self.faulted = True
             self.say(Severity.ERROR, f"Error handling {msg.get_type()}: neutral")
             return self._take(self._override(self.pwm.neutral(), now_s))
+        self._housekeeping_due_s = -math.inf  # it may have set a timer: look at them all
         if self.to_gcs.messages or self.to_fc.messages:
             return self._take(None)
         return NOTHING
@@ -339,8 +346,18 @@ class RoverCore:
 
     def housekeeping(self, now_s: float) -> Outbox:
         """After the output went out: odometry from the commanded wheels, telemetry,
-        heartbeats, the mission protocol's timeouts and status texts; returns what to send."""
+        heartbeats, the mission protocol's timeouts and status texts; returns what to send.
+
+        A wake that brought only a stick (outside GUIDED and AUTO) and finds no timer due
+        integrates the commanded wheels and stops there."""
         self._now_s = now_s
+        if self._wheels_s is not None:
+            self.estimator.on_commanded(self.wheels, now_s - self._wheels_s, now_s)
+        self.wheels, self._wheels_s = self._output_wheels, now_s
+        if (now_s < self._housekeeping_due_s and not self._autopilot_active
+                and not self.vehicle.has_events and not self.to_gcs.messages
+                and not self.to_fc.messages):
+            return NOTHING
         if self.vehicle.fc_lost:
             self._fc_streams_asked = False  # ask a rebooted flight controller again
         if now_s >= self.fc_check.next_due_s:
@@ -349,9 +366,6 @@ class RoverCore:
             if verdict is not None:
                 self.say(Severity.WARNING if self.fc_check.hazards else Severity.NOTICE,
                          verdict)
-        if self._wheels_s is not None:
-            self.estimator.on_commanded(self.wheels, now_s - self._wheels_s, now_s)
-        self.wheels, self._wheels_s = self._output_wheels, now_s
         # Telemetry rides the output refresh's wake-ups when it is due within half a period.
         due = self.streams.due(now_s, self.output.refresh_period_s / 2)
         if due:
@@ -373,6 +387,9 @@ class RoverCore:
                     self.say(event.severity, event.text)
                 else:
                     self.refuse(event.refusal, event.text)
+        self._housekeeping_due_s = min(
+            self._next_heartbeat_s, self.fc_check.next_due_s, self.mission.next_due_s(),
+            self.streams.next_due_s() - self.output.refresh_period_s / 2)
         return self._take(None)
 
     def link_down(self, link: str, reason: str, now_s: float) -> Outbox:

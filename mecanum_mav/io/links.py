@@ -277,6 +277,12 @@ class Link:
         """File descriptor to wait on (may change for ``tcpin`` after a client connects)."""
         return int(self.conn.fd)
 
+    @property
+    def steady(self) -> bool:
+        """A datagram link: its descriptor never changes, nothing waits in it, it never goes
+        down; :func:`follow` has nothing to do for it after the first call."""
+        return not self._buffered
+
     def wait_fd(self) -> int | None:
         """The descriptor to wait on, or None while there is none: a link that is down
         waits for :meth:`reopen` (its dead descriptor would be readable forever), except a
@@ -343,14 +349,16 @@ class Link:
         """What is waiting (b"" if nothing); raises :class:`LinkDownError` when the link broke
         (it is then down), other ``OSError`` for a passing failure."""
         kind, conn = self._kind, self.conn
-        if kind == _DATAGRAM:
-            if self._udp_server:  # pymavlink's recv would make every sender a peer
-                try:
-                    data, self._from = conn.port.recvfrom(_READ_CHUNK)
-                except _AGAIN:
-                    return b""
-                return bytes(data)
-            return conn.recv(_READ_CHUNK) or b""  # (pymavlink's UDP gives "" for nothing)
+        if kind == _DATAGRAM:  # pymavlink's recv, less its overhead; it would also make
+            try:               # every sender on a udpin link a peer (see _heard)
+                data, self._from = conn.port.recvfrom(_READ_CHUNK)
+            except _AGAIN:
+                return b""
+            except ConnectionRefusedError:  # an earlier send found no one listening
+                return b""
+            if conn.broadcast:
+                conn.last_address = self._from
+            return data  # type: ignore[no-any-return]
         if kind == _TCP_SERVER and conn.port is None and not self._accept():
             return b""
         if self.down_reason is not None:
