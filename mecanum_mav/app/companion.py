@@ -50,6 +50,7 @@ from mecanum_mav.control.core import (
     NOTHING,
     LinkCounts,
     Outbox,
+    RcOverride,
     RoverCore,
 )
 from mecanum_mav.io.links import Link, follow, open_link
@@ -119,17 +120,23 @@ class Companion:
             while not self._stop.is_set():
                 due = min(core.next_due_s(), gcs.next_reopen_s, fc.next_reopen_s,
                           gcs.next_send_s, fc.next_send_s)
+                drained = False
                 for key, events in selector.select(max(0.0, due - self.clock())):
                     if key.data is None:
                         os.read(self._wake_r, 64)
                     elif events & selectors.EVENT_READ:  # (writable: follow() flushes)
                         self._drain(key.data)
+                        drained = True
                 now = self.clock()
                 for link in streams:  # (a datagram link never goes down)
                     if not link.up and link.reopen(now):
                         self._report(link, now)  # before anything else goes out on it
-                self._write(core.tick(now))  # the override first,
-                self._write(core.housekeeping(now))  # then everything else
+                refresh = None if drained else core.refresh(now)
+                if refresh is not None:  # the output refresh alone: nothing else is due
+                    self._send_override(refresh)
+                else:
+                    self._write(core.tick(now))  # the override first,
+                    self._write(core.housekeeping(now))  # then everything else
                 for link, fd in streams.items():
                     self._report(link, now)
                     streams[link] = follow(selector, link, fd, link)
@@ -166,12 +173,15 @@ class Companion:
         if out is NOTHING:
             return
         if out.override is not None:  # first: the latency-critical part
-            self._fc_mav.srcSystem = self.core.identity.fc_gcs_sysid  # FC_GCS_SYSID may change
-            self.fc.send_rc_override(*out.override)
+            self._send_override(out.override)
         for msg in out.fc:
             self.fc.send(msg)
         for msg in out.gcs:
             self.gcs.send(msg)
+
+    def _send_override(self, override: RcOverride) -> None:
+        self._fc_mav.srcSystem = self.core.identity.fc_gcs_sysid  # FC_GCS_SYSID may change
+        self.fc.send_rc_override(*override)
 
     def _link_counts(self) -> LinkCounts:
         gcs, fc = self.gcs, self.fc

@@ -246,6 +246,9 @@ class RoverCore:
         self._next_heartbeat_s = now_s
         self._housekeeping_due_s = -math.inf
         """Before this no timer of :meth:`housekeeping` is due (-inf: look at them all)."""
+        self._quiet_until_s = -math.inf
+        """Before this nothing but the output refresh can be due (:meth:`refresh`)."""
+        self._last_override: RcOverride | None = None
         self._fc_streams_asked = False
         self.fc_check = FcSetupCheck()
         """The read-only check of the flight controller's setup, run when it appears."""
@@ -301,6 +304,7 @@ class RoverCore:
                     if fc_handler is not None:
                         fc_handler(msg, now_s)
             else:
+                self._quiet_until_s = -math.inf  # (a stick, at least, is new input)
                 kind = msg.get_type()
                 handler = self._gcs_handlers.get(kind)
                 if handler is not None and msg.get_srcSystem() != self.identity.sysid:
@@ -314,6 +318,7 @@ class RoverCore:
             self.say(Severity.ERROR, f"Error handling {msg.get_type()}: neutral")
             return self._take(self._override(self.pwm.neutral(), now_s))
         self._housekeeping_due_s = -math.inf  # it may have set a timer: look at them all
+        self._quiet_until_s = -math.inf
         if self.to_gcs.messages or self.to_fc.messages:
             return self._take(None)
         return NOTHING
@@ -354,9 +359,10 @@ class RoverCore:
         if self._wheels_s is not None:
             self.estimator.on_commanded(self.wheels, now_s - self._wheels_s, now_s)
         self.wheels, self._wheels_s = self._output_wheels, now_s
-        if (now_s < self._housekeeping_due_s and not self._autopilot_active
+        if (now_s < self._housekeeping_due_s and not self.vehicle.autonomous()
                 and not self.vehicle.has_events and not self.to_gcs.messages
                 and not self.to_fc.messages):
+            self._quiet_until_s = min(self._housekeeping_due_s, self.vehicle.next_due_s())
             return NOTHING
         if self.vehicle.fc_lost:
             self._fc_streams_asked = False  # ask a rebooted flight controller again
@@ -390,7 +396,21 @@ class RoverCore:
         self._housekeeping_due_s = min(
             self._next_heartbeat_s, self.fc_check.next_due_s, self.mission.next_due_s(),
             self.streams.next_due_s() - self.output.refresh_period_s / 2)
+        self._quiet_until_s = (-math.inf if self.vehicle.autonomous() else
+                               min(self._housekeeping_due_s, self.vehicle.next_due_s()))
         return self._take(None)
+
+    def refresh(self, now_s: float) -> RcOverride | None:
+        """The output refresh alone: the override last sent, again, when at ``now_s`` its
+        refresh is due and nothing else can have changed since the last :meth:`tick` and
+        :meth:`housekeeping` (no message arrived, no timeout, telemetry or heartbeat due, not
+        in GUIDED or AUTO, nothing to say). Else None: call :meth:`tick` and
+        :meth:`housekeeping`. An idle rover's wakes are mostly these (``OUT_RATE``)."""
+        if (now_s < self._next_output_s or now_s >= self._quiet_until_s or self._new_input
+                or self.to_gcs.messages or self.to_fc.messages or self._last_override is None):
+            return None
+        self._next_output_s = now_s + self.output.refresh_period_s - TIMER_SLACK_S
+        return self._last_override
 
     def link_down(self, link: str, reason: str, now_s: float) -> Outbox:
         """The shell's ``link`` (``"fc"`` or ``"gcs"``) broke at ``now_s`` for ``reason``
@@ -398,6 +418,7 @@ class RoverCore:
         link's failsafe fires now (:meth:`Vehicle.on_fc_link_down`,
         :meth:`Vehicle.on_gcs_link_down`); returns what to send (on the other link)."""
         self._now_s = now_s
+        self._quiet_until_s = -math.inf
         self.say(Severity.WARNING, f"{_LINK_LABELS.get(link, link)} link down: {reason}; "
                                    f"reconnecting")
         if link == "fc":
@@ -412,6 +433,7 @@ class RoverCore:
         controller's, the first thing sent is neutral, never what was output before the break
         (driving needs the flight controller's HEARTBEAT and arming again)."""
         self._now_s = now_s
+        self._quiet_until_s = -math.inf
         self.say(Severity.NOTICE, f"{_LINK_LABELS.get(link, link)} link reconnected")
         if link == "fc":
             return self._take(self._override(self.pwm.neutral(), now_s))
@@ -434,6 +456,7 @@ class RoverCore:
 
     def reconfigure(self) -> None:
         """Re-read the parameter views the loop uses (after a parameter changed)."""
+        self._quiet_until_s = -math.inf
         p = self.params
         self.pwm = PwmMap.from_params(p)
         # SYSID_THISMAV is reboot_required: the links keep the id they were opened with.
@@ -520,8 +543,10 @@ class RoverCore:
         self._autopilot_active = False
         self._next_output_s = now_s + self.output.refresh_period_s - TIMER_SLACK_S
         identity = self.identity
-        return _new_override((identity.fc_sysid, identity.fc_compid,
-                              override_fields(self.pwm.channels, pulses)))
+        override = self._last_override = _new_override((identity.fc_sysid, identity.fc_compid,
+                                                        override_fields(self.pwm.channels,
+                                                                        pulses)))
+        return override
 
     def _take(self, override: RcOverride | None) -> Outbox:
         gcs, fc = self.to_gcs, self.to_fc

@@ -14,7 +14,8 @@ socket would carry. One step to ``t``:
 1. the ground station's HEARTBEAT if due; what it sent reaches the core at ``t``;
 2. what the board sent in the previous step reaches the core at ``t``;
 3. ``core.tick(t)`` and ``core.housekeeping(t)`` if anything arrived or a timer of the core
-   is due (as the companion's loop wakes); the core's overrides and heartbeats reach the
+   is due (as the companion's loop wakes; ``core.refresh(t)`` alone when only the output
+   refresh is due); the core's overrides and heartbeats reach the
    board at ``t``, its messages for the ground station reach the ground station at ``t``;
 4. the board steps its physics and sends its telemetry (delivered in the next step).
 
@@ -218,8 +219,12 @@ class Lockstep:
             self._write(core.handle(msg, now, from_fc=True))
             woke = True
         if woke or now >= core.next_due_s():
-            self._write(core.tick(now))
-            self._write(core.housekeeping(now))
+            refresh = None if woke else core.refresh(now)
+            if refresh is not None:  # the output refresh alone, as the companion's loop does
+                self._write(Outbox((), (), refresh))
+            else:
+                self._write(core.tick(now))
+                self._write(core.housekeeping(now))
         received = self._core_to_fc.deliver() if self.fc_link_up else self._core_to_fc.drop()
         if received:
             self._log_fc(received, now)
