@@ -4,6 +4,7 @@ simulated board's receiver, its RC_CHANNELS stream, the sticks, switches and fai
 from __future__ import annotations
 
 import pytest
+from conftest import lockstep
 
 from mecanum_mav.control.chain import manual_output
 from mecanum_mav.control.rcinput import (
@@ -14,7 +15,6 @@ from mecanum_mav.control.rcinput import (
 from mecanum_mav.protocol.dialect import mavlink
 from mecanum_mav.protocol.modes import Mode
 from mecanum_mav.sim.lockstep import Lockstep
-from conftest import lockstep
 
 WHEELS_9_12 = {"MOT_FL_CH": 9, "MOT_FR_CH": 10, "MOT_RL_CH": 11, "MOT_RR_CH": 12}
 RECEIVER = {"RCIN_ENABLE": 1, **WHEELS_9_12, "RCIN_ARM_CH": 7, "MODE3": 4, "MODE6": 10}
