@@ -99,7 +99,9 @@ class Monitor:
     right even while the test is busy elsewhere (waiting for a COMMAND_ACK, for instance).
     """
 
-    def __init__(self, port: int) -> None:
+    def __init__(self, port: int, first_servo: int = 1) -> None:
+        self.first_servo = first_servo
+        """:attr:`Sample.servos` are SERVO{first_servo}.. the next three (1: SERVO1..4)."""
         self.conn = mavutil.mavlink_connection(f"udpin:127.0.0.1:{port}",
                                                source_system=MONITOR_SYSID, source_component=191)
         self.samples: list[Sample] = []
@@ -129,8 +131,9 @@ class Monitor:
                 for msg in got:
                     kind = msg.get_type()
                     if kind == "SERVO_OUTPUT_RAW":
-                        self.samples.append(Sample(now, (msg.servo1_raw, msg.servo2_raw,
-                                                         msg.servo3_raw, msg.servo4_raw)))
+                        a, b, c, d = (getattr(msg, f"servo{self.first_servo + i}_raw")
+                                      for i in range(4))
+                        self.samples.append(Sample(now, (a, b, c, d)))
                     elif kind == "HEARTBEAT" and msg.get_srcSystem() == 1:
                         self.heartbeats += 1
                         self.signed_heartbeats += msg.get_msgbuf()[2] & 1  # signed flag
@@ -326,20 +329,23 @@ class Sitl:
     unsigned packets on SERIAL0 only: ``fc_serial=1`` puts the companion where signing is
     required and leaves the monitor able to send SETUP_SIGNING unsigned.
 
-    The simulated receiver (``--rc-in-port``) is fed ``receiver`` on channels 1-4 every
-    50 ms, so that "released to the radio" reads differently from neutral; ``receiver=None``
+    The simulated receiver (``--rc-in-port``) is fed ``receiver`` on channels 1-8 (1500 on
+    those it does not give) every 50 ms, so that "released to the radio" reads differently
+    from neutral; assign :attr:`receiver` to move the sticks and switches; ``receiver=None``
     is a board with no receiver at all (``SIM_RC_FAIL 1``), a companion its only RC input.
+    ``first_servo`` chooses the four outputs the monitor samples (9: SERVO9..12).
     """
 
     def __init__(self, binary: Path, transport: str = "udp", *,
                  receiver: Sequence[int] | None = (1600, 1600, 1600, 1600),
                  extra_params: Sequence[str] = (), boot_timeout_s: float = 20.0,
-                 fc_serial: int = 0) -> None:
+                 fc_serial: int = 0, first_servo: int = 1) -> None:
         if transport not in TRANSPORTS:
             raise ValueError(f"transport {transport!r}: one of {TRANSPORTS}")
         if fc_serial not in (0, 1):
             raise ValueError(f"fc_serial {fc_serial}: 0 or 1")
         self.fc_serial = fc_serial
+        self.first_servo = first_servo
         self.binary = binary
         self.transport = transport
         self.receiver = None if receiver is None else tuple(receiver)
@@ -408,7 +414,7 @@ class Sitl:
                         "--defaults", ",".join(defaults), "--serial0", serial0,
                         "--serial1", serial1, "--serial2", "none",
                         *(["--rc-in-port", str(self.rc_port)] if self.receiver else [])]
-        self.monitor = Monitor(mon_port)
+        self.monitor = Monitor(mon_port, self.first_servo)
         started = time.monotonic()
         with self.log_path.open("wb") as log:
             self.proc = subprocess.Popen(self.command, cwd=self.workdir, stdin=subprocess.DEVNULL,
@@ -425,10 +431,10 @@ class Sitl:
         self.monitor.request_servo_output(self.boot_timeout_s)
 
     def _feed_receiver(self) -> None:
-        assert self.receiver is not None
-        pulses = struct.pack("<8H", *self.receiver, 1500, 1500, 1500, 1500)
         with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
             while not self._stop.is_set():
+                receiver = self.receiver or ()
+                pulses = struct.pack("<8H", *receiver[:8], *[1500] * (8 - len(receiver[:8])))
                 with contextlib.suppress(OSError):
                     s.sendto(pulses, ("127.0.0.1", self.rc_port))
                 self._stop.wait(RECEIVER_PERIOD_S)

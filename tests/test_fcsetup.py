@@ -101,3 +101,14 @@ def test_a_board_that_answers_no_parameter_is_not_checked_and_blocks_nothing():
     _, verdict = check_.tick(params, DECIDE_S)
     assert verdict == "FC setup not checked: no parameters from the flight controller"
     assert not check_.checked and check_.hazards == []
+
+
+def test_setup_fc_puts_wheels_on_9_to_12_through_scaled_pass_through_with_a_wheel_throttle():
+    params = Params()
+    params.update({"MOT_FL_CH": 9, "MOT_FR_CH": 10, "MOT_RL_CH": 11, "MOT_RR_CH": 12,
+                   "RCIN_ENABLE": 1})
+    out = safe_settings(params, {"RCMAP_THROTTLE": 3.0})
+    assert [out[f"SERVO{ch}_FUNCTION"] for ch in (9, 10, 11, 12)] == [148, 149, 150, 151]
+    assert out["SERVO_RC_FS_MSK"] == 0b1111 << 8
+    assert out["RCMAP_THROTTLE"] == 9  # the board's radio failsafe watches a wheel channel
+    assert not [f for f in check(params, out) if f.hazard]

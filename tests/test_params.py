@@ -15,7 +15,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from mecanum_mav.config.params import _index
+from mecanum_mav.config.params import MODE_NUMBERS, _index
 from mecanum_mav.io.paramfile import main as _main
 from mecanum_mav.io.paramfile import save_keeping_layout
 from mecanum_mav.io.storage import FileStorage
@@ -74,8 +74,11 @@ def test_the_schema_has_exactly_the_parameters_the_rest_of_the_code_reads():
         "WHL_MAX_SPD",
         *motor,
         "SYSID_THISMAV", "SYSID_MYGCS", "FC_SYSID", "FC_COMPID", "FC_GCS_SYSID", "OUT_RATE",
-        "FS_INPUT_TMO", "FS_GCS_TMO", "FS_GCS_ACTION", "FS_FC_TMO", "ARMING_CHECK",
+        "FS_INPUT_TMO", "FS_GCS_TMO", "FS_GCS_ACTION", "FS_FC_TMO", "FS_THR_ENABLE",
+        "FS_THR_VALUE", "FS_RC_ACTION", "ARMING_CHECK",
         "RCMAP_STEER", "RCMAP_THROTTLE", "RCMAP_LATERAL", "RCIN_MIN", "RCIN_TRIM", "RCIN_MAX",
+        "RCIN_ENABLE", "RCIN_ARM_CH", "MODE_CH", "MODE1", "MODE2", "MODE3", "MODE4", "MODE5",
+        "MODE6",
         "MAN_Z_SCALE", "CTL_RATE", "GUID_SPD_MAX", "GUID_ACC_MAX", "GUID_YAW_RATE",
         "GUID_POS_P", "GUID_YAW_P", "GUID_YAW_LEAD", "GUID_TIMEOUT", "WP_SPEED", "WP_ACCEL",
         "WP_RADIUS", "WP_OVERSHOOT", "WP_YAW_BEHAVIOR", "ORIGIN_LAT", "ORIGIN_LON", "ODOM_SRC",
@@ -102,7 +105,8 @@ def test_the_schema_has_exactly_the_parameters_the_rest_of_the_code_reads():
 @pytest.mark.parametrize("spec", SCHEMA, ids=lambda s: s.name)
 def test_every_name_is_an_upper_case_group_name_of_at_most_16_characters(spec):
     assert len(spec.name) <= 16
-    assert re.fullmatch(r"[A-Z][A-Z0-9]*(_[A-Z0-9]+)+", spec.name)
+    # (ArduPilot Rover's mode-switch names have no group: MODE1 .. MODE6)
+    assert re.fullmatch(r"[A-Z][A-Z0-9]*(_[A-Z0-9]+)+|MODE[1-6]", spec.name)
 
 
 @pytest.mark.parametrize("spec", SCHEMA, ids=lambda s: s.name)
@@ -487,17 +491,21 @@ def valid_params(draw: st.DrawFn) -> Params:
             values[spec.name] = draw(st.integers(spec.minimum, spec.maximum))
         else:
             values[spec.name] = draw(st.floats(spec.minimum, spec.maximum))
-    channels = draw(st.lists(st.integers(1, 16), min_size=4, max_size=4, unique=True))
+    # wheels, sticks, mode and arm switch on channels of their own (a switch may be off: 0)
+    channels = draw(st.lists(st.integers(1, 16), min_size=9, max_size=9, unique=True))
+    values["MODE_CH"] = channels[7] if draw(st.booleans()) else 0
+    values["RCIN_ARM_CH"] = channels[8] if draw(st.booleans()) else 0
+    for i in range(1, 7):
+        values[f"MODE{i}"] = draw(st.sampled_from(sorted(MODE_NUMBERS)))
     for prefix in (*(f"MOT_{w}" for w in WHEELS), "RCIN"):
         pwm = sorted(draw(st.lists(st.integers(800, 2200), min_size=3, max_size=3, unique=True)))
         values.update(
             {f"{prefix}_{f}": v for f, v in zip(("MIN", "TRIM", "MAX"), pwm, strict=True)}
         )
-    for wheel, channel in zip(WHEELS, channels, strict=True):
+    for wheel, channel in zip(WHEELS, channels[:4], strict=True):
         values[f"MOT_{wheel}_CH"] = channel
-    sticks = draw(st.lists(st.integers(1, 18), min_size=3, max_size=3, unique=True))
-    for name, channel in zip(("RCMAP_STEER", "RCMAP_THROTTLE", "RCMAP_LATERAL"), sticks,
-                             strict=True):
+    for name, channel in zip(("RCMAP_STEER", "RCMAP_THROTTLE", "RCMAP_LATERAL"),
+                             channels[4:7], strict=True):
         values[name] = channel
     return Params(values)
 

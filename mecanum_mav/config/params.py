@@ -53,6 +53,7 @@ from mecanum_mav.mecanum.wheels import WHEEL_NAMES
 
 __all__ = [
     "GROUP_TITLES",
+    "MODE_NUMBERS",
     "NAME_MAX_LEN",
     "RETIRED",
     "RULES",
@@ -60,11 +61,13 @@ __all__ = [
     "SPECS",
     "WHEELS",
     "DistinctChannels",
+    "ModeNumbers",
     "OrderedTriple",
     "ParamError",
     "ParamFileError",
     "ParamSpec",
     "Params",
+    "ReceiverChannels",
     "Value",
     "consistency_problems",
     "float32_canonical",
@@ -80,7 +83,8 @@ Value = int | float
 NAME_MAX_LEN = 16
 """MAVLink ``param_id`` is 16 characters."""
 
-_NAME_RE = re.compile(r"[A-Z][A-Z0-9]*(?:_[A-Z0-9]+)+")
+_NAME_RE = re.compile(r"[A-Z][A-Z0-9]*(?:_[A-Z0-9]+)+|MODE[1-6]")
+"""``GROUP_NAME``; and ArduPilot Rover's mode-switch names MODE1..MODE6 (group ``MODE``)."""
 _NUMBER_RE = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?")
 _NON_FINITE_RE = re.compile(r"[+-]?(?:nan|inf|infinity)", re.IGNORECASE)
 _FLOAT32 = struct.Struct("<f")
@@ -194,6 +198,8 @@ class ParamSpec:
     def group(self) -> str:
         """The group a file and the table list this parameter under (``MOT_FL``, ``GEO``)."""
         parts = self.name.split("_")
+        if len(parts) == 1:  # MODE1 .. MODE6
+            return self.name.rstrip("0123456789")
         return "_".join(parts[:2]) if parts[0] == "MOT" else parts[0]
 
     def with_units(self, x: float) -> str:
@@ -306,8 +312,9 @@ GROUP_TITLES: dict[str, str] = {
     "OUT": "Output to the flight controller",
     "FS": "Failsafes",
     "ARMING": "Arming",
-    "RCMAP": "Ground-station stick channels (RC_CHANNELS_OVERRIDE input)",
-    "RCIN": "Ground-station stick pulse range",
+    "RCMAP": "Stick channels (RC receiver and ground-station RC_CHANNELS_OVERRIDE)",
+    "RCIN": "RC stick input: the receiver through the flight controller, pulse range",
+    "MODE": "Mode switch (RC receiver)",
     "MAN": "Manual driving",
     "CTL": "Control loop",
     "GUID": "GUIDED driving",
@@ -422,6 +429,25 @@ SCHEMA: tuple[ParamSpec, ...] = (
         "disarms and refuses to arm until it is back.",
     ),
     ParamSpec(
+        "FS_THR_ENABLE", int, default=1, minimum=0, maximum=1, units="",
+        values={0: "off", 1: "on"},
+        description="Receiver failsafe (RCIN_ENABLE 1): no RC_CHANNELS for FS_INPUT_TMO, "
+        "channel count 0, RSSI 0 or the throttle channel below FS_THR_VALUE takes the "
+        "FS_RC_ACTION and refuses arming (ArduPilot's throttle failsafe); the wheels stop on "
+        "such input either way.",
+    ),
+    ParamSpec(
+        "FS_THR_VALUE", int, default=910, minimum=800, maximum=1100, units="us",
+        description="Receiver failsafe: a throttle channel (RCMAP_THROTTLE) pulse below this "
+        "is the receiver's failsafe (program the receiver to send it when the link is lost).",
+    ),
+    ParamSpec(
+        "FS_RC_ACTION", int, default=0, minimum=0, maximum=1, units="",
+        values={0: "hold", 1: "disarm"},
+        description="Receiver failsafe action: switch to HOLD (neutral, stay armed) or "
+        "disarm.",
+    ),
+    ParamSpec(
         "ARMING_CHECK", int, default=1, minimum=0, maximum=1, units="",
         values={0: "off", 1: "on"},
         description="Pre-arm checks before arming (sticks centred, the flight controller's "
@@ -430,31 +456,59 @@ SCHEMA: tuple[ParamSpec, ...] = (
     ),
     ParamSpec(
         "RCMAP_STEER", int, default=1, minimum=1, maximum=18, units="",
-        description="Ground-station RC override channel read as the rotation (steering) "
-        "stick, clockwise for pulses above trim (ArduPilot Rover: channel 1).",
+        description="RC channel read as the rotation (steering) stick, clockwise for pulses "
+        "above trim, from the receiver or a ground station's override (ArduPilot Rover: "
+        "RCMAP_ROLL, channel 1).",
     ),
     ParamSpec(
         "RCMAP_THROTTLE", int, default=3, minimum=1, maximum=18, units="",
-        description="Ground-station RC override channel read as the forward (throttle) "
-        "stick, forward for pulses above trim (ArduPilot Rover: channel 3).",
+        description="RC channel read as the forward (throttle) stick, forward for pulses "
+        "above trim, from the receiver or a ground station's override (ArduPilot Rover: "
+        "RCMAP_THROTTLE, channel 3).",
     ),
     ParamSpec(
         "RCMAP_LATERAL", int, default=4, minimum=1, maximum=18, units="",
-        description="Ground-station RC override channel read as the lateral stick, right for "
-        "pulses above trim (ArduPilot Rover: channel 4).",
+        description="RC channel read as the lateral stick, right for pulses above trim, from "
+        "the receiver or a ground station's override (ArduPilot Rover: RCMAP_YAW, channel 4).",
     ),
     ParamSpec(
         "RCIN_MIN", int, default=1000, minimum=800, maximum=2200, units="us",
-        description="Ground-station stick pulse width for full negative deflection.",
+        description="Stick pulse width for full negative deflection (receiver and "
+        "ground-station overrides).",
     ),
     ParamSpec(
         "RCIN_TRIM", int, default=1500, minimum=800, maximum=2200, units="us",
-        description="Ground-station stick pulse width at centre.",
+        description="Stick pulse width at centre (receiver and ground-station overrides).",
     ),
     ParamSpec(
         "RCIN_MAX", int, default=2000, minimum=800, maximum=2200, units="us",
-        description="Ground-station stick pulse width for full positive deflection.",
+        description="Stick pulse width for full positive deflection (receiver and "
+        "ground-station overrides).",
     ),
+    ParamSpec(
+        "RCIN_ENABLE", int, default=0, minimum=0, maximum=1, units="",
+        values={0: "off", 1: "on"},
+        description="Read the RC receiver on the flight controller (RC_CHANNELS, asked for "
+        "at 25 Hz): its sticks drive unless a ground station's sticks are fresh, its mode and "
+        "arm switches act; the wheels need channels the receiver does not use (MOT_x_CH).",
+    ),
+    ParamSpec(
+        "RCIN_ARM_CH", int, default=0, minimum=0, maximum=16, units="",
+        description="Receiver channel of an arm/disarm switch, 0 = none: high (above 1800 "
+        "us) arms, low (below 1200 us) disarms, on a change held 0.2 s (ArduPilot "
+        "RCn_OPTION 153).",
+    ),
+    ParamSpec(
+        "MODE_CH", int, default=8, minimum=0, maximum=16, units="",
+        description="Receiver channel of the six-position mode switch, 0 = none; a new "
+        "position held 0.2 s selects MODE1..MODE6 (ArduPilot Rover MODE_CH).",
+    ),
+    *(ParamSpec(
+        f"MODE{i}", int, default=0, minimum=0, maximum=15, units="",
+        description=f"Mode of switch position {i} ({band} us): 0 MANUAL, 4 HOLD, 10 AUTO or "
+        f"15 GUIDED (ArduPilot Rover MODE{i}).",
+    ) for i, band in enumerate(("up to 1230", "1231-1360", "1361-1490", "1491-1620",
+                                "1621-1749", "1750 and above"), start=1)),
     ParamSpec(
         "MAN_Z_SCALE", int, default=0, minimum=0, maximum=1, units="",
         values={0: "off", 1: "on"},
@@ -680,7 +734,58 @@ class DistinctChannels:
         ]
 
 
-Rule = OrderedTriple | DistinctChannels
+MODE_NUMBERS: dict[int, str] = {0: "MANUAL", 4: "HOLD", 10: "AUTO", 15: "GUIDED"}
+"""The Rover mode numbers this companion has (a mode switch position may name one)."""
+RECEIVER_CHANNELS = ("RCMAP_STEER", "RCMAP_THROTTLE", "RCMAP_LATERAL", "MODE_CH", "RCIN_ARM_CH")
+"""The receiver channels the companion reads (a switch channel 0 is none)."""
+
+
+@dataclass(frozen=True)
+class ModeNumbers:
+    """Rule: each of ``names`` holds one of the Rover mode numbers of :data:`MODE_NUMBERS`."""
+
+    names: tuple[str, ...]
+
+    def problems(self, values: Mapping[str, Value]) -> list[Problem]:
+        """One violation per parameter naming a mode this companion does not have."""
+        known = ", ".join(f"{k} {label}" for k, label in MODE_NUMBERS.items())
+        return [(f"{name} {values[name]} is not a mode: one of {known}", (name,))
+                for name in self.names if values[name] not in MODE_NUMBERS]
+
+
+@dataclass(frozen=True)
+class ReceiverChannels:
+    """Rule: the receiver's channels (sticks, mode and arm switch; 0 = none) are distinct, and
+    with ``RCIN_ENABLE`` 1 no wheel (``MOT_x_CH``) is on one of them: the flight controller
+    reports the companion's overrides in RC_CHANNELS, so a wheel there would read back as a
+    stick."""
+
+    names: tuple[str, ...] = ("RCIN_ENABLE", *RECEIVER_CHANNELS,
+                              *(f"MOT_{w}_CH" for w in WHEELS))
+
+    def problems(self, values: Mapping[str, Value]) -> list[Problem]:
+        """The channels two receiver functions share; with the receiver on, each wheel on a
+        receiver channel."""
+        users: dict[Value, list[str]] = {}
+        for name in RECEIVER_CHANNELS:
+            if values[name] != 0:
+                users.setdefault(values[name], []).append(name)
+        out: list[Problem] = [
+            (f"{_join(on, 'and')} share RC channel {ch}; one function each", tuple(on))
+            for ch, on in users.items() if len(on) > 1 and not set(on) <= {
+                "RCMAP_STEER", "RCMAP_THROTTLE", "RCMAP_LATERAL"}]  # (DistinctChannels says)
+        if values["RCIN_ENABLE"] == 1:
+            for w in WHEELS:
+                wheel = f"MOT_{w}_CH"
+                on = users.get(values[wheel])
+                if on:
+                    out.append((f"{wheel} {values[wheel]} is the receiver's {on[0]} channel; "
+                                f"with RCIN_ENABLE 1 the wheels need channels the receiver "
+                                f"does not use (e.g. 9-12)", (wheel, on[0], "RCIN_ENABLE")))
+        return out
+
+
+Rule = OrderedTriple | DistinctChannels | ModeNumbers | ReceiverChannels
 """A cross-parameter rule: ``names`` (the parameters it reads) and ``problems(values)``."""
 
 RULES: tuple[Rule, ...] = (
@@ -688,10 +793,14 @@ RULES: tuple[Rule, ...] = (
     OrderedTriple("RCIN"),
     DistinctChannels(tuple(f"MOT_{w}_CH" for w in WHEELS), "one motor each"),
     DistinctChannels(("RCMAP_STEER", "RCMAP_THROTTLE", "RCMAP_LATERAL"), "one stick axis each"),
+    ReceiverChannels(),
+    ModeNumbers(tuple(f"MODE{i}" for i in range(1, 7))),
 )
 """The cross-parameter rules every :class:`Params` store keeps, in the order their
 problems are reported: each wheel's MOT_x_MIN < MOT_x_TRIM < MOT_x_MAX, the same for RCIN,
-four distinct MOT_x_CH and three distinct RCMAP channels."""
+four distinct MOT_x_CH and three distinct RCMAP channels, the mode and arm switches on channels
+of their own (and, with the receiver on, no wheel on a receiver channel), MODE1..MODE6 modes
+this companion has."""
 
 
 

@@ -24,6 +24,7 @@ __all__ = [
     "OdometryConfig",
     "OutputConfig",
     "RcInputConfig",
+    "ReceiverConfig",
 ]
 
 
@@ -108,14 +109,20 @@ class FailsafeConfig:
     """No flight-controller HEARTBEAT for this long disarms (``FS_FC_TMO``)."""
     arming_check: bool
     """Run the pre-arm checks before arming (``ARMING_CHECK``)."""
+    receiver_failsafe: bool
+    """The receiver is read (``RCIN_ENABLE``) and its failsafe is on (``FS_THR_ENABLE``)."""
+    receiver_action_disarm: bool
+    """The receiver failsafe disarms (True) or switches to HOLD (``FS_RC_ACTION``)."""
 
     @classmethod
     def from_params(cls, params: Params) -> FailsafeConfig:
-        """Read ``FS_INPUT_TMO``, ``FS_GCS_TMO``, ``FS_GCS_ACTION``, ``FS_FC_TMO`` and
-        ``ARMING_CHECK``."""
+        """Read ``FS_INPUT_TMO``, ``FS_GCS_TMO``, ``FS_GCS_ACTION``, ``FS_FC_TMO``,
+        ``ARMING_CHECK``, ``RCIN_ENABLE``, ``FS_THR_ENABLE`` and ``FS_RC_ACTION``."""
         return cls(float(params["FS_INPUT_TMO"]), float(params["FS_GCS_TMO"]),
                    int(params["FS_GCS_ACTION"]) == 1, float(params["FS_FC_TMO"]),
-                   bool(params["ARMING_CHECK"]))
+                   bool(params["ARMING_CHECK"]),
+                   bool(params["RCIN_ENABLE"]) and bool(params["FS_THR_ENABLE"]),
+                   int(params["FS_RC_ACTION"]) == 1)
 
 
 @dataclass(frozen=True, slots=True)
@@ -146,6 +153,32 @@ class RcInputConfig:
         return cls(int(params["RCMAP_THROTTLE"]), int(params["RCMAP_LATERAL"]),
                    int(params["RCMAP_STEER"]), int(params["RCIN_MIN"]),
                    int(params["RCIN_TRIM"]), int(params["RCIN_MAX"]))
+
+
+@dataclass(frozen=True, slots=True)
+class ReceiverConfig:
+    """The RC receiver read through the flight controller (RC_CHANNELS)."""
+
+    enabled: bool
+    """Read it (``RCIN_ENABLE``)."""
+    mode_ch: int
+    """The six-position mode switch's channel, 0 = none (``MODE_CH``)."""
+    modes: tuple[int, int, int, int, int, int]
+    """Rover mode number of each switch position (``MODE1..MODE6``)."""
+    arm_ch: int
+    """The arm/disarm switch's channel, 0 = none (``RCIN_ARM_CH``)."""
+    throttle_fs_us: int
+    """A throttle pulse below this is the receiver's failsafe, us (``FS_THR_VALUE``)."""
+    failsafe: bool
+    """The receiver failsafe takes its action and blocks arming (``FS_THR_ENABLE``)."""
+
+    @classmethod
+    def from_params(cls, params: Params) -> ReceiverConfig:
+        """Read ``RCIN_ENABLE``, ``MODE_CH``, ``MODE1..6``, ``RCIN_ARM_CH`` and ``FS_THR_*``."""
+        m1, m2, m3, m4, m5, m6 = (int(params[f"MODE{i}"]) for i in range(1, 7))
+        return cls(bool(params["RCIN_ENABLE"]), int(params["MODE_CH"]),
+                   (m1, m2, m3, m4, m5, m6), int(params["RCIN_ARM_CH"]),
+                   int(params["FS_THR_VALUE"]), bool(params["FS_THR_ENABLE"]))
 
 
 @dataclass(frozen=True, slots=True)

@@ -42,7 +42,13 @@ from functools import partial
 from typing import Any, NamedTuple, Protocol
 
 from mecanum_mav.config.params import Params
-from mecanum_mav.config.views import IdentityConfig, InputConfig, OutputConfig, RcInputConfig
+from mecanum_mav.config.views import (
+    IdentityConfig,
+    InputConfig,
+    OutputConfig,
+    RcInputConfig,
+    ReceiverConfig,
+)
 from mecanum_mav.control.autopilot import TIMER_SLACK_S, Autopilot
 from mecanum_mav.control.chain import Output, manual_output
 from mecanum_mav.control.estimator import WheelOdometryEstimator
@@ -50,6 +56,7 @@ from mecanum_mav.control.fccheck import FcSetupCheck
 from mecanum_mav.control.guided import SetpointError, decode_setpoint
 from mecanum_mav.control.missions import MissionControl
 from mecanum_mav.control.pwm import PwmMap
+from mecanum_mav.control.rcinput import RC_CHANNELS_INTERVAL_US, ReceiverInput
 from mecanum_mav.control.refusals import Refusal, RefusalLog
 from mecanum_mav.control.sticks import InputError, RcStickState, stick_from_manual_control
 from mecanum_mav.control.vehicle import Decision, Vehicle
@@ -75,6 +82,7 @@ from mecanum_mav.protocol.messages import (
     ParamReadMsg,
     ParamSetMsg,
     PingMsg,
+    RcChannelsMsg,
     Received,
     Result,
     SetModeMsg,
@@ -225,6 +233,10 @@ class RoverCore:
         self.vehicle = Vehicle(params, hooks=self)
         self.streams = StreamSchedule(params)
         self.rc_sticks = RcStickState()
+        self.receiver = ReceiverInput()
+        """The RC receiver read through the flight controller (``RCIN_ENABLE``)."""
+        self._gcs_stick_s = -math.inf  # a ground station's latest stick (it takes over)
+        self._rc_stream_asked = False
         self.mission = MissionControl(mission, self.to_gcs, self._for_us, self.vehicle,
                                       self.autopilot.executor, lambda: self.estimator.pose,
                                       self.say, self.refuse, storage)
@@ -278,6 +290,7 @@ class RoverCore:
             "WHEEL_DISTANCE": self._on_wheel_distance,
             "SYS_STATUS": self._on_fc_sys_status,
             "PARAM_VALUE": self._on_fc_param_value,
+            "RC_CHANNELS": self._on_rc_channels,
         }
         self._commands: dict[int, Command] = {
             mavlink.MAV_CMD_COMPONENT_ARM_DISARM: self._cmd_arm_disarm,
@@ -366,6 +379,7 @@ class RoverCore:
             return NOTHING
         if self.vehicle.fc_lost:
             self._fc_streams_asked = False  # ask a rebooted flight controller again
+            self._rc_stream_asked = False
         if now_s >= self.fc_check.next_due_s:
             again, verdict = self.fc_check.tick(self.params, now_s)
             self._ask_fc_params(again)
@@ -464,6 +478,9 @@ class RoverCore:
         self.input = InputConfig.from_params(p)
         self.output = OutputConfig.from_params(p)
         self.rc_input = RcInputConfig.from_params(p)
+        self.receiver_config = ReceiverConfig.from_params(p)
+        if not self.receiver_config.enabled:
+            self._rc_stream_asked = False  # (asked again when it is turned on)
         lat, lon = float(p["ORIGIN_LAT"]), float(p["ORIGIN_LON"])
         self._origin_param = None if lat == lon == 0.0 else GlobalOrigin.from_degrees(lat, lon)
         self.vehicle.reconfigure(p)
@@ -603,6 +620,43 @@ class RoverCore:
                 self.identity.fc_sysid, self.identity.fc_compid,
                 mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, 0, mavlink.MAVLINK_MSG_ID_SYS_STATUS,
                 FC_SYS_STATUS_INTERVAL_US, 0, 0, 0, 0, 0)
+        if self.receiver_config.enabled and not self._rc_stream_asked:
+            self._rc_stream_asked = True  # the receiver's channels, when it is read
+            self.to_fc.command_long_send(
+                self.identity.fc_sysid, self.identity.fc_compid,
+                mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, 0, mavlink.MAVLINK_MSG_ID_RC_CHANNELS,
+                RC_CHANNELS_INTERVAL_US, 0, 0, 0, 0, 0)
+
+    def _on_rc_channels(self, msg: RcChannelsMsg, now_s: float) -> None:
+        """The receiver through the flight controller (:mod:`mecanum_mav.control.rcinput`):
+        its sticks drive unless a ground station's are fresh; its switches set the mode and
+        arm; its failsafe stops the wheels at once and takes ``FS_RC_ACTION``."""
+        config = self.receiver_config
+        if not config.enabled:
+            return
+        pulses = [getattr(msg, f"chan{i}_raw") for i in range(1, 19)]
+        frame = self.receiver.frame(msg.chancount, pulses, msg.rssi, config, self.rc_input,
+                                    now_s)
+        vehicle = self.vehicle
+        vehicle.on_receiver(frame.problem, now_s)
+        gcs_driving = now_s - self._gcs_stick_s <= vehicle.config.input_timeout_s
+        if frame.stick is None:
+            if not gcs_driving:
+                self.stick = _NEUTRAL_WHEELS[:3]  # the wheels stop now, whatever the action
+                self._new_input = True
+            return
+        if frame.mode is not None:
+            vehicle.request_mode(frame.mode, now_s)
+        if frame.arm is True:
+            vehicle.update(now_s)
+            vehicle.request_arm(now_s, self._prearm_problems(frame.stick))
+        elif frame.arm is False:
+            vehicle.request_disarm(now_s, "by RC switch")
+        if not gcs_driving:
+            self.stick = frame.stick
+            self.faulted = False
+            vehicle.on_stick_input(now_s)
+            self._new_input = True
 
     def _on_fc_param_value(self, msg: FcParamValueMsg, now_s: float) -> None:
         self.fc_check.on_value(msg.param_id.rstrip("\x00"), float(msg.param_value))
@@ -637,6 +691,7 @@ class RoverCore:
 
     def _take_stick(self, stick: tuple[float, float, float], now_s: float) -> None:
         self.stick = stick
+        self._gcs_stick_s = now_s  # a ground station's stick: the receiver's wait
         self.faulted = False
         self.vehicle.on_stick_input(now_s)
         self._new_input = True
@@ -706,16 +761,18 @@ class RoverCore:
         self.refuse(Refusal.COMMAND, f"Arm/disarm: param1 must be 0 or 1, got {p[0]}")
         return Result.DENIED
 
-    def _prearm_problems(self) -> list[str]:
+    def _prearm_problems(self, stick: tuple[float, float, float] | None = None) -> list[str]:
         """The core's pre-arm checks: the flight controller's setup (when it was checked)
-        must be safe, and a pilot's fresh stick must be centred (within the deadband), or
-        arming would drive off at once."""
+        must be safe, and a pilot's fresh stick (or ``stick``, the receiver's) must be
+        centred (within the deadband), or arming would drive off at once."""
         problems = []
         if self.fc_check.hazards:
             problems.append(f"FC setup unsafe: {self.fc_check.hazards[0].name} "
                             f"(mecanum-mav setup-fc)")
-        if not self.vehicle.input_stale:
-            deflected = [f"{name} {value:+.2f}" for name, value in zip("xyr", self.stick,
+        if stick is None and not self.vehicle.input_stale:
+            stick = self.stick
+        if stick is not None:
+            deflected = [f"{name} {value:+.2f}" for name, value in zip("xyr", stick,
                                                                         strict=True)
                          if abs(value) > self.input.deadband]
             if deflected:

@@ -29,6 +29,7 @@ __all__ = [
     "InputError",
     "RcStickState",
     "stick_from_manual_control",
+    "stick_from_pulses",
 ]
 
 INVALID_AXIS = 0x7FFF
@@ -72,6 +73,19 @@ def stick_from_manual_control(x: int, y: int, r: int, z: int, *, z_scale: bool) 
     return stick[0] * k, stick[1] * k, stick[2] * k
 
 
+def stick_from_pulses(x_us: int, y_us: int, r_us: int, config: RcInputConfig) -> Stick:
+    """The normalized stick (x forward, y right, r clockwise) from the pulse widths (us) of
+    the three stick channels: ``RCIN_TRIM`` is 0, ``RCIN_MIN``/``RCIN_MAX`` are -1/+1,
+    clamped beyond them."""
+    low, trim, high = config.min_us, config.trim_us, config.max_us
+    out = []
+    for pulse in (x_us, y_us, r_us):
+        span = (high - trim) if pulse >= trim else (trim - low)
+        value = (pulse - trim) / span
+        out.append(-1.0 if value < -1.0 else (1.0 if value > 1.0 else value))
+    return out[0], out[1], out[2]
+
+
 class RcStickState:
     """The ground station's RC override sticks, remembered across messages.
 
@@ -113,11 +127,5 @@ class RcStickState:
 
     def stick(self, config: RcInputConfig) -> Stick:
         """The normalized stick (x forward, y right, r clockwise) from the held pulses."""
-        low, trim, high = config.min_us, config.trim_us, config.max_us
-        out = []
-        for number in config.axes:
-            pulse = self.pulses.get(number, trim)
-            span = (high - trim) if pulse >= trim else (trim - low)
-            value = (pulse - trim) / span
-            out.append(-1.0 if value < -1.0 else (1.0 if value > 1.0 else value))
-        return out[0], out[1], out[2]
+        x, y, r = (self.pulses.get(number, config.trim_us) for number in config.axes)
+        return stick_from_pulses(x, y, r, config)

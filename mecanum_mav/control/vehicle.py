@@ -17,6 +17,12 @@ Failsafes (each a parameter):
 - Flight-controller loss (``FS_FC_TMO``): no flight-controller HEARTBEAT for the timeout (or
   never one) reports CRITICAL, disarms, and refuses to arm until it is back.
 
+- Receiver failsafe (``RCIN_ENABLE`` and ``FS_THR_ENABLE``, ``FS_RC_ACTION``): the receiver
+  read through the flight controller gave no valid RC_CHANNELS for ``FS_INPUT_TMO`` or said it
+  lost its transmitter (:meth:`Vehicle.on_receiver`): reports CRITICAL, switches to HOLD
+  (default) or disarms while armed, and refuses to arm until the receiver is back. It starts
+  active (no receiver heard yet). Like ArduPilot, the rover stays in HOLD when it returns.
+
 A link that breaks (the shell saw its device vanish or its connection close) needs no
 timeout: nothing can arrive on it, so :meth:`Vehicle.on_fc_link_down` and
 :meth:`Vehicle.on_gcs_link_down` fire its failsafe at once.
@@ -90,11 +96,19 @@ class Vehicle:
         self.gcs_failsafe = False
         self.fc_lost = True
         self.input_stale = True
+        self.rc_seen_s: float | None = None
+        """When the receiver last gave valid input (monotonic s), None before."""
+        self.rc_failsafe = self.config.receiver_failsafe
+        """The receiver failsafe is active (see the module docstring)."""
         self._events: list[Event] = []
 
     def reconfigure(self, params: Params) -> None:
         """Take the failsafe parameters from ``params`` (after a parameter changed)."""
         self.config = FailsafeConfig.from_params(params)
+        if not self.config.receiver_failsafe:
+            self.rc_failsafe = False
+        elif self.rc_seen_s is None:
+            self.rc_failsafe = True
 
     # ----------------------------------------------------------------- inputs
 
@@ -119,6 +133,29 @@ class Vehicle:
             self.input_stale = False
             if self.armed and self.mode is Mode.MANUAL:
                 self._say(Severity.INFO, "Manual input resumed")
+
+    def on_receiver(self, problem: str | None, now_s: float) -> None:
+        """The receiver's RC_CHANNELS arrived: valid (``problem`` None) or its failsafe
+        (``problem`` says which: no channels, RSSI 0, throttle below FS_THR_VALUE)."""
+        if problem is None:
+            self.rc_seen_s = now_s
+            if self.rc_failsafe:
+                self.rc_failsafe = False
+                self._say(Severity.NOTICE, f"Radio receiver OK, mode {self.mode.name}")
+        elif self.config.receiver_failsafe:
+            self._receiver_failsafe(problem, now_s)
+
+    def _receiver_failsafe(self, problem: str, now_s: float) -> None:
+        self.rc_seen_s = None
+        if self.rc_failsafe:
+            return
+        self.rc_failsafe = True
+        self._say(Severity.CRITICAL, f"Radio failsafe: {problem}")
+        if self.armed:
+            if self.config.receiver_action_disarm:
+                self.request_disarm(now_s, "radio failsafe")
+            else:
+                self.request_mode(Mode.HOLD, now_s)
 
     def on_fc_link_down(self, now_s: float) -> None:
         """The flight controller's link broke (device gone, connection closed): no HEARTBEAT
@@ -150,6 +187,8 @@ class Vehicle:
             return Decision(True)
         if self.fc_lost:
             return self._refuse("PreArm: flight controller link down", Refusal.ARM)
+        if self.rc_failsafe:
+            return self._refuse("PreArm: radio failsafe (receiver)", Refusal.ARM)
         if problems and not force and self.config.arming_check:
             return self._refuse(f"PreArm: {problems[0]}", Refusal.ARM)
         self.armed = True
@@ -207,6 +246,9 @@ class Vehicle:
                     self.request_disarm(now_s, "GCS failsafe")
                 else:
                     self.request_mode(Mode.HOLD, now_s)
+        rc_s = self.rc_seen_s
+        if rc_s is not None and now_s - rc_s > c.input_timeout_s and c.receiver_failsafe:
+            self._receiver_failsafe("no RC_CHANNELS", now_s)
         stale = self.input_s is None or now_s - self.input_s > c.input_timeout_s
         if stale and not self.input_stale:
             self.input_stale = True
@@ -225,6 +267,8 @@ class Vehicle:
             due = min(due, self.gcs_seen_s + c.gcs_timeout_s)
         if not self.input_stale and self.input_s is not None:
             due = min(due, self.input_s + c.input_timeout_s)
+        if self.rc_seen_s is not None and c.receiver_failsafe:
+            due = min(due, self.rc_seen_s + c.input_timeout_s)
         return due
 
     # ----------------------------------------------------------------- outputs
@@ -233,7 +277,7 @@ class Vehicle:
         """True when the sticks may move the wheels: armed, MANUAL, fresh input, no failsafe."""
         return (
             self.armed and self.mode is Mode.MANUAL and not self.input_stale
-            and not self.fc_lost and not self.gcs_failsafe
+            and not self.fc_lost and not self.gcs_failsafe and not self.rc_failsafe
         )
 
     def autonomous(self) -> bool:
@@ -250,8 +294,8 @@ class Vehicle:
 
     @property
     def failsafe(self) -> bool:
-        """Any link failsafe is active (the heartbeat then reports CRITICAL)."""
-        return self.fc_lost or self.gcs_failsafe
+        """Any link or receiver failsafe is active (the heartbeat then reports CRITICAL)."""
+        return self.fc_lost or self.gcs_failsafe or self.rc_failsafe
 
     @property
     def has_events(self) -> bool:

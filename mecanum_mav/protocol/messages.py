@@ -28,6 +28,7 @@ __all__ = [
     "ParamReadMsg",
     "ParamSetMsg",
     "PingMsg",
+    "RcChannelsMsg",
     "Received",
     "Result",
     "SetModeMsg",
@@ -168,6 +169,15 @@ class FcSysStatusMsg(Received, Protocol):
     voltage_battery: int
     current_battery: int
     battery_remaining: int
+
+
+class RcChannelsMsg(Received, Protocol):
+    """RC_CHANNELS from the flight controller: its receiver's channel count, pulse widths
+    (``chan1_raw`` .. ``chan18_raw``, us; 0 or UINT16_MAX: none) and RSSI (0..254, 255
+    unknown)."""
+
+    chancount: int
+    rssi: int
 
 
 class WheelDistanceMsg(Received, Protocol):

@@ -29,6 +29,12 @@ pose (latitude and longitude about ``ORIGIN_LAT``/``ORIGIN_LON``, or about 0, 0 
 origin is set; yaw in radians clockwise from north) and the true velocity (north, east m/s),
 so a tlog shows where the chassis really went (``mecanum-mav log``).
 
+A simulated RC receiver (:attr:`SimBoard.receiver`, pulse widths of channels 1..N that a test
+sets; None = no receiver, :attr:`SimBoard.rssi`) is reported as ArduPilot does in RC_CHANNELS,
+sent only once asked for with MAV_CMD_SET_MESSAGE_INTERVAL (message 65): ``chancount`` N, each
+channel the override in force or else the receiver's pulse (0 beyond N), RSSI 255 (unknown)
+unless set. The wheels stay on the overrides (a wheel channel without one outputs trim).
+
 Physics is stepped at ``SIM_RATE`` with a zero-order hold of the wheel commands; an override
 takes effect from the moment it arrives. The socket version is
 :class:`mecanum_mav.sim.simfc.SimFlightController`; :class:`mecanum_mav.sim.lockstep.Lockstep`
@@ -175,6 +181,11 @@ class SimBoard:
         self.commands = (0.0, 0.0, 0.0, 0.0)
         self.received = 0
         self.ignored = 0
+        self.receiver: tuple[int, ...] | None = None
+        """The simulated receiver's pulse widths (us), channel 1 first; None: no receiver."""
+        self.rssi = 255
+        """The receiver's RSSI in RC_CHANNELS (0..254, 255 unknown)."""
+        self._rc_channels = _Every(math.inf, math.inf)
         self.beating = True
         """Whether the board sends its HEARTBEAT (clear it to test link loss)."""
         self.boot_s = now_s
@@ -186,6 +197,7 @@ class SimBoard:
             (_Every(_SERVO_OUTPUT_PERIOD_S, now_s), self._servo_output_raw),
             (_Every(_SYS_STATUS_PERIOD_S, now_s), self._sys_status),
             (_Every(SIM_STATE_PERIOD_S, now_s), self._sim_state),
+            (self._rc_channels, self._rc_channels_msg),
         ]
 
     # ------------------------------------------------------------------ time
@@ -210,6 +222,13 @@ class SimBoard:
     def receive(self, messages: Sequence[Any], now_s: float) -> bool:
         """Obey or drop the RC_CHANNELS_OVERRIDEs among ``messages`` received at ``now_s``
         (physics catches up first, so they take effect from that moment); True if any."""
+        for msg in messages:
+            if (msg.get_type() == "COMMAND_LONG"
+                    and msg.command == mavlink.MAV_CMD_SET_MESSAGE_INTERVAL
+                    and int(msg.param1) == mavlink.MAVLINK_MSG_ID_RC_CHANNELS
+                    and msg.target_system in (0, self.sysid)):
+                period_s = msg.param2 / 1e6 if msg.param2 > 0 else math.inf
+                self._rc_channels.period_s, self._rc_channels.next_s = period_s, now_s
         overrides = [m for m in messages if m.get_type() == "RC_CHANNELS_OVERRIDE"]
         if not overrides:
             return False
@@ -309,6 +328,15 @@ class SimBoard:
         pulses = [self.channel_pwm.get(ch, self._trims.get(ch, 0))
                   for ch in range(1, SERVO_OUTPUTS + 1)]
         mav.servo_output_raw_send(time_usec, 0, *pulses)
+
+    def _rc_channels_msg(self, mav: Any, now_s: float) -> None:
+        """RC_CHANNELS: the receiver's pulses under the overrides in force (see the module
+        docstring)."""
+        receiver = self.receiver or ()
+        pulses = [self.channel_pwm.get(ch, receiver[ch - 1] if ch <= len(receiver) else 0)
+                  for ch in range(1, CHANNELS + 1)]
+        mav.rc_channels_send((self._boot_us(now_s) // 1000) & 0xFFFFFFFF, len(receiver),
+                             *pulses, self.rssi)
 
     def _sim_state(self, mav: Any, now_s: float) -> None:
         """SIM_STATE: the true pose and velocity (see the module docstring); level, no

@@ -1,0 +1,78 @@
+"""The RC receiver through real ArduPilot Rover firmware (SITL): the firmware's simulated
+receiver (UDP ``--rc-in-port``) is fed sticks and switches, the companion reads them in
+RC_CHANNELS and drives the wheels on SERVO9..12 (set up as ``mecanum-mav setup-fc`` would),
+read on the firmware's second port. Skipped when the firmware is not there."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+import pytest
+from sitl import CompanionProcess, Rig, Sitl, find_sitl
+
+from mecanum_mav.config.params import Params
+from mecanum_mav.config.views import InputConfig
+from mecanum_mav.control.chain import manual_output
+from mecanum_mav.control.pwm import PwmMap
+from mecanum_mav.protocol.fcsetup import safe_settings
+from mecanum_mav.sim.groundstation import udp_ground_station
+
+BINARY, WHY_NOT = find_sitl()
+if BINARY is None:
+    pytest.skip(WHY_NOT, allow_module_level=True)
+
+COMPANION = {"MOT_FL_CH": 9, "MOT_FR_CH": 10, "MOT_RL_CH": 11, "MOT_RR_CH": 12,
+             "RCIN_ENABLE": 1, "RCIN_ARM_CH": 7, "MODE3": 4}
+"""Wheels on 9-12, the receiver read, arm switch on channel 7, mode switch position 3 HOLD."""
+CENTRE = (1500, 1500, 1500, 1500, 1500, 1500, 1000, 1100)
+TRIM = (1500, 1500, 1500, 1500)
+
+
+def receiver(**channels: int) -> tuple[int, ...]:
+    pulses = list(CENTRE)
+    for name, pulse in channels.items():
+        pulses[int(name[2:]) - 1] = pulse
+    return tuple(pulses)
+
+
+@pytest.fixture
+def rig(tmp_path) -> Iterator[Rig]:
+    params = Params()
+    params.update(COMPANION)
+    board = safe_settings(params, {"MAV_GCS_SYSID": 255})  # what setup-fc --apply writes
+    assert board["SERVO9_FUNCTION"] == 148 and board["RCMAP_THROTTLE"] == 9
+    assert BINARY is not None
+    with Sitl(BINARY, "udp", receiver=CENTRE, first_servo=9, boot_timeout_s=Rig.boot_s,
+              extra_params=[f"{k} {v:g}" for k, v in board.items()]) as fc:
+        gcs, port = udp_ground_station()
+        try:
+            sets = [a for k, v in COMPANION.items() for a in ("--set", f"{k}={v}")]
+            with CompanionProcess(port.url, fc.fc_url, tmp_path, *sets) as companion:
+                yield Rig(fc, gcs, companion)
+        finally:
+            port.close()
+
+
+def test_receiver_sticks_and_switches_drive_ardupilots_servo9_to_12_and_its_failsafe_stops_them(
+        rig):
+    fc, monitor = rig.fc, rig.monitor
+    assert rig.said("Radio receiver OK"), rig.why()
+    fc.receiver = receiver(ch7=2000)  # the arm switch
+    assert rig.said("Armed"), rig.why()
+    forward = receiver(ch7=2000, ch3=1750)
+    params = Params()
+    params.update(COMPANION)
+    _, expected = manual_output(250 / 500, 0.0, 0.0, InputConfig.from_params(params),
+                                PwmMap.from_params(params))
+    assert expected[0] > 1700 and len(set(expected)) == 1
+    fc.receiver = forward
+    assert monitor.wait_servos(lambda s: s == expected, rig.react_s), rig.why()
+    fc.receiver = receiver(ch7=2000, ch3=1750, ch8=1425)  # mode switch position 3: HOLD
+    assert rig.said("Mode HOLD"), rig.why()
+    assert monitor.wait_servos(lambda s: s == TRIM, rig.react_s), rig.why()
+    fc.receiver = forward  # position 1: MANUAL again
+    assert rig.said("Mode MANUAL"), rig.why()
+    assert monitor.wait_servos(lambda s: s == expected, rig.react_s), rig.why()
+    fc.receiver = receiver(ch7=2000, ch3=880)  # the receiver's failsafe: throttle low
+    assert monitor.wait_servos(lambda s: s == TRIM, rig.react_s), rig.why()
+    assert rig.said("Radio failsafe"), rig.why()
