@@ -55,6 +55,7 @@ from mecanum_mav.control.core import (
 )
 from mecanum_mav.io.links import Link, follow, open_link
 from mecanum_mav.io.storage import FileStorage
+from mecanum_mav.protocol.codec import ManualControl
 from mecanum_mav.protocol.statustext import Severity
 
 __all__ = ["Companion"]
@@ -107,6 +108,7 @@ class Companion:
         self._stop = threading.Event()
         self._wake_r, self._wake_w = os.pipe()
         self._thread: threading.Thread | None = None
+        self._general = False  # this pass needs tick(): more than a stick in its lane came
 
     def run(self) -> None:
         """Run until :meth:`stop`; always ends with neutral wheels and released channels."""
@@ -120,7 +122,7 @@ class Companion:
             while not self._stop.is_set():
                 due = min(core.next_due_s(), gcs.next_reopen_s, fc.next_reopen_s,
                           gcs.next_send_s, fc.next_send_s)
-                drained = False
+                drained = self._general = False
                 for key, events in selector.select(max(0.0, due - self.clock())):
                     if key.data is None:
                         os.read(self._wake_r, 64)
@@ -131,9 +133,12 @@ class Companion:
                 for link in streams:  # (a datagram link never goes down)
                     if not link.up and link.reopen(now):
                         self._report(link, now)  # before anything else goes out on it
+                        self._general = True
                 refresh = None if drained else core.refresh(now)
                 if refresh is not None:  # the output refresh alone: nothing else is due
                     self._send_override(refresh)
+                elif drained and not self._general:  # a stick answered in its lane
+                    self._write(core.housekeeping(now))
                 else:
                     self._write(core.tick(now))  # the override first,
                     self._write(core.housekeeping(now))  # then everything else
@@ -150,13 +155,19 @@ class Companion:
         now, from_fc, handle = self.clock(), link is self.fc, self.core.handle
         messages = link.read()
         self._report(link, now)  # it broke, or a tcpin client connected: the core first
+        rejected = link.take_rejections()
+        if rejected:  # unsigned or badly signed: counted, said at most once a second
+            self.core.refuse_unsigned(rejected, now, from_fc=from_fc)
+        if not from_fc and len(messages) == 1 and type(messages[0]) is ManualControl:
+            override = self.core.stick_lane(messages[0], now)
+            if override is not None:  # the pilot's stick, answered at once
+                self._send_override(override)
+                return
+        self._general = True
         for msg in messages:
             out = handle(msg, now, from_fc=from_fc)
             if out is not NOTHING:  # a stick is answered by the tick, not here
                 self._write(out)
-        rejected = link.take_rejections()
-        if rejected:  # unsigned or badly signed: counted, said at most once a second
-            self.core.refuse_unsigned(rejected, now, from_fc=from_fc)
 
     def _report(self, link: Link, now: float) -> None:
         """Tell the core once when ``link`` went down or came back up."""

@@ -260,6 +260,8 @@ class RoverCore:
         """Before this no timer of :meth:`housekeeping` is due (-inf: look at them all)."""
         self._quiet_until_s = -math.inf
         """Before this nothing but the output refresh can be due (:meth:`refresh`)."""
+        self._lane_open = False
+        """:meth:`stick_lane` may answer a stick (as of the last :meth:`tick`)."""
         self._last_override: RcOverride | None = None
         self._fc_streams_asked = False
         self.fc_check = FcSetupCheck()
@@ -326,10 +328,7 @@ class RoverCore:
                     return NOTHING if not (self.to_gcs.messages or self.to_fc.messages) else (
                         self._take(None))
         except Exception:  # never let one message take the control path down
-            log.exception("error handling %s", msg.get_type())
-            self.faulted = True
-            self.say(Severity.ERROR, f"Error handling {msg.get_type()}: neutral")
-            return self._take(self._override(self.pwm.neutral(), now_s))
+            return self._take(self._handler_failed(msg.get_type(), now_s))
         self._housekeeping_due_s = -math.inf  # it may have set a timer: look at them all
         self._quiet_until_s = -math.inf
         if self.to_gcs.messages or self.to_fc.messages:
@@ -356,6 +355,7 @@ class RoverCore:
             self.say(Severity.ERROR, "Error computing output: neutral")
             wheels, pulses = _NEUTRAL_WHEELS, self.pwm.neutral()
         self._output_wheels = wheels
+        self._update_lane()
         if self._new_input or pulses != self.pulses_us or now_s >= self._next_output_s:
             # (timers are set TIMER_SLACK_S early: a clock that adds in floating point,
             # like the lockstep harness's, must not miss a period by 1e-17 s)
@@ -425,6 +425,44 @@ class RoverCore:
             return None
         self._next_output_s = now_s + self.output.refresh_period_s - TIMER_SLACK_S
         return self._last_override
+
+    def stick_lane(self, msg: ManualControlMsg, now_s: float) -> RcOverride | None:
+        """The control path's lane: the pilot's MANUAL_CONTROL answered with its override
+        at once, exactly as :meth:`handle` then :meth:`tick` would answer it, when nothing
+        else can be involved: driving in MANUAL, nothing due (no timeout, no timer), a valid
+        stick for us from the pilot. Else None, with nothing changed: call :meth:`handle`
+        and :meth:`tick`. After an override from here, the pass needs :meth:`housekeeping`
+        only."""
+        if (not self._lane_open or now_s >= self._quiet_until_s
+                or not (self._for_us(msg.target) and self._from_pilot(msg))):
+            return None
+        self._now_s = now_s
+        try:
+            stick = stick_from_manual_control(msg.x, msg.y, msg.r, msg.z,
+                                              z_scale=self.input.z_scale)
+        except InputError:  # refused: handle() says why
+            return None
+        except Exception:
+            return self._handler_failed("MANUAL_CONTROL", now_s)
+        try:
+            wheels, pulses = manual_output(*stick, self.input, self.pwm)
+        except Exception:  # handle() takes the stick and tick() faults the output
+            return None
+        self._take_stick(stick, now_s)
+        self._output_wheels = wheels
+        return self._override(pulses, now_s)
+
+    def _handler_failed(self, kind: str, now_s: float) -> RcOverride:
+        """A message handler raised: logged, said, neutral at once and latched."""
+        log.exception("error handling %s", kind)
+        self.faulted = True
+        self.say(Severity.ERROR, f"Error handling {kind}: neutral")
+        return self._override(self.pwm.neutral(), now_s)
+
+    def _update_lane(self) -> None:
+        vehicle = self.vehicle
+        self._lane_open = (vehicle.driving() and not self.faulted and not vehicle.autonomous()
+                           and not self.autopilot.executor.running)
 
     def link_down(self, link: str, reason: str, now_s: float) -> Outbox:
         """The shell's ``link`` (``"fc"`` or ``"gcs"``) broke at ``now_s`` for ``reason``

@@ -42,7 +42,7 @@ from mecanum_mav.control.core import (
     RoverCore,
     Storage,
 )
-from mecanum_mav.protocol.codec import encode_rc_override
+from mecanum_mav.protocol.codec import ManualControl, encode_rc_override
 from mecanum_mav.protocol.dialect import mavlink
 from mecanum_mav.protocol.framing import MessageParser
 from mecanum_mav.protocol.mission import MissionItem
@@ -210,18 +210,28 @@ class Lockstep:
         gcs_wire = self._gcs_to_core
         gcs_wire.follow_clock(now)
         self._core_to_gcs.follow_clock(now)
-        for msg in gcs_wire.deliver():
-            self._write(core.handle(msg, now))
-            woke = True
+        general = False
+        delivered = gcs_wire.deliver()
         if gcs_wire.check is not None and gcs_wire.check.new_rejections:
             core.refuse_unsigned(gcs_wire.check.take_rejections(), now)
+        lane = (core.stick_lane(delivered[0], now)
+                if len(delivered) == 1 and type(delivered[0]) is ManualControl else None)
+        if lane is not None:  # the pilot's stick in its lane, as the companion answers it
+            self._write(Outbox((), (), lane))
+            woke = True
+        else:
+            for msg in delivered:
+                self._write(core.handle(msg, now))
+                woke = general = True
         for msg in self._fc_to_core.deliver() if self.fc_link_up else self._fc_to_core.drop():
             self._write(core.handle(msg, now, from_fc=True))
-            woke = True
+            woke = general = True
         if woke or now >= core.next_due_s():
             refresh = None if woke else core.refresh(now)
             if refresh is not None:  # the output refresh alone, as the companion's loop does
                 self._write(Outbox((), (), refresh))
+            elif woke and not general:  # only a stick, answered in its lane
+                self._write(core.housekeeping(now))
             else:
                 self._write(core.tick(now))
                 self._write(core.housekeeping(now))
