@@ -145,8 +145,8 @@ class FleetDrive:
     """(AUTO accepted s, last waypoint reached s) of each rover that ran the mission."""
 
 
-def drive_fleet(stations: dict[int, ScriptedGroundStation], *, mission_side_m: float = 1.0,
-                stick_s: float = 1.5, timeout_s: float = 40.0) -> FleetDrive:
+def drive_fleet(stations: dict[int, ScriptedGroundStation], *, mission_side_m: float = 0.6,
+                stick_s: float = 1.0, timeout_s: float = 40.0) -> FleetDrive:
     """The fleet drive, each message addressed by system id (``stations`` by system id, at
     least three): every rover armed; MANUAL_CONTROL to the second rover (MAVProxy routes by a
     ``target_system`` field, which MANUAL_CONTROL lacks - its field is ``target`` - so it
@@ -164,11 +164,12 @@ def drive_fleet(stations: dict[int, ScriptedGroundStation], *, mission_side_m: f
     out = FleetDrive()
     t0 = time.monotonic()
     for sysid in ids:
-        if stations[sysid].wait("STATUSTEXT", lambda m: m.text == "Flight controller link up",
-                                20.0, since=0) is None:
-            raise RuntimeError(f"rover {sysid} never reported its flight controller link")
+        # The router may have come up after a rover's first words (its "Flight controller
+        # link up"): wait for a heartbeat, then retry arming until the rover accepts.
+        if stations[sysid].wait("HEARTBEAT", timeout_s=20.0, since=0) is None:
+            raise RuntimeError(f"rover {sysid} never showed up")
         try:
-            stations[sysid].arm()
+            stations[sysid].arm(timeout_s=10.0)
         except RuntimeError:
             raise RuntimeError(f"rover {sysid} refused arming") from None
     phases: list[tuple[str, int, StickSender, float, float]] = [
@@ -272,10 +273,10 @@ def plot_fleet(drive: FleetDrive, path: Path) -> Path:
 
     plt = _pyplot()
     ids = sorted(drive.paths)
-    fig, axes = plt.subplots(1, len(ids), figsize=(4.0 * len(ids), 4.6), sharex=True,
+    fig, axes = plt.subplots(1, len(ids), figsize=(4.0 * len(ids), 5.4), sharex=True,
                              sharey=True, squeeze=False)
-    colours = {name: c for name, c in zip(
-        [p[0] for p in drive.phases], ("tab:red", "tab:orange", "tab:green", "tab:blue"), strict=False)}
+    palette = ("tab:red", "tab:orange", "tab:green", "tab:blue", "tab:purple")
+    colours = {p[0]: palette[i % len(palette)] for i, p in enumerate(drive.phases)}
     for ax, sysid in zip(axes[0], ids, strict=True):
         if sysid in drive.planned:
             pn, pe = zip(*drive.planned[sysid], strict=True)
@@ -291,11 +292,15 @@ def plot_fleet(drive: FleetDrive, path: Path) -> Path:
         ax.set_xlabel("east (m)")
         ax.set_aspect("equal")
         ax.grid(True, alpha=0.3)
-        ax.legend(loc="lower right", fontsize=8)
+        ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=2, fontsize=8)
     axes[0][0].set_ylabel("north (m)")
+    still = [name for name, moved in drive.moved.items()
+             if all(math.hypot(*d) < 0.01 for d in moved.values())]
+    note = (f"\n{', '.join(still)}: no rover moved (MAVProxy routes by target_system, "
+            f"which MANUAL_CONTROL lacks)") if still else ""
     fig.suptitle("Three rovers behind one MAVProxy router, one ground-station connection: "
-                 "sticks by system id, one mission run by two at once", fontsize=10)
+                 "sticks by system id, one mission run by two at once" + note, fontsize=10)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    fig.savefig(path, dpi=110, bbox_inches="tight")
     plt.close(fig)
     return path
