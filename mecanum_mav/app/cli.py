@@ -57,18 +57,64 @@ class CommandError(ValueError):
 # --------------------------------------------------------------------------- parameters
 
 
-def load_params(path: Path | None, assignments: Sequence[str]) -> Params:
-    """Parameters from defaults, then ``path`` (if any), then ``--set NAME=VALUE`` overrides.
+def load_params(path: Path | None, assignments: Sequence[str],
+                instance: int | None = None) -> Params:
+    """Parameters from defaults, then ``path`` (if any), then the system id of ``--instance``
+    (:func:`instance_sysid`), then ``--set NAME=VALUE`` overrides.
+
+    The instance's system id wins over the file (which may hold one an earlier run saved),
+    ``--set SYSID_THISMAV=K`` over both.
 
     Raises:
         ParamFileError: the file does not validate (every bad line is listed).
         ParamError: an override is unknown, malformed or out of range.
     """
     params = load(path) if path is not None else Params()
+    values: dict[str, float] = {} if instance is None else {
+        "SYSID_THISMAV": instance_sysid(instance)}
     # All overrides at once: consistency (e.g. two wheels swapping channels) is checked on the
     # result, not after each one.
-    params.update(dict(parse_assignment(text) for text in assignments))
+    values.update(dict(parse_assignment(text) for text in assignments))
+    params.update(values)
     return params
+
+
+# --------------------------------------------------------------------------- fleet instances
+
+INSTANCE_PORT_BASE = 14560
+"""UDP port instance 0 sends to; instance N sends to ``INSTANCE_PORT_BASE + 10 N``."""
+INSTANCE_PORT_STEP = 10
+"""Ports per instance, as ArduPilot SITL's ``-I N`` (5760 + 10 N ...)."""
+MAX_INSTANCE = 254
+"""The last instance whose system id (N + 1) is a valid vehicle id (SYSID_THISMAV <= 255)."""
+
+
+def instance_sysid(instance: int) -> int:
+    """The vehicle system id of fleet instance ``instance``: N + 1 (sim_vehicle.py's
+    ``--auto-sysid``)."""
+    return instance + 1
+
+
+def instance_port(instance: int) -> int:
+    """The UDP port fleet instance ``instance`` sends its ground-station link to: 14560 + 10 N,
+    a block of ten per instance starting above 14550, so that a router can hand the fleet to
+    a ground station listening on its usual 14550."""
+    return INSTANCE_PORT_BASE + INSTANCE_PORT_STEP * instance
+
+
+def instance_gcs_url(instance: int) -> str:
+    """The default ``--gcs`` of fleet instance ``instance``: ``udpout:127.0.0.1:14560+10N``."""
+    return f"udpout:127.0.0.1:{instance_port(instance)}"
+
+
+def _instance_number(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
+    if not 0 <= value <= MAX_INSTANCE:
+        raise argparse.ArgumentTypeError(f"must be 0 .. {MAX_INSTANCE}, got {value}")
+    return value
 
 
 # --------------------------------------------------------------------------- mixing a command
@@ -304,11 +350,14 @@ def serve(params: Params, gcs_url: str, fc_url: str, param_path: Path | None,
 
     from mecanum_mav.app.companion import Companion
     from mecanum_mav.app.shutdown import on_signals, on_termination
+    from mecanum_mav.io.storage import claim_parameter_file
     from mecanum_mav.sim.simfc import SimFlightController
 
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s: %(message)s")
     with contextlib.ExitStack() as stack:
         try:
+            if param_path is not None:  # one rover per file: a second one is refused
+                stack.enter_context(claim_parameter_file(param_path))
             if fc_url == "sim":
                 sim = SimFlightController("udpin:127.0.0.1:0", params)
                 sim.start()
@@ -355,11 +404,26 @@ def cmd_sim(args: argparse.Namespace, params: Params) -> int:
     keys = _keys_or_exit(args)
     if keys is None:
         return 2
-    host_port = args.gcs.split(":", 1)[1] if ":" in args.gcs else args.gcs
-    print(f"mecanum-mav sim: point a ground station at UDP {host_port} "
-          f"(QGroundControl and Mission Planner listen on 14550; "
-          f"MAVProxy: mavproxy.py --master=udpin:{host_port})", flush=True)
-    return serve(params, args.gcs, "sim", args.params, args.tlog, keys)
+    gcs = sim_gcs_url(args)
+    host_port = gcs.split(":", 1)[1] if ":" in gcs else gcs
+    if args.instance is None:
+        print(f"mecanum-mav sim: point a ground station at UDP {host_port} "
+              f"(QGroundControl and Mission Planner listen on 14550; "
+              f"MAVProxy: mavproxy.py --master=udpin:{host_port})", flush=True)
+    else:
+        print(f"mecanum-mav sim: instance {args.instance}, system id "
+              f"{params['SYSID_THISMAV']}, sending to UDP {host_port}: one --master="
+              f"udpin:{host_port} of the router (see the README, 'A fleet behind a router')",
+              flush=True)
+    return serve(params, gcs, "sim", args.params, args.tlog, keys)
+
+
+def sim_gcs_url(args: argparse.Namespace) -> str:
+    """``sim``'s ground-station URL: ``--gcs`` if given, else the instance's port
+    (:func:`instance_gcs_url`), else :data:`DEFAULT_GCS_URL`."""
+    if args.gcs is not None:
+        return str(args.gcs)
+    return DEFAULT_GCS_URL if args.instance is None else instance_gcs_url(args.instance)
 
 
 def cmd_demo(args: argparse.Namespace, params: Params) -> int:
@@ -446,8 +510,15 @@ def build_parser() -> argparse.ArgumentParser:
                          help="companion + simulated flight controller (start here)",
                          description="Run the companion with the built-in simulated flight "
                          "controller and chassis; a ground station drives it over UDP.")
-    sim.add_argument("--gcs", default=DEFAULT_GCS_URL, metavar="URL",
-                     help=f"ground-station link (default {DEFAULT_GCS_URL})")
+    sim.add_argument("--gcs", metavar="URL",
+                     help=f"ground-station link (default {DEFAULT_GCS_URL}; with --instance N "
+                     f"udpout:127.0.0.1:{INSTANCE_PORT_BASE}+{INSTANCE_PORT_STEP}N)")
+    sim.add_argument("--instance", type=_instance_number, metavar="N",
+                     help=f"rover N of a fleet on one machine (0 .. {MAX_INSTANCE}), as "
+                     f"ArduPilot SITL's -I N: system id N+1 (SYSID_THISMAV; --set wins, the "
+                     f"--params file does not) and the ground-station link to UDP port "
+                     f"{INSTANCE_PORT_BASE}+{INSTANCE_PORT_STEP}N (--gcs wins), for a router "
+                     f"such as MAVProxy. Give each rover its own --params and --tlog file")
     sim.add_argument("--tlog", type=Path, metavar="FILE", help="record all traffic (tlog)")
     sim.add_argument("--params-reset", action="store_true", help=PARAMS_RESET_HELP)
     sim.add_argument("--signing-key", type=Path, metavar="FILE", help=SIGNING_KEY_HELP)
@@ -555,7 +626,7 @@ def main(argv: Sequence[str] | None = None) -> int:
               file=sys.stderr)
         args.params = None  # neither read nor saved to
     try:
-        params = load_params(args.params, args.set)
+        params = load_params(args.params, args.set, getattr(args, "instance", None))
     except (ParamFileError, ParamError) as exc:
         print(f"mecanum-mav: {exc}", file=sys.stderr)
         return 2

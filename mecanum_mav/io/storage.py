@@ -3,8 +3,11 @@ beside it, written atomically (the core's :class:`~mecanum_mav.control.core.Stor
 
 from __future__ import annotations
 
+import contextlib
+import fcntl
 import logging
-from collections.abc import Sequence
+import os
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 
 from mecanum_mav.config.params import Params
@@ -20,7 +23,7 @@ from mecanum_mav.protocol.mission import MissionItem
 
 log = logging.getLogger(__name__)
 
-__all__ = ["FileStorage"]
+__all__ = ["FileInUseError", "FileStorage", "claim_parameter_file"]
 
 
 class FileStorage:
@@ -56,3 +59,36 @@ class FileStorage:
             return [], f"Mission file unreadable: {self.mission_path.name}"
         log.info("mission of %d items loaded from %s", len(items), self.mission_path)
         return items, ""
+
+
+class FileInUseError(OSError):
+    """Another running process keeps its parameters (and mission) in this file."""
+
+
+@contextlib.contextmanager
+def claim_parameter_file(param_path: Path) -> Iterator[None]:
+    """Hold the parameter file (and the mission file beside it) for this process.
+
+    Two rovers saving into one file would overwrite each other's changes, and one's saved
+    ``SYSID_THISMAV`` would give the other its system id next time: while one process holds
+    ``rover.parm``, another one asking for it gets :class:`FileInUseError` instead. The claim
+    is an exclusive ``flock`` on ``.rover.parm.lock`` beside the file (the file itself is
+    replaced by every atomic save, so it cannot carry the lock); the kernel releases it when
+    the process ends, however it ends. The lock file stays (removing it would race).
+
+    Raises:
+        FileInUseError: another process holds the file.
+        OSError: the lock file cannot be created (e.g. a read-only folder).
+    """
+    lock_path = param_path.with_name(f".{param_path.name}.lock")
+    fd = os.open(lock_path, os.O_RDWR | os.O_CREAT, 0o644)
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            raise FileInUseError(
+                f"{param_path} is in use by another running rover (it holds {lock_path}); "
+                f"give each rover its own --params file") from None
+        yield
+    finally:
+        os.close(fd)

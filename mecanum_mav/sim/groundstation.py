@@ -21,7 +21,8 @@ from mecanum_mav.protocol.heartbeat import send_gcs_heartbeat
 from mecanum_mav.protocol.mission import MissionItem, float_xy, item_from_fields
 from mecanum_mav.protocol.modes import Mode
 
-__all__ = ["GCS_COMPID", "GCS_SYSID", "Port", "ScriptedGroundStation", "UdpPort"]
+__all__ = ["GCS_COMPID", "GCS_SYSID", "Port", "ScriptedGroundStation", "SharedUdpPort",
+           "UdpPort", "VehiclePort", "fleet_ground_station"]
 
 GCS_SYSID = 255
 GCS_COMPID: int = mavlink.MAV_COMP_ID_MISSIONPLANNER
@@ -294,3 +295,85 @@ def udp_ground_station(url: str = "udpin:127.0.0.1:0") -> tuple[ScriptedGroundSt
     gcs = ScriptedGroundStation(port)
     port.on_time = gcs.on_time
     return gcs, port
+
+
+class SharedUdpPort:
+    """One UDP socket for several vehicles, as a ground station behind a router has: each
+    vehicle gets a :class:`VehiclePort` (:meth:`view`) that sees only what that vehicle (its
+    system id) sent, so one :class:`ScriptedGroundStation` per vehicle can wait, command and
+    upload without taking another vehicle's answers for its own."""
+
+    def __init__(self, url: str = "udpin:127.0.0.1:0") -> None:
+        self.udp = UdpPort(url)
+        self._inbox: dict[int, list[Any]] = {}
+        self.unclaimed = 0
+        """Messages received from system ids that have no view (dropped)."""
+
+    @property
+    def url(self) -> str:
+        """The URL a router (or a vehicle) uses to reach this ground station."""
+        return self.udp.url
+
+    def view(self, sysid: int) -> VehiclePort:
+        """The port of vehicle ``sysid``: it sends on the shared socket (address messages
+        with ``target_system = sysid``) and receives only what ``sysid`` sent."""
+        self._inbox.setdefault(sysid, [])
+        return VehiclePort(self, sysid)
+
+    def take(self, sysid: int, timeout_s: float) -> list[Any]:
+        """What ``sysid`` sent, waiting up to ``timeout_s`` for something (returns early);
+        what other vehicles sent meanwhile waits in their inboxes."""
+        deadline = time.monotonic() + timeout_s
+        box = self._inbox[sysid]
+        while not box:
+            remaining = deadline - time.monotonic()
+            for msg in self.udp.pump(max(0.0, remaining)):
+                other = self._inbox.get(msg.get_srcSystem())
+                if other is None:
+                    self.unclaimed += 1
+                else:
+                    other.append(msg)
+            if remaining <= 0.0:
+                break
+        taken = box[:]
+        box.clear()
+        return taken
+
+    def close(self) -> None:
+        """Close the socket."""
+        self.udp.close()
+
+
+class VehiclePort:
+    """One vehicle's share of a :class:`SharedUdpPort` (a :class:`Port`), wall-clock time."""
+
+    def __init__(self, shared: SharedUdpPort, sysid: int) -> None:
+        self.shared = shared
+        self.sysid = sysid
+
+    @property
+    def mav(self) -> Any:
+        """The shared socket's pymavlink ``MAVLink`` (sends as the ground station)."""
+        return self.shared.udp.mav
+
+    def now(self) -> float:
+        """Monotonic seconds."""
+        return time.monotonic()
+
+    def pump(self, timeout_s: float) -> list[Any]:
+        """Wait up to ``timeout_s`` for a message from this vehicle; what it sent."""
+        return self.shared.take(self.sysid, timeout_s)
+
+
+def fleet_ground_station(sysids: Sequence[int], url: str = "udpin:127.0.0.1:0"
+                         ) -> tuple[dict[int, ScriptedGroundStation], SharedUdpPort]:
+    """One ground station on one UDP socket for the vehicles ``sysids`` (behind a router):
+    a :class:`ScriptedGroundStation` per system id, each addressing its vehicle (component 1),
+    and the shared port (``port.url``, ``port.close()``). One HEARTBEAT a second goes out for
+    them all, as from one ground station."""
+    port = SharedUdpPort(url)
+    stations = {sysid: ScriptedGroundStation(port.view(sysid), target=(sysid, 1))
+                for sysid in sysids}
+    beating = stations[sysids[0]]
+    port.udp.on_time = beating.on_time
+    return stations, port
