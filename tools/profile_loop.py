@@ -10,7 +10,7 @@ loopback); its sections are wrapped with timers of the loop thread's own CPU
 - ``read``: reading and parsing what arrived (``Companion._drain`` less the core's ``handle``
   and ``stick_lane``, and less any sends from inside it),
 - ``handle``, ``lane``: the core's message handling, and the stick's lane,
-- ``tick``, ``refresh``, ``housekeeping``: the core's output, refresh-only wakes, and the rest,
+- ``tick``, ``housekeeping``: the core's output (a refresh-only wake's too), and the rest,
 - ``send override``, ``send other``: packing and writing what goes out,
 - ``loop``: everything else in the loop (timers, ``next_due_s``, link upkeep).
 
@@ -43,7 +43,7 @@ from bench_latency import Harness, companion_pulse_fn, relay_pulse, stick_cycle
 from mecanum_mav.app import companion as companion_module
 from mecanum_mav.config.params import Params
 
-SECTIONS = ("wait", "read", "handle", "lane", "tick", "refresh", "housekeeping",
+SECTIONS = ("wait", "read", "handle", "lane", "tick", "housekeeping",
             "send override", "send other", "loop")
 
 
@@ -87,7 +87,7 @@ def instrumented(clock: Clock, params: Params, gcs_url: str, fc_url: str
     comp = companion_module.Companion(params, gcs_url, fc_url)
     core = comp.core
     for name, attr in (("handle", "handle"), ("lane", "stick_lane"), ("tick", "tick"),
-                       ("refresh", "refresh"), ("housekeeping", "housekeeping")):
+                       ("housekeeping", "housekeeping")):
         setattr(core, attr, clock.wrap(name, getattr(core, attr)))
     comp._drain = clock.wrap("read", comp._drain)  # type: ignore[method-assign]
     for link in (comp.gcs, comp.fc):

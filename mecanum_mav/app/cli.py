@@ -385,25 +385,11 @@ def serve(params: Params, gcs_url: str, fc_url: str, param_path: Path | None,
     return 0
 
 
-def _keys_or_exit(args: argparse.Namespace) -> tuple[bytes | None, bytes | None] | None:
-    try:
-        return signing_keys(args)
-    except KeyFileError as exc:
-        print(f"mecanum-mav: {exc}", file=sys.stderr)
-        return None
-
-
 def cmd_run(args: argparse.Namespace, params: Params) -> int:
-    keys = _keys_or_exit(args)
-    if keys is None:
-        return 2
-    return serve(params, args.gcs, args.fc, args.params, args.tlog, keys)
+    return serve(params, args.gcs, args.fc, args.params, args.tlog, args.keys)
 
 
 def cmd_sim(args: argparse.Namespace, params: Params) -> int:
-    keys = _keys_or_exit(args)
-    if keys is None:
-        return 2
     gcs = sim_gcs_url(args)
     host_port = gcs.split(":", 1)[1] if ":" in gcs else gcs
     if args.instance is None:
@@ -415,7 +401,7 @@ def cmd_sim(args: argparse.Namespace, params: Params) -> int:
               f"{params['SYSID_THISMAV']}, sending to UDP {host_port}: one --master="
               f"udpin:{host_port} of the router (see the README, 'A fleet behind a router')",
               flush=True)
-    return serve(params, gcs, "sim", args.params, args.tlog, keys)
+    return serve(params, gcs, "sim", args.params, args.tlog, args.keys)
 
 
 def sim_gcs_url(args: argparse.Namespace) -> str:
@@ -627,7 +613,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         args.params = None  # neither read nor saved to
     try:
         params = load_params(args.params, args.set, getattr(args, "instance", None))
-    except (ParamFileError, ParamError) as exc:
+        args.keys = signing_keys(args)
+    except (ParamFileError, ParamError, KeyFileError) as exc:
         print(f"mecanum-mav: {exc}", file=sys.stderr)
         return 2
     except OSError as exc:

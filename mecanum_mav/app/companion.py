@@ -108,7 +108,6 @@ class Companion:
         self._stop = threading.Event()
         self._wake_r, self._wake_w = os.pipe()
         self._thread: threading.Thread | None = None
-        self._general = False  # this pass needs tick(): more than a stick in its lane came
 
     def run(self) -> None:
         """Run until :meth:`stop`; always ends with neutral wheels and released channels."""
@@ -122,26 +121,17 @@ class Companion:
             while not self._stop.is_set():
                 due = min(core.next_due_s(), gcs.next_reopen_s, fc.next_reopen_s,
                           gcs.next_send_s, fc.next_send_s)
-                drained = self._general = False
                 for key, events in selector.select(max(0.0, due - self.clock())):
                     if key.data is None:
                         os.read(self._wake_r, 64)
                     elif events & selectors.EVENT_READ:  # (writable: follow() flushes)
                         self._drain(key.data)
-                        drained = True
                 now = self.clock()
                 for link in streams:  # (a datagram link never goes down)
                     if not link.up and link.reopen(now):
                         self._report(link, now)  # before anything else goes out on it
-                        self._general = True
-                refresh = None if drained else core.refresh(now)
-                if refresh is not None:  # the output refresh alone: nothing else is due
-                    self._send_override(refresh)
-                elif drained and not self._general:  # a stick answered in its lane
-                    self._write(core.housekeeping(now))
-                else:
-                    self._write(core.tick(now))  # the override first,
-                    self._write(core.housekeeping(now))  # then everything else
+                self._write(core.tick(now))  # the override first,
+                self._write(core.housekeeping(now))  # then everything else
                 for link, fd in streams.items():
                     self._report(link, now)
                     streams[link] = follow(selector, link, fd, link)
@@ -163,7 +153,6 @@ class Companion:
             if override is not None:  # the pilot's stick, answered at once
                 self._send_override(override)
                 return
-        self._general = True
         for msg in messages:
             out = handle(msg, now, from_fc=from_fc)
             if out is not NOTHING:  # a stick is answered by the tick, not here

@@ -168,17 +168,17 @@ class ReceiverConfig:
     arm_ch: int
     """The arm/disarm switch's channel, 0 = none (``RCIN_ARM_CH``)."""
     throttle_fs_us: int
-    """A throttle pulse below this is the receiver's failsafe, us (``FS_THR_VALUE``)."""
-    failsafe: bool
-    """The receiver failsafe takes its action and blocks arming (``FS_THR_ENABLE``)."""
+    """A throttle pulse below this is the receiver's failsafe, us (``FS_THR_VALUE``); what
+    the failsafe does is :class:`FailsafeConfig`'s."""
 
     @classmethod
     def from_params(cls, params: Params) -> ReceiverConfig:
-        """Read ``RCIN_ENABLE``, ``MODE_CH``, ``MODE1..6``, ``RCIN_ARM_CH`` and ``FS_THR_*``."""
+        """Read ``RCIN_ENABLE``, ``MODE_CH``, ``MODE1..6``, ``RCIN_ARM_CH`` and
+        ``FS_THR_VALUE``."""
         m1, m2, m3, m4, m5, m6 = (int(params[f"MODE{i}"]) for i in range(1, 7))
         return cls(bool(params["RCIN_ENABLE"]), int(params["MODE_CH"]),
                    (m1, m2, m3, m4, m5, m6), int(params["RCIN_ARM_CH"]),
-                   int(params["FS_THR_VALUE"]), bool(params["FS_THR_ENABLE"]))
+                   int(params["FS_THR_VALUE"]))
 
 
 @dataclass(frozen=True, slots=True)

@@ -259,9 +259,7 @@ class RoverCore:
         self._housekeeping_due_s = -math.inf
         """Before this no timer of :meth:`housekeeping` is due (-inf: look at them all)."""
         self._quiet_until_s = -math.inf
-        """Before this nothing but the output refresh can be due (:meth:`refresh`)."""
-        self._lane_open = False
-        """:meth:`stick_lane` may answer a stick (as of the last :meth:`tick`)."""
+        """Before this nothing but the output refresh can be due (:meth:`tick`)."""
         self._last_override: RcOverride | None = None
         self._fc_streams_asked = False
         self.fc_check = FcSetupCheck()
@@ -312,33 +310,42 @@ class RoverCore:
         """One message received on the ground-station link (or the flight controller's, with
         ``from_fc``) at ``now_s``; returns what to send in answer."""
         self._now_s = now_s
+        self._quiet_until_s = -math.inf  # something arrived: the next tick looks at it all
+        kind = msg.get_type()
+        if kind != "MANUAL_CONTROL":  # every other message may set a housekeeping timer
+            self._housekeeping_due_s = -math.inf
         try:
             if from_fc:
                 if msg.get_srcSystem() == self.identity.fc_sysid:
-                    fc_handler = self._fc_handlers.get(msg.get_type())
+                    fc_handler = self._fc_handlers.get(kind)
                     if fc_handler is not None:
                         fc_handler(msg, now_s)
             else:
-                self._quiet_until_s = -math.inf  # (a stick, at least, is new input)
-                kind = msg.get_type()
                 handler = self._gcs_handlers.get(kind)
                 if handler is not None and msg.get_srcSystem() != self.identity.sysid:
                     handler(msg, now_s)
-                if kind == "MANUAL_CONTROL":  # the one message that sets no timer
-                    return NOTHING if not (self.to_gcs.messages or self.to_fc.messages) else (
-                        self._take(None))
         except Exception:  # never let one message take the control path down
-            return self._take(self._handler_failed(msg.get_type(), now_s))
-        self._housekeeping_due_s = -math.inf  # it may have set a timer: look at them all
-        self._quiet_until_s = -math.inf
+            return self._take(self._handler_failed(kind, now_s))
         if self.to_gcs.messages or self.to_fc.messages:
             return self._take(None)
         return NOTHING
 
     def tick(self, now_s: float) -> Outbox:
         """Failsafes and the output at ``now_s``: the RC override to send at once, if one is
-        due. Call :meth:`housekeeping` after sending it."""
+        due. Call :meth:`housekeeping` after sending it.
+
+        Before :attr:`_quiet_until_s` (set by :meth:`housekeeping`: no message since, no
+        timeout or timer due, not in GUIDED or AUTO, nothing to say) nothing can have changed
+        the output: the tick only repeats the last override when its refresh is due, and
+        after a stick answered by :meth:`stick_lane` it has nothing to do. An idle rover's
+        wakes are mostly these (``OUT_RATE``)."""
         self._now_s = now_s
+        if (now_s < self._quiet_until_s and not self._new_input and not self.to_gcs.messages
+                and not self.to_fc.messages and self._last_override is not None):
+            if now_s < self._next_output_s:
+                return NOTHING
+            self._next_output_s = now_s + self.output.refresh_period_s - TIMER_SLACK_S
+            return _new_outbox(((), (), self._last_override))
         vehicle = self.vehicle
         vehicle.update(now_s)
         executor = self.autopilot.executor
@@ -355,7 +362,6 @@ class RoverCore:
             self.say(Severity.ERROR, "Error computing output: neutral")
             wheels, pulses = _NEUTRAL_WHEELS, self.pwm.neutral()
         self._output_wheels = wheels
-        self._update_lane()
         if self._new_input or pulses != self.pulses_us or now_s >= self._next_output_s:
             # (timers are set TIMER_SLACK_S early: a clock that adds in floating point,
             # like the lockstep harness's, must not miss a period by 1e-17 s)
@@ -373,8 +379,8 @@ class RoverCore:
             self.estimator.on_commanded(self.wheels, now_s - self._wheels_s, now_s)
         self.wheels, self._wheels_s = self._output_wheels, now_s
         if (now_s < self._housekeeping_due_s and not self.vehicle.autonomous()
-                and not self.vehicle.has_events and not self.to_gcs.messages
-                and not self.to_fc.messages):
+                and not self.autopilot.executor.running and not self.vehicle.has_events
+                and not self.to_gcs.messages and not self.to_fc.messages):
             self._quiet_until_s = min(self._housekeeping_due_s, self.vehicle.next_due_s())
             return NOTHING
         if self.vehicle.fc_lost:
@@ -410,21 +416,10 @@ class RoverCore:
         self._housekeeping_due_s = min(
             self._next_heartbeat_s, self.fc_check.next_due_s, self.mission.next_due_s(),
             self.streams.next_due_s() - self.output.refresh_period_s / 2)
-        self._quiet_until_s = (-math.inf if self.vehicle.autonomous() else
-                               min(self._housekeeping_due_s, self.vehicle.next_due_s()))
+        self._quiet_until_s = (
+            -math.inf if self.vehicle.autonomous() or self.autopilot.executor.running else
+            min(self._housekeeping_due_s, self.vehicle.next_due_s()))
         return self._take(None)
-
-    def refresh(self, now_s: float) -> RcOverride | None:
-        """The output refresh alone: the override last sent, again, when at ``now_s`` its
-        refresh is due and nothing else can have changed since the last :meth:`tick` and
-        :meth:`housekeeping` (no message arrived, no timeout, telemetry or heartbeat due, not
-        in GUIDED or AUTO, nothing to say). Else None: call :meth:`tick` and
-        :meth:`housekeeping`. An idle rover's wakes are mostly these (``OUT_RATE``)."""
-        if (now_s < self._next_output_s or now_s >= self._quiet_until_s or self._new_input
-                or self.to_gcs.messages or self.to_fc.messages or self._last_override is None):
-            return None
-        self._next_output_s = now_s + self.output.refresh_period_s - TIMER_SLACK_S
-        return self._last_override
 
     def stick_lane(self, msg: ManualControlMsg, now_s: float) -> RcOverride | None:
         """The control path's lane: the pilot's MANUAL_CONTROL answered with its override
@@ -432,8 +427,8 @@ class RoverCore:
         else can be involved: driving in MANUAL, nothing due (no timeout, no timer), a valid
         stick for us from the pilot. Else None, with nothing changed: call :meth:`handle`
         and :meth:`tick`. After an override from here, the pass needs :meth:`housekeeping`
-        only."""
-        if (not self._lane_open or now_s >= self._quiet_until_s
+        only (:meth:`tick` then has nothing to do)."""
+        if (now_s >= self._quiet_until_s or not self.vehicle.driving() or self.faulted
                 or not (self._for_us(msg.target) and self._from_pilot(msg))):
             return None
         self._now_s = now_s
@@ -458,11 +453,6 @@ class RoverCore:
         self.faulted = True
         self.say(Severity.ERROR, f"Error handling {kind}: neutral")
         return self._override(self.pwm.neutral(), now_s)
-
-    def _update_lane(self) -> None:
-        vehicle = self.vehicle
-        self._lane_open = (vehicle.driving() and not self.faulted and not vehicle.autonomous()
-                           and not self.autopilot.executor.running)
 
     def link_down(self, link: str, reason: str, now_s: float) -> Outbox:
         """The shell's ``link`` (``"fc"`` or ``"gcs"``) broke at ``now_s`` for ``reason``

@@ -63,7 +63,6 @@ import os
 import select
 import selectors
 import socket
-import struct
 import termios
 import time
 from collections import deque
@@ -72,6 +71,7 @@ from typing import Any, BinaryIO
 
 import serial
 
+from mecanum_mav.io.tlog import tlog_record
 from mecanum_mav.protocol.codec import encode_rc_override
 from mecanum_mav.protocol.dialect import mavlink, mavutil
 from mecanum_mav.protocol.framing import MessageParser
@@ -82,7 +82,6 @@ log = logging.getLogger(__name__)
 __all__ = ["REOPEN_PERIOD_S", "Link", "LinkDownError", "follow", "mavlink", "mavutil", "open_link"]
 
 _READ_CHUNK = 4096
-_TLOG_STAMP = struct.Struct(">Q")
 SEND_WARNING_PERIOD_S = 1.0
 """A link that keeps failing to send is logged at WARNING at most this often."""
 _MAX_READS = 64  # per readiness event: bounded work, the selector calls again if more waits
@@ -253,9 +252,12 @@ class Link:
         self.conn.mav.set_send_callback(self._record)
 
     def _record(self, msg: Any) -> None:
+        self._record_packet(msg.get_msgbuf())
+
+    def _record_packet(self, packet: bytes) -> None:
         if self._tlog is not None:
             with contextlib.suppress(OSError, ValueError):
-                self._tlog.write(_TLOG_STAMP.pack(int(time.time() * 1e6)) + msg.get_msgbuf())
+                self._tlog.write(tlog_record(int(time.time() * 1e6), packet))
 
     @property
     def mav(self) -> Any:
@@ -487,9 +489,7 @@ class Link:
         """The packet (and the tlog's record of it): packed now, with the next sequence
         number."""
         packet = encode_rc_override(self.conn.mav, target_system, target_component, channels)
-        if self._tlog is not None:
-            with contextlib.suppress(OSError, ValueError):
-                self._tlog.write(_TLOG_STAMP.pack(int(time.time() * 1e6)) + packet)
+        self._record_packet(packet)
         return packet
 
     # ----------------------------------------------------------------- pacing (stream links)

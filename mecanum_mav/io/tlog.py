@@ -24,7 +24,7 @@ from typing import Any
 
 from mecanum_mav.protocol.dialect import mavlink
 
-__all__ = ["TlogEntry", "TlogRead", "parse_tlog", "read_tlog"]
+__all__ = ["TlogEntry", "TlogRead", "parse_tlog", "read_tlog", "tlog_record"]
 
 _STAMP = struct.Struct(">Q")
 STAMP_LEN = 8
@@ -34,6 +34,12 @@ EARLIEST_US = 788_918_400 * 1_000_000
 LATEST_US = 4_102_444_800 * 1_000_000
 """2100-01-01: nor one stamped later."""
 _V1, _V2 = 0xFE, 0xFD
+
+
+def tlog_record(unix_us: int, packet: bytes | bytearray) -> bytes:
+    """One tlog record: ``packet`` stamped with ``unix_us`` (Unix microseconds), as ``--tlog``
+    writes it and :func:`parse_tlog` reads it."""
+    return _STAMP.pack(unix_us) + packet
 _SIGNATURE_LEN = 13
 
 

@@ -86,7 +86,7 @@ def key_from_text(text: str) -> bytes:
     return sha256(body.encode("utf-8")).digest()
 
 
-def signature(key: bytes, signed_part: bytes) -> bytes:
+def signature(key: bytes, signed_part: bytes | bytearray) -> bytes:
     """The 6-byte signature of ``signed_part``: the packet up to and including the link id
     and timestamp."""
     return sha256(key + signed_part).digest()[:6]
@@ -157,7 +157,7 @@ class SignatureCheck:
         if (len(packet) < _MIN_SIGNED_LEN or packet[0] != 0xFD
                 or not packet[2] & IFLAG_SIGNED):
             return self._reject(_UNSIGNED)
-        if not hmac.compare_digest(sha256(self.key + packet[:-6]).digest()[:6], packet[-6:]):
+        if not hmac.compare_digest(signature(self.key, packet[:-6]), packet[-6:]):
             return self._reject(_BAD_SIGNATURE)
         timestamp = int.from_bytes(packet[-12:-6], "little")
         stream = packet[-13] | packet[5] << 8 | packet[6] << 16  # link id, system, component

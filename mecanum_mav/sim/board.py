@@ -51,7 +51,7 @@ from typing import Any
 from mecanum_mav.config.params import Params
 from mecanum_mav.control.pwm import PwmMap
 from mecanum_mav.mecanum.geo import GlobalOrigin
-from mecanum_mav.mecanum.geometry import Pose2d
+from mecanum_mav.mecanum.geometry import Pose2d, body_to_ned
 from mecanum_mav.protocol.dialect import mavlink
 from mecanum_mav.protocol.modes import Mode
 from mecanum_mav.protocol.rcoverride import CHANNELS, LEAVE, RELEASE, field_action
@@ -344,9 +344,7 @@ class SimBoard:
         pose = self.chassis.pose
         yaw = pose.yaw_rad
         lat_e7, lon_e7 = self._origin.to_global(pose.x_m, pose.y_m)
-        forward, right = self.chassis.velocity_body
-        cos_y, sin_y = math.cos(yaw), math.sin(yaw)
-        v_north, v_east = forward * cos_y - right * sin_y, forward * sin_y + right * cos_y
+        v_north, v_east = body_to_ned(*self.chassis.velocity_body, yaw)
         mav.sim_state_send(math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2), 0.0, 0.0, yaw,
                            0.0, 0.0, 0.0, 0.0, 0.0, self.chassis.yaw_rate,
                            lat_e7 / 1e7, lon_e7 / 1e7, 0.0, 0.0, 0.0, v_north, v_east, 0.0,

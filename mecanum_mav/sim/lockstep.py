@@ -14,8 +14,8 @@ socket would carry. One step to ``t``:
 1. the ground station's HEARTBEAT if due; what it sent reaches the core at ``t``;
 2. what the board sent in the previous step reaches the core at ``t``;
 3. ``core.tick(t)`` and ``core.housekeeping(t)`` if anything arrived or a timer of the core
-   is due (as the companion's loop wakes; ``core.refresh(t)`` alone when only the output
-   refresh is due); the core's overrides and heartbeats reach the
+   is due (as the companion's loop wakes; a lone pilot's stick goes to ``core.stick_lane``
+   first, as the companion's loop does); the core's overrides and heartbeats reach the
    board at ``t``, its messages for the ground station reach the ground station at ``t``;
 4. the board steps its physics and sends its telemetry (delivered in the next step).
 
@@ -29,7 +29,6 @@ tried and tested on a run of the harness.
 
 from __future__ import annotations
 
-import struct
 from collections.abc import Callable, Sequence
 from typing import Any, BinaryIO, NamedTuple, TypeVar
 
@@ -42,6 +41,7 @@ from mecanum_mav.control.core import (
     RoverCore,
     Storage,
 )
+from mecanum_mav.io.tlog import tlog_record
 from mecanum_mav.protocol.codec import ManualControl, encode_rc_override
 from mecanum_mav.protocol.dialect import mavlink
 from mecanum_mav.protocol.framing import MessageParser
@@ -67,7 +67,6 @@ class OverrideSeen(NamedTuple):
 
 TLOG_EPOCH_S = 1_790_000_000.0
 """The Unix time a recorded tlog gives virtual time 0 (a date in 2026)."""
-_TLOG_STAMP = struct.Struct(">Q")
 SIGNING_START_TICKS = ticks_from_unix(TLOG_EPOCH_S)
 """The signing timestamp at virtual time 0 (a date in 2026); it counts on with virtual time."""
 
@@ -106,8 +105,7 @@ class _Wire:
         """The sender's ``file.write``: one datagram on the wire (recorded with a tlog)."""
         self.queue.append(bytes(data))
         if self.tlog is not None:
-            stamp = round((TLOG_EPOCH_S + self.now_s) * 1e6)
-            self.tlog.write(_TLOG_STAMP.pack(stamp) + data)
+            self.tlog.write(tlog_record(round((TLOG_EPOCH_S + self.now_s) * 1e6), data))
 
     def drop(self) -> list[Any]:
         """Lose everything on the wire (a cut link); returns nothing."""
@@ -210,7 +208,6 @@ class Lockstep:
         gcs_wire = self._gcs_to_core
         gcs_wire.follow_clock(now)
         self._core_to_gcs.follow_clock(now)
-        general = False
         delivered = gcs_wire.deliver()
         if gcs_wire.check is not None and gcs_wire.check.new_rejections:
             core.refuse_unsigned(gcs_wire.check.take_rejections(), now)
@@ -222,19 +219,13 @@ class Lockstep:
         else:
             for msg in delivered:
                 self._write(core.handle(msg, now))
-                woke = general = True
+                woke = True
         for msg in self._fc_to_core.deliver() if self.fc_link_up else self._fc_to_core.drop():
             self._write(core.handle(msg, now, from_fc=True))
-            woke = general = True
+            woke = True
         if woke or now >= core.next_due_s():
-            refresh = None if woke else core.refresh(now)
-            if refresh is not None:  # the output refresh alone, as the companion's loop does
-                self._write(Outbox((), (), refresh))
-            elif woke and not general:  # only a stick, answered in its lane
-                self._write(core.housekeeping(now))
-            else:
-                self._write(core.tick(now))
-                self._write(core.housekeeping(now))
+            self._write(core.tick(now))
+            self._write(core.housekeeping(now))
         received = self._core_to_fc.deliver() if self.fc_link_up else self._core_to_fc.drop()
         if received:
             self._log_fc(received, now)
