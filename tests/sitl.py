@@ -20,7 +20,6 @@ import signal
 import socket
 import struct
 import subprocess
-import sys
 import tempfile
 import threading
 import time
@@ -32,6 +31,8 @@ from types import TracebackType
 from typing import TYPE_CHECKING, Any
 
 from pymavlink import mavutil
+
+from mecanum_mav.sim.process import CompanionProcess  # (the tests import it from here)
 
 if TYPE_CHECKING:
     from mecanum_mav.sim.groundstation import ScriptedGroundStation
@@ -460,50 +461,6 @@ class Sitl:
 # --------------------------------------------------------------------------- the companion
 
 
-class CompanionProcess:
-    """``python -m mecanum_mav run --gcs GCS --fc FC`` in its own process group.
-
-    A context manager: on the way out the group is killed if it is still running.
-    """
-
-    def __init__(self, gcs_url: str, fc_url: str, workdir: Path, *extra: str) -> None:
-        self.command = [sys.executable, "-m", "mecanum_mav", "run", "--gcs", gcs_url,
-                        "--fc", fc_url, *extra]
-        workdir.mkdir(parents=True, exist_ok=True)
-        self.log_path = workdir / "companion.log"
-        env = dict(os.environ)
-        env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(REPO_ROOT),
-                                                          env.get("PYTHONPATH")]))
-        with self.log_path.open("wb") as log:
-            self.proc = subprocess.Popen(self.command, cwd=workdir, env=env,
-                                         stdin=subprocess.DEVNULL, stdout=log,
-                                         stderr=subprocess.STDOUT, start_new_session=True)
-
-    def log(self) -> str:
-        try:
-            return self.log_path.read_text(errors="replace")[-3000:]
-        except OSError:
-            return ""
-
-    def terminate(self) -> float:
-        """SIGTERM; returns when it was sent (monotonic s)."""
-        sent = time.monotonic()
-        self.proc.send_signal(signal.SIGTERM)
-        return sent
-
-    def wait(self, timeout_s: float) -> int | None:
-        """The exit code, or None if still running after ``timeout_s``."""
-        try:
-            return self.proc.wait(timeout=timeout_s)
-        except subprocess.TimeoutExpired:
-            return None
-
-    def __enter__(self) -> CompanionProcess:
-        return self
-
-    def __exit__(self, kind: type[BaseException] | None, exc: BaseException | None,
-                 tb: TracebackType | None) -> None:
-        _kill_group(self.proc)
 
 
 # --------------------------------------------------------------------------- the three

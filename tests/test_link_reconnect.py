@@ -26,6 +26,7 @@ from mecanum_mav.config.params import Params
 from mecanum_mav.io.links import mavlink
 from mecanum_mav.protocol.rcoverride import override_fields
 from mecanum_mav.sim.groundstation import ScriptedGroundStation, udp_ground_station
+from mecanum_mav.sim.process import process_cpu_s
 
 FORWARD = override_fields(WHEELS, [2000] * 4)
 BEAT_PERIOD_S = 0.1
@@ -141,10 +142,6 @@ class Pilot:
         return bool(self.run_until(lambda: FORWARD in fc.overrides(), 3.0))
 
 
-def cpu_s(pid: int) -> float:
-    """User + system CPU time of process ``pid`` so far (s), from /proc/PID/stat."""
-    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
-    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
 def test_an_unplugged_serial_flight_controller_is_reported_once_costs_no_cpu_and_is_reopened(
@@ -164,9 +161,9 @@ def test_an_unplugged_serial_flight_controller_is_reported_once_costs_no_cpu_and
             cable.unplug()
             pilot.fc = None
             assert pilot.run_until(lambda: pilot.said(FC_DOWN, since), 2.0), companion.log()
-            before = cpu_s(companion.proc.pid)
+            before = process_cpu_s(companion.proc.pid)
             pilot.run_until(lambda: None, CPU_WINDOW_S)
-            cpu_share = (cpu_s(companion.proc.pid) - before) / CPU_WINDOW_S
+            cpu_share = (process_cpu_s(companion.proc.pid) - before) / CPU_WINDOW_S
             # plug it back in: the same path, a new pty
             cable = PtyCable(device)
             pilot.fc = cable.fc

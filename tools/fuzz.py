@@ -66,6 +66,7 @@ from mecanum_mav.protocol.heartbeat import send_gcs_heartbeat
 from mecanum_mav.protocol.modes import Mode
 from mecanum_mav.protocol.rcoverride import release_fields
 from mecanum_mav.sim.fuzz import DatagramFuzzer, SafetyWatch
+from mecanum_mav.sim.process import CompanionProcess
 
 GCS_ID = (255, mavlink.MAV_COMP_ID_MISSIONPLANNER)
 FC_ID = (1, 1)
@@ -104,39 +105,16 @@ def receive_buffer_bytes() -> int:
         return int(s.getsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF))
 
 
-class CompanionProcess:
-    """``python -m mecanum_mav run`` in its own process group, its output in a log file."""
+class FuzzedCompanion(CompanionProcess):
+    """The companion process the fuzzer fires at (``--gcs`` listening on ``gcs_port``,
+    ``--fc`` sending to ``fc_port``, a parameter file of defaults in ``workdir``), with its
+    status line on request."""
 
     def __init__(self, workdir: Path, gcs_port: int, fc_port: int) -> None:
         params_path = workdir / "rover.parm"
         save(Params(), params_path)
-        self.log_path = workdir / "companion.log"
-        self.command = [sys.executable, "-m", "mecanum_mav", "run", "--gcs",
-                        f"udpin:127.0.0.1:{gcs_port}", "--fc", f"udpout:127.0.0.1:{fc_port}",
-                        "--params", str(params_path)]
-        with self.log_path.open("wb") as log:
-            self.proc = subprocess.Popen(self.command, cwd=workdir, stdin=subprocess.DEVNULL,
-                                         stdout=log, stderr=subprocess.STDOUT,
-                                         start_new_session=True)
-        self._tick = os.sysconf("SC_CLK_TCK")
-
-    def alive(self) -> bool:
-        return self.proc.poll() is None
-
-    def cpu_s(self) -> float:
-        """utime + stime so far (s); the last value read if the process is gone."""
-        try:
-            stat = Path(f"/proc/{self.proc.pid}/stat").read_text()
-        except OSError:
-            return float("nan")
-        fields = stat.rsplit(")", 1)[1].split()
-        return (int(fields[11]) + int(fields[12])) / self._tick
-
-    def log(self, tail: int = 3000) -> str:
-        try:
-            return self.log_path.read_text(errors="replace")[-tail:]
-        except OSError:
-            return ""
+        super().__init__(f"udpin:127.0.0.1:{gcs_port}", f"udpout:127.0.0.1:{fc_port}", workdir,
+                         "--params", str(params_path))
 
     def status_lines(self) -> list[str]:
         return [line for line in self.log(10**7).splitlines() if line.startswith(STATUS_PREFIX)]
@@ -149,13 +127,6 @@ class CompanionProcess:
         wait(lambda: len(self.status_lines()) > before, 5.0)
         lines = self.status_lines()
         return lines[-1][len("mecanum-mav: "):] if len(lines) > before else "(no status line)"
-
-    def kill(self) -> None:
-        if self.proc.poll() is None:
-            with contextlib.suppress(ProcessLookupError, PermissionError):
-                os.killpg(self.proc.pid, signal.SIGKILL)
-        with contextlib.suppress(subprocess.TimeoutExpired):
-            self.proc.wait(timeout=10)
 
 
 # ---------------------------------------------------------------------------- the peers
@@ -307,7 +278,7 @@ class Phase:
         return 1e6 * self.cpu_s / self.sent if self.sent else 0.0
 
 
-def send_paced(peers: Peers, companion: CompanionProcess, phase: Phase,
+def send_paced(peers: Peers, companion: FuzzedCompanion, phase: Phase,
                sock: socket.socket, dest: tuple[str, int], port: int, count: int,
                make: Callable[[], bytes]) -> None:
     """Send ``count`` datagrams from ``make`` to ``dest`` (the companion's socket bound to
@@ -347,7 +318,7 @@ def run(seed: int, gcs_count: int, fc_count: int, workdir: Path) -> tuple[list[P
     released = release_fields(pwm.channels)
     gcs_port = free_port()
     peers = Peers(gcs_port, params)
-    companion = CompanionProcess(workdir, gcs_port, peers.fc_port)
+    companion = FuzzedCompanion(workdir, gcs_port, peers.fc_port)
     checks: list[tuple[bool, str]] = []
     phases: list[Phase] = []
 
@@ -463,7 +434,7 @@ def run(seed: int, gcs_count: int, fc_count: int, workdir: Path) -> tuple[list[P
 
 
 def phase_checks(check: Callable[[bool, str], bool], phase: Phase,
-                 companion: CompanionProcess) -> None:
+                 companion: FuzzedCompanion) -> None:
     w = phase.watch
     assert w is not None
     name = phase.name

@@ -42,12 +42,9 @@ could not be started or armed.
 from __future__ import annotations
 
 import argparse
-import contextlib
 import math
 import os
 import platform
-import signal
-import subprocess
 import sys
 import tempfile
 import time
@@ -62,6 +59,7 @@ from mecanum_mav.config.params import Params
 from mecanum_mav.control.pwm import PwmMap
 from mecanum_mav.io.links import mavlink
 from mecanum_mav.protocol.heartbeat import send_gcs_heartbeat
+from mecanum_mav.sim.process import CompanionProcess
 
 INPUT_RATE_HZ = 50.0
 CHUNK_S = 1.0
@@ -109,52 +107,6 @@ class SoakPeers(Harness):
 
 
 # ---------------------------------------------------------------------------- the companion
-
-class CompanionRun:
-    """``python -m mecanum_mav run`` in its own process group, its output in ``workdir``."""
-
-    def __init__(self, gcs_url: str, fc_url: str, workdir: Path) -> None:
-        self.log_path = workdir / "companion.log"
-        with self.log_path.open("wb") as log:
-            self.proc = subprocess.Popen(
-                [sys.executable, "-m", "mecanum_mav", "run", "--gcs", gcs_url, "--fc", fc_url],
-                cwd=workdir, stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT,
-                start_new_session=True)
-        self.pid = self.proc.pid
-
-    def alive(self) -> bool:
-        return self.proc.poll() is None
-
-    def rss_kb(self) -> int:
-        """Resident set size (kB, ``VmRSS``)."""
-        for line in Path(f"/proc/{self.pid}/status").read_text().splitlines():
-            if line.startswith("VmRSS:"):
-                return int(line.split()[1])
-        raise SutError("no VmRSS in /proc/PID/status")
-
-    def cpu_s(self) -> float:
-        """CPU seconds used so far (user + system, all threads)."""
-        fields = Path(f"/proc/{self.pid}/stat").read_text().rsplit(")", 1)[1].split()
-        return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
-
-    def log(self) -> str:
-        try:
-            return self.log_path.read_text(errors="replace")[-3000:]
-        except OSError:
-            return ""
-
-    def stop(self) -> int | None:
-        """SIGTERM, then SIGKILL to the group after 5 s; the exit code (None: killed)."""
-        if self.alive():
-            self.proc.send_signal(signal.SIGTERM)
-            with contextlib.suppress(subprocess.TimeoutExpired):
-                return self.proc.wait(timeout=5.0)
-            with contextlib.suppress(ProcessLookupError, PermissionError):
-                os.killpg(self.pid, signal.SIGKILL)
-            self.proc.wait(timeout=10.0)
-            return None
-        return self.proc.returncode
-
 
 # ---------------------------------------------------------------------------- results
 
@@ -262,10 +214,10 @@ def run_soak(duration_s: float, interval_s: float,
            f"{platform.python_version()}, {os.cpu_count()} cores")
     peers = SoakPeers(channel, encode, cycle)
     with tempfile.TemporaryDirectory(prefix="mecanum-soak-") as tmp:
-        companion = CompanionRun(*peers.urls, Path(tmp))
+        companion = CompanionProcess(*peers.urls, Path(tmp))
         try:
             _soak(peers, companion, result, chunk_n, chunks_per_interval, intervals, report)
-        except SutError as exc:
+        except (SutError, OSError) as exc:  # (OSError: its /proc entry went)
             result.error = f"{exc}\n{companion.log()}"
         finally:
             code = companion.stop()
@@ -277,7 +229,7 @@ def run_soak(duration_s: float, interval_s: float,
     return result
 
 
-def _soak(peers: SoakPeers, companion: CompanionRun, result: SoakResult, chunk_n: int,
+def _soak(peers: SoakPeers, companion: CompanionProcess, result: SoakResult, chunk_n: int,
           chunks_per_interval: int, intervals: int, report: Callable[[str], None]) -> None:
     peers.connect()
     peers.arm()

@@ -1,0 +1,122 @@
+"""The companion as its own process, for tests and tools that meet it from outside.
+
+:class:`CompanionProcess` runs ``python -m mecanum_mav run --gcs GCS --fc FC ...`` in a
+process group of its own (so that killing it takes everything it started), with its output
+in ``workdir/companion.log``, and reads what it costs from ``/proc`` (CPU, resident memory).
+The tests, ``tools/fuzz.py`` and ``tools/soak.py`` all start the companion this one way.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+from types import TracebackType
+
+__all__ = ["CompanionProcess", "process_cpu_s"]
+
+_PACKAGE_ROOT = Path(__file__).resolve().parents[2]
+"""Where the package being run lives: the child imports the same code (a checkout too)."""
+
+
+def process_cpu_s(pid: int) -> float:
+    """User + system CPU time (s) process ``pid`` has used so far, all threads
+    (``/proc/PID/stat``).
+
+    Raises:
+        OSError: the process is gone.
+    """
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+class CompanionProcess:
+    """``python -m mecanum_mav run --gcs GCS --fc FC *extra`` in its own process group.
+
+    A context manager: on the way out the group is killed if it is still running.
+    """
+
+    def __init__(self, gcs_url: str, fc_url: str, workdir: Path, *extra: str) -> None:
+        self.command = [sys.executable, "-m", "mecanum_mav", "run", "--gcs", gcs_url,
+                        "--fc", fc_url, *extra]
+        workdir.mkdir(parents=True, exist_ok=True)
+        self.log_path = workdir / "companion.log"
+        env = dict(os.environ)
+        env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(_PACKAGE_ROOT),
+                                                          env.get("PYTHONPATH")]))
+        with self.log_path.open("wb") as log:
+            self.proc = subprocess.Popen(self.command, cwd=workdir, env=env,
+                                         stdin=subprocess.DEVNULL, stdout=log,
+                                         stderr=subprocess.STDOUT, start_new_session=True)
+        self.pid = self.proc.pid
+
+    def alive(self) -> bool:
+        return self.proc.poll() is None
+
+    def log(self, tail: int = 3000) -> str:
+        """The last ``tail`` characters of its output ("" if there is none)."""
+        try:
+            return self.log_path.read_text(errors="replace")[-tail:]
+        except OSError:
+            return ""
+
+    def cpu_s(self) -> float:
+        """CPU seconds it has used so far (:func:`process_cpu_s`); NaN once it is gone."""
+        try:
+            return process_cpu_s(self.pid)
+        except OSError:
+            return float("nan")
+
+    def rss_kb(self) -> int:
+        """Its resident set size (kB, ``VmRSS`` of ``/proc/PID/status``).
+
+        Raises:
+            OSError: the process is gone.
+        """
+        for line in Path(f"/proc/{self.pid}/status").read_text().splitlines():
+            if line.startswith("VmRSS:"):
+                return int(line.split()[1])
+        raise OSError(f"no VmRSS for process {self.pid}")
+
+    def terminate(self) -> float:
+        """SIGTERM; returns when it was sent (monotonic s)."""
+        sent = time.monotonic()
+        self.proc.send_signal(signal.SIGTERM)
+        return sent
+
+    def wait(self, timeout_s: float) -> int | None:
+        """The exit code, or None if still running after ``timeout_s``."""
+        try:
+            return self.proc.wait(timeout=timeout_s)
+        except subprocess.TimeoutExpired:
+            return None
+
+    def stop(self, timeout_s: float = 5.0) -> int | None:
+        """SIGTERM, and SIGKILL to the group if it has not ended within ``timeout_s``; its
+        exit code (None: it had to be killed)."""
+        if not self.alive():
+            return self.proc.returncode
+        self.terminate()
+        code = self.wait(timeout_s)
+        if code is None:
+            self.kill()
+        return code
+
+    def kill(self) -> None:
+        """SIGKILL the process group (if the companion still runs) and reap it."""
+        if self.proc.poll() is None:  # still ours: the group id cannot have been reused
+            with contextlib.suppress(ProcessLookupError, PermissionError):
+                os.killpg(self.proc.pid, signal.SIGKILL)
+        with contextlib.suppress(subprocess.TimeoutExpired):
+            self.proc.wait(timeout=10)
+
+    def __enter__(self) -> CompanionProcess:
+        return self
+
+    def __exit__(self, kind: type[BaseException] | None, exc: BaseException | None,
+                 tb: TracebackType | None) -> None:
+        self.kill()
