@@ -6,7 +6,7 @@ between the ground station and flight controller of ``tools/bench_latency.py`` (
 loopback); its sections are wrapped with timers of the loop thread's own CPU
 (``time.thread_time_ns``), so the harness's work is not counted:
 
-- ``wait``: the selector's ``select`` (the wake-up: epoll and the selectors module),
+- ``wait``: the poller's ``wait`` (the wake-up: epoll),
 - ``read``: reading and parsing what arrived (``Companion._drain`` less the core's ``handle``
   and ``stick_lane``, and less any sends from inside it),
 - ``handle``, ``lane``: the core's message handling, and the stick's lane,
@@ -28,7 +28,6 @@ where the time goes.
 from __future__ import annotations
 
 import argparse
-import selectors
 import sys
 import threading
 import time
@@ -78,12 +77,12 @@ def instrumented(clock: Clock, params: Params, gcs_url: str, fc_url: str
                  ) -> companion_module.Companion:
     """A companion whose sections report to ``clock``."""
 
-    class TimedSelector(selectors.DefaultSelector):  # type: ignore[misc,valid-type]
-        def select(self, timeout: float | None = None) -> Any:
+    class TimedPoller(companion_module.Poller):
+        def wait(self, timeout_s: float) -> Any:
             clock.passes += 1
-            return clock.wrap("wait", super().select)(timeout)
+            return clock.wrap("wait", super().wait)(timeout_s)
 
-    companion_module.selectors.DefaultSelector = TimedSelector  # type: ignore[misc]
+    companion_module.Poller = TimedPoller  # type: ignore[misc]
     comp = companion_module.Companion(params, gcs_url, fc_url)
     core = comp.core
     for name, attr in (("handle", "handle"), ("lane", "stick_lane"), ("tick", "tick"),

@@ -4,12 +4,17 @@ Everything the rover decides is in :class:`~mecanum_mav.control.core.RoverCore`;
 opens the links, feeds the core what arrives, writes what it returns, and shuts down in order.
 One thread, one loop (:meth:`Companion.run`), top to bottom:
 
-1. Wait until a link is readable or the core's next timer is due (``selectors``; it never
-   polls, so an idle companion uses no CPU).
+1. Wait until a link is readable or the core's next timer is due (epoll,
+   :class:`~mecanum_mav.io.poller.Poller`; it never polls, so an idle companion uses no CPU).
 2. Read everything waiting on a link; each message goes to ``core.handle`` and its answers
    out at once. Under overload this drains the queue and the core acts on the newest stick.
+   On a datagram link the first datagram is answered before the rest are read: a lone
+   MANUAL_CONTROL takes the core's lane (``core.stick_lane``) and its override goes out
+   before anything else is done.
 3. ``core.tick``: its RC_CHANNELS_OVERRIDE goes out at once; then ``core.housekeeping``:
-   odometry, telemetry, heartbeats and status texts.
+   odometry, telemetry, heartbeats and status texts. A wake that brought only a stick the
+   lane answered skips this and step 4 when no timer is due yet: the control path is then
+   the floor's (read, mix, send) plus the core's checks.
 4. Each link hands over what still waits in it (:func:`~mecanum_mav.io.links.follow`).
 5. On stop (SIGINT, SIGTERM, :meth:`Companion.stop`): neutral, then the channels released.
 
@@ -41,7 +46,7 @@ import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import BinaryIO
+from typing import Any, BinaryIO
 
 from mecanum_mav.config.params import Params
 from mecanum_mav.control.core import (
@@ -54,6 +59,7 @@ from mecanum_mav.control.core import (
     RoverCore,
 )
 from mecanum_mav.io.links import Link, follow, open_link
+from mecanum_mav.io.poller import READABLE, Poller
 from mecanum_mav.io.storage import FileStorage
 from mecanum_mav.protocol.codec import ManualControl
 from mecanum_mav.protocol.statustext import Severity
@@ -112,7 +118,7 @@ class Companion:
     def run(self) -> None:
         """Run until :meth:`stop`; always ends with neutral wheels and released channels."""
         core = self.core
-        selector = selectors.DefaultSelector()
+        selector = Poller()
         selector.register(self._wake_r, selectors.EVENT_READ, None)
         gcs, fc = self.gcs, self.fc
         registered = {link: follow(selector, link, None, link) for link in (gcs, fc)}
@@ -121,12 +127,15 @@ class Companion:
             while not self._stop.is_set():
                 due = min(core.next_due_s(), gcs.next_reopen_s, fc.next_reopen_s,
                           gcs.next_send_s, fc.next_send_s)
-                for key, events in selector.select(max(0.0, due - self.clock())):
-                    if key.data is None:
+                lane_only = False
+                for link, events in selector.wait(due - self.clock()):
+                    if link is None:
                         os.read(self._wake_r, 64)
-                    elif events & selectors.EVENT_READ:  # (writable: follow() flushes)
-                        self._drain(key.data)
+                    elif events & READABLE:  # (writable: follow() flushes)
+                        lane_only = self._drain(link)
                 now = self.clock()
+                if lane_only and now < due and not streams:
+                    continue  # a stick the lane answered, and nothing else is due
                 for link in streams:  # (a datagram link never goes down)
                     if not link.up and link.reopen(now):
                         self._report(link, now)  # before anything else goes out on it
@@ -141,22 +150,37 @@ class Companion:
             for override in core.shutdown():  # all of them, in order (close() lingers)
                 self.fc.send_rc_override(*override, replace=False)
 
-    def _drain(self, link: Link) -> None:
-        now, from_fc, handle = self.clock(), link is self.fc, self.core.handle
+    def _drain(self, link: Link) -> bool:
+        """Read ``link`` and answer what came; True if it was only a stick, answered by the
+        core's lane (nothing else then needs the core before its next timer)."""
+        now, from_fc = self.clock(), link is self.fc
+        lane = False
+        if not from_fc and link.steady:  # a datagram link: the first one is answered first
+            lane = self._answer(link.read(1), now, from_fc=False)
         messages = link.read()
-        self._report(link, now)  # it broke, or a tcpin client connected: the core first
         rejected = link.take_rejections()
         if rejected:  # unsigned or badly signed: counted, said at most once a second
             self.core.refuse_unsigned(rejected, now, from_fc=from_fc)
+        elif lane and not messages:
+            return True
+        self._report(link, now)  # it broke, or a tcpin client connected: the core first
+        self._answer(messages, now, from_fc=from_fc)
+        return False
+
+    def _answer(self, messages: list[Any], now: float, *, from_fc: bool) -> bool:
+        """Hand ``messages`` to the core and send its answers; a lone stick takes the core's
+        lane. True if that answered it."""
         if not from_fc and len(messages) == 1 and type(messages[0]) is ManualControl:
             override = self.core.stick_lane(messages[0], now)
             if override is not None:  # the pilot's stick, answered at once
                 self._send_override(override)
-                return
+                return True
+        handle = self.core.handle
         for msg in messages:
             out = handle(msg, now, from_fc=from_fc)
             if out is not NOTHING:  # a stick is answered by the tick, not here
                 self._write(out)
+        return False
 
     def _report(self, link: Link, now: float) -> None:
         """Tell the core once when ``link`` went down or came back up."""

@@ -260,6 +260,10 @@ class RoverCore:
         """Before this no timer of :meth:`housekeeping` is due (-inf: look at them all)."""
         self._quiet_until_s = -math.inf
         """Before this nothing but the output refresh can be due (:meth:`tick`)."""
+        self._housekeeping_timers_s = -math.inf
+        """The earliest of the timers :meth:`housekeeping` keeps, as it last left them."""
+        self._timers_due_s = -math.inf
+        """Within the quiet window: the earliest timer but the output refresh's."""
         self._last_override: RcOverride | None = None
         self._fc_streams_asked = False
         self.fc_check = FcSetupCheck()
@@ -375,13 +379,13 @@ class RoverCore:
         A wake that brought only a stick (outside GUIDED and AUTO) and finds no timer due
         integrates the commanded wheels and stops there."""
         self._now_s = now_s
-        if self._wheels_s is not None:
-            self.estimator.on_commanded(self.wheels, now_s - self._wheels_s, now_s)
-        self.wheels, self._wheels_s = self._output_wheels, now_s
+        self._hold_wheels(now_s)
         if (now_s < self._housekeeping_due_s and not self.vehicle.autonomous()
                 and not self.autopilot.executor.running and not self.vehicle.has_events
                 and not self.to_gcs.messages and not self.to_fc.messages):
-            self._quiet_until_s = min(self._housekeeping_due_s, self.vehicle.next_due_s())
+            vehicle_due_s = self.vehicle.next_due_s()
+            self._quiet_until_s = min(self._housekeeping_due_s, vehicle_due_s)
+            self._timers_due_s = min(self._housekeeping_timers_s, vehicle_due_s)
             return NOTHING
         if self.vehicle.fc_lost:
             self._fc_streams_asked = False  # ask a rebooted flight controller again
@@ -416,9 +420,15 @@ class RoverCore:
         self._housekeeping_due_s = min(
             self._next_heartbeat_s, self.fc_check.next_due_s, self.mission.next_due_s(),
             self.streams.next_due_s() - self.output.refresh_period_s / 2)
-        self._quiet_until_s = (
-            -math.inf if self.vehicle.autonomous() or self.autopilot.executor.running else
-            min(self._housekeeping_due_s, self.vehicle.next_due_s()))
+        self._housekeeping_timers_s = min(
+            self._next_heartbeat_s, self.fc_check.next_due_s, self.mission.next_due_s(),
+            self.streams.next_due_s(), self.autopilot.next_due_s())
+        if self.vehicle.autonomous() or self.autopilot.executor.running:
+            self._quiet_until_s = -math.inf
+        else:
+            vehicle_due_s = self.vehicle.next_due_s()
+            self._quiet_until_s = min(self._housekeeping_due_s, vehicle_due_s)
+            self._timers_due_s = min(self._housekeeping_timers_s, vehicle_due_s)
         return self._take(None)
 
     def stick_lane(self, msg: ManualControlMsg, now_s: float) -> RcOverride | None:
@@ -426,8 +436,9 @@ class RoverCore:
         at once, exactly as :meth:`handle` then :meth:`tick` would answer it, when nothing
         else can be involved: driving in MANUAL, nothing due (no timeout, no timer), a valid
         stick for us from the pilot. Else None, with nothing changed: call :meth:`handle`
-        and :meth:`tick`. After an override from here, the pass needs :meth:`housekeeping`
-        only (:meth:`tick` then has nothing to do)."""
+        and :meth:`tick`. After an override from here neither :meth:`tick` nor
+        :meth:`housekeeping` has anything to do before :meth:`next_due_s` (the odometry of
+        the wheels held until now is taken here), so a loop may skip them."""
         if (now_s >= self._quiet_until_s or not self.vehicle.driving() or self.faulted
                 or not (self._for_us(msg.target) and self._from_pilot(msg))):
             return None
@@ -445,7 +456,14 @@ class RoverCore:
             return None
         self._take_stick(stick, now_s)
         self._output_wheels = wheels
+        self._hold_wheels(now_s)
         return self._override(pulses, now_s)
+
+    def _hold_wheels(self, now_s: float) -> None:
+        """Odometry from the wheels commanded until ``now_s``; from now on, the output's."""
+        if self._wheels_s is not None:
+            self.estimator.on_commanded(self.wheels, now_s - self._wheels_s, now_s)
+        self.wheels, self._wheels_s = self._output_wheels, now_s
 
     def _handler_failed(self, kind: str, now_s: float) -> RcOverride:
         """A message handler raised: logged, said, neutral at once and latched."""
@@ -483,6 +501,8 @@ class RoverCore:
 
     def next_due_s(self) -> float:
         """When :meth:`tick` must run next if no message arrives first (monotonic s)."""
+        if self._now_s < self._quiet_until_s:  # only the refresh moved since housekeeping
+            return min(self._next_output_s, self._timers_due_s)
         return min(self._next_output_s, self._next_heartbeat_s, self.vehicle.next_due_s(),
                    self.streams.next_due_s(), self.autopilot.next_due_s(),
                    self.mission.next_due_s(), self.fc_check.next_due_s)

@@ -111,6 +111,7 @@ no readiness event for "the unsent queue shrank"."""
 _SIOCOUTQNSD = 0x894B  # Linux: bytes of a TCP socket's queue not yet sent
 _SERIAL, _TCP, _TCP_SERVER, _DATAGRAM = "serial", "tcp", "tcpin", "datagram"
 _AGAIN = (BlockingIOError, InterruptedError)
+_NOTHING_TO_READ = (BlockingIOError, InterruptedError, ConnectionRefusedError)
 
 
 def _writable(sock: socket.socket) -> bool:
@@ -202,7 +203,6 @@ class Link:
         self._tlog: BinaryIO | None = None
         self.conn.mav.file = self  # every packet goes out through write(), which sees a break
         self._udp_server = bool(getattr(self.conn, "udp_server", False))
-        self._from: Any = None  # the address the last datagram came from (udpin)
         self._peers_s: dict[Any, float] = {}  # udpin peers -> when last heard (monotonic s)
         self.peer_timeout_s = PEER_TIMEOUT_S
         self._next_prune_s = -math.inf
@@ -317,11 +317,51 @@ class Link:
         if signing.timestamp < check.timestamp:
             signing.timestamp = check.timestamp
 
-    def read(self) -> list[Any]:
-        """Every complete message waiting on the link, oldest first; never raises."""
+    def read(self, max_reads: int = _MAX_READS) -> list[Any]:
+        """Every complete message waiting on the link, oldest first (from at most
+        ``max_reads`` datagrams or chunks: ``read(1)`` takes one datagram); never raises."""
+        if self._buffered:
+            messages = self._read_stream(max_reads)
+        else:
+            messages = self._read_datagrams(max_reads)
         check = self.signature_check  # (its clock advances on sends: a heartbeat a second)
+        if check is not None:
+            self._catch_up(check)
+        self.received += len(messages)
+        return messages
+
+    def _read_datagrams(self, max_reads: int) -> list[Any]:
+        """pymavlink's recv, less its overhead; it would also make every sender on a udpin
+        link a peer (see :meth:`_heard`)."""
+        conn, parse = self.conn, self.parser.parse
+        recvfrom = conn.port.recvfrom
         messages: list[Any] = []
-        for _ in range(_MAX_READS):
+        for _ in range(max_reads):
+            try:
+                data, address = recvfrom(_READ_CHUNK)
+            except _NOTHING_TO_READ:  # (refused: an earlier send found no one listening)
+                break
+            except OSError as exc:
+                log.debug("%s: read failed: %s", self.name, exc)
+                break
+            if conn.broadcast:
+                conn.last_address = address
+            if conn.first_byte:
+                conn.auto_mavlink_version(data)
+            parsed = parse(data)
+            if parsed:
+                if self._udp_server:
+                    self._heard(address)
+                if self._tlog is not None:
+                    for msg in parsed:
+                        self._record(msg)
+                messages += parsed
+        return messages
+
+    def _read_stream(self, max_reads: int) -> list[Any]:
+        conn, parse = self.conn, self.parser.parse
+        messages: list[Any] = []
+        for _ in range(max_reads):
             try:
                 data = self._receive()
             except LinkDownError:
@@ -331,34 +371,19 @@ class Link:
                 break
             if not data:
                 break
-            if self.conn.first_byte:
-                self.conn.auto_mavlink_version(data)
-            parsed = self.parser.parse(data)
-            if self._udp_server and parsed:
-                self._heard(self._from)
+            if conn.first_byte:
+                conn.auto_mavlink_version(data)
+            parsed = parse(data)
             if self._tlog is not None:
                 for msg in parsed:
                     self._record(msg)
             messages += parsed
-        if check is not None:
-            self._catch_up(check)
-        self.received += len(messages)
         return messages
 
     def _receive(self) -> bytes:
-        """What is waiting (b"" if nothing); raises :class:`LinkDownError` when the link broke
-        (it is then down), other ``OSError`` for a passing failure."""
+        """What is waiting on a stream link (b"" if nothing); raises :class:`LinkDownError`
+        when the link broke (it is then down), other ``OSError`` for a passing failure."""
         kind, conn = self._kind, self.conn
-        if kind == _DATAGRAM:  # pymavlink's recv, less its overhead; it would also make
-            try:               # every sender on a udpin link a peer (see _heard)
-                data, self._from = conn.port.recvfrom(_READ_CHUNK)
-            except _AGAIN:
-                return b""
-            except ConnectionRefusedError:  # an earlier send found no one listening
-                return b""
-            if conn.broadcast:
-                conn.last_address = self._from
-            return data  # type: ignore[no-any-return]
         if kind == _TCP_SERVER and conn.port is None and not self._accept():
             return b""
         if self.down_reason is not None:
@@ -455,11 +480,9 @@ class Link:
         ``replace=False`` it supersedes the waiting one and is queued in order behind what
         else waits, and a later override does not replace it (the last words at shutdown:
         neutral, then release, all of them reach the board)."""
-        if not self._buffered:
+        if not self._buffered:  # a datagram link: never down, nothing waits in it
             try:
-                self.write(self._pack_override(target_system, target_component, channels))
-            except LinkDownError:
-                self.unsent += 1
+                self.conn.write(self._pack_override(target_system, target_component, channels))
             except Exception as exc:  # a send must never take the control loop down
                 self._send_failed(exc)
             else:
@@ -489,7 +512,8 @@ class Link:
         """The packet (and the tlog's record of it): packed now, with the next sequence
         number."""
         packet = encode_rc_override(self.conn.mav, target_system, target_component, channels)
-        self._record_packet(packet)
+        if self._tlog is not None:
+            self._record_packet(packet)
         return packet
 
     # ----------------------------------------------------------------- pacing (stream links)
