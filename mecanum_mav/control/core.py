@@ -439,8 +439,11 @@ class RoverCore:
         and :meth:`tick`. After an override from here neither :meth:`tick` nor
         :meth:`housekeeping` has anything to do before :meth:`next_due_s` (the odometry of
         the wheels held until now is taken here), so a loop may skip them."""
-        if (now_s >= self._quiet_until_s or not self.vehicle.driving() or self.faulted
-                or not (self._for_us(msg.target) and self._from_pilot(msg))):
+        if now_s >= self._quiet_until_s or self.faulted or not self.vehicle.driving():
+            return None
+        identity, target = self.identity, msg.target  # (_for_us and _from_pilot, inline)
+        if ((target and target != identity.sysid)
+                or (identity.gcs_sysid and msg.get_srcSystem() != identity.gcs_sysid)):
             return None
         self._now_s = now_s
         try:

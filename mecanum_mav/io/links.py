@@ -482,7 +482,11 @@ class Link:
         neutral, then release, all of them reach the board)."""
         if not self._buffered:  # a datagram link: never down, nothing waits in it
             try:
-                self.conn.write(self._pack_override(target_system, target_component, channels))
+                packet = encode_rc_override(self.conn.mav, target_system, target_component,
+                                            channels)
+                if self._tlog is not None:
+                    self._record_packet(packet)
+                self.conn.write(packet)
             except Exception as exc:  # a send must never take the control loop down
                 self._send_failed(exc)
             else:
