@@ -73,18 +73,26 @@ _OVERRIDE_CRC_EXTRA = bytes((_OVERRIDE.crc_extra,))
 
 _Header = mavlink.MAVLink_header
 _FAST = _mcrf4xx is not None and not mavlink.MAVLINK_IGNORE_CRC
-"""The generic codec runs (else everything takes pymavlink): the native CRC is there, and
+"""The generic codec runs (else pymavlink does it all): the native CRC is there, and
 pymavlink checks CRCs (``MAV_IGNORE_CRC`` unset)."""
 _PACKS_V2 = float(mavlink.WIRE_PROTOCOL_VERSION) == 2.0
 """The dialect's classes pack MAVLink 2 (``pymavlink`` decides by the module's version)."""
 
 
+def _slow_crc16(data: bytes | bytearray, crc: int) -> int:  # pragma: no cover
+    x25 = mavlink.x25crc()
+    x25.crc = crc
+    x25.accumulate(data)
+    return int(x25.crc)
+
+
+_crc16: Callable[[bytes | bytearray, int], int] = _mcrf4xx or _slow_crc16
+"""CRC-16/MCRF4XX (MAVLink's X.25) of ``data`` continued from ``crc`` (0xFFFF starts one):
+fastcrc's, or pymavlink's pure-Python one (then only the two hot messages take this codec)."""
+
+
 def _crc(data: bytes | bytearray, extra: bytes) -> int:
-    if _mcrf4xx is not None:
-        return int(_mcrf4xx(extra, _mcrf4xx(data, 0xFFFF)))
-    crc = mavlink.x25crc(data)  # pragma: no cover
-    crc.accumulate(extra)  # pragma: no cover
-    return int(crc.crc)  # pragma: no cover
+    return _crc16(extra, _crc16(data, 0xFFFF))
 
 
 class ManualControl:
@@ -156,7 +164,7 @@ def _frame(mav: Any, msgid: int, crc_extra: bytes, payload: bytes,
     body = _HEADER.pack(_MAGIC, length, IFLAG_SIGNED if signed else 0, 0, mav.seq,
                         mav.srcSystem, mav.srcComponent, msgid & 0xFFFF, msgid >> 16)
     body += payload[:length]
-    crc = _crc(body[1:], crc_extra)
+    crc = _crc16(crc_extra, _crc16(body[1:], 0xFFFF))
     packet = body + _CRC.pack(crc)
     if signed:
         signing = mav.signing
@@ -274,6 +282,7 @@ def decode_datagram(datagram: bytes) -> list[Any] | None:
 def _decode_packets(buf: bytearray) -> list[Any] | None:
     size = len(buf)
     decoders = _decoders
+    crc16 = _crc16
     messages = []
     pos = 0
     while pos < size:
@@ -309,7 +318,7 @@ def _decode_packets(buf: bytearray) -> list[Any] | None:
             return None
         cls, crc_extra, unpack, unpack_from, payload_size, convert = plan
         crc = _CRC.unpack_from(buf, crc_at)[0]
-        if crc != _crc(buf[pos + 1:crc_at], crc_extra):
+        if crc != crc16(crc_extra, crc16(buf[pos + 1:crc_at], 0xFFFF)):
             return None
         if length >= payload_size:  # longer than this dialect knows: pymavlink cuts it
             values = unpack_from(buf, start)
@@ -331,7 +340,7 @@ def _decode_packets(buf: bytearray) -> list[Any] | None:
 _Encoder = tuple[int, bytes, Callable[..., bytes], Callable[[Any], Any],
                  tuple[tuple[int, int], ...]]
 """Message id, crc_extra byte, pack, the getter of the packed attributes (wire order), the
-arrays among them (index, length)."""
+arrays among them (index, length; last first)."""
 
 
 def _encoder(cls: type) -> _Encoder | None:
@@ -353,7 +362,8 @@ def _encoder(cls: type) -> _Encoder | None:
                 if n:
                     arrays.append((i, n))
         getter = attrgetter(*names) if len(names) > 1 else (lambda m: (getattr(m, names[0]),))
-        plan = (msgid, bytes((cls.crc_extra,)), cls.unpacker.pack, getter, tuple(arrays))
+        plan = (msgid, bytes((cls.crc_extra,)), cls.unpacker.pack, getter,
+                tuple(reversed(arrays)))
     _encoders[cls] = plan
     return plan
 
@@ -362,14 +372,11 @@ _encoders: dict[type, _Encoder | None] = {}
 
 
 def _flatten(values: tuple[Any, ...], arrays: tuple[tuple[int, int], ...]) -> list[Any]:
-    """The packed attributes with each array's first ``n`` elements in its place."""
-    out: list[Any] = []
-    done = 0
+    """The packed attributes with each array's first ``n`` elements in its place (``arrays``
+    last first)."""
+    out = list(values)
     for i, n in arrays:
-        out += values[done:i]
-        out += values[i][:n]  # a shorter one makes a wrong count: struct refuses it
-        done = i + 1
-    out += values[done:]
+        out[i:i + 1] = out[i][:n]  # a shorter one makes a wrong count: struct refuses it
     return out
 
 
