@@ -19,6 +19,7 @@ SHA-256 is then common to both sides).
 from __future__ import annotations
 
 import argparse
+import importlib.metadata
 import platform
 import statistics
 import sys
@@ -132,7 +133,7 @@ def main(argv: list[str] | None = None) -> int:
 
     mav = link_mav(args.signed)
     print(f"python {platform.python_version()} on {platform.machine()}, pymavlink "
-          f"{getattr(mavlink, '__version__', '2.4.x')}; us per message, best / median of "
+          f"{importlib.metadata.version('pymavlink')}; us per message, best / median of "
           f"{blocks} blocks of {calls}; {'signed' if args.signed else 'unsigned'} packets")
     head = f"  {'':<32} {'pymavlink':>13}   {'fast':>13}   ratio"
     groups = messages(mav)
