@@ -383,3 +383,13 @@ def test_a_link_sends_exactly_what_pymavlink_would_and_records_it(key):
     finally:
         link.close()
         receiver.close()
+
+
+def test_datagrams_naming_unknown_message_ids_leave_nothing_behind():
+    mav = link_mav(False)
+    heartbeat = bytearray(mav.heartbeat_encode(6, 8, 0, 0, 4).pack(mav))
+    known = len(codec._decoders)
+    for msgid in range(0x100000, 0x100400):  # ids no dialect has
+        heartbeat[7:10] = msgid.to_bytes(3, "little")
+        assert decode_datagram(bytes(heartbeat)) is None
+    assert len(codec._decoders) == known

@@ -243,18 +243,18 @@ def _converter(cls: Any) -> _Convert:
     return lambda t: _strings_rstripped(pick(t), strings)
 
 
-_decoders: dict[int, _Decoder | None] = {}
+_decoders: dict[int, _Decoder] = {}
 
 
 def _decoder(msgid: int) -> _Decoder | None:
-    """The decoding plan of a message id (None: not in the dialect), built on first use."""
+    """The decoding plan of a message id, built on first use; None: not in the dialect (not
+    kept: hostile datagrams could name millions of ids)."""
     cls = mavlink.mavlink_map.get(msgid)
-    plan: _Decoder | None = None
-    if cls is not None:
-        unpacker = cls.unpacker
-        plan = (cls, bytes((cls.crc_extra,)), unpacker.unpack, unpacker.unpack_from,
-                unpacker.size, _converter(cls))
-    _decoders[msgid] = plan
+    if cls is None:
+        return None
+    unpacker = cls.unpacker
+    plan = _decoders[msgid] = (cls, bytes((cls.crc_extra,)), unpacker.unpack,
+                               unpacker.unpack_from, unpacker.size, _converter(cls))
     return plan
 
 
