@@ -7,9 +7,10 @@ pymavlink connection strings: ``udpin:HOST:PORT`` (listen; replies go to every p
 
 A :class:`Link` is read when its file descriptor is readable: :meth:`Link.read` returns every
 message that arrived, parsed from the raw bytes by :class:`~mecanum_mav.protocol.framing.
-MessageParser` (on datagram links a lone MANUAL_CONTROL takes the fast codec of
-:mod:`mecanum_mav.protocol.codec`), and :meth:`Link.send_rc_override` packs with that codec
-too: the control path never waits on pymavlink's pure-Python parser and packer. Malformed
+MessageParser` (on datagram links the fast codec of :mod:`mecanum_mav.protocol.codec`
+decodes whole, good packets), and :meth:`Link.send_rc_override` and :meth:`Link.send` pack
+with that codec too: the control path never waits on pymavlink's pure-Python parser and
+packer. Malformed
 bytes, bad CRCs and truncated packets are counted in :attr:`Link.bad`, never raised; a send
 that fails (peer gone, no route) is counted in :attr:`Link.send_errors` and logged at WARNING
 at most once a second per link.
@@ -72,7 +73,7 @@ from typing import Any, BinaryIO
 import serial
 
 from mecanum_mav.io.tlog import tlog_record
-from mecanum_mav.protocol.codec import encode_rc_override
+from mecanum_mav.protocol.codec import encode_rc_override, send_message
 from mecanum_mav.protocol.dialect import mavlink, mavutil
 from mecanum_mav.protocol.framing import MessageParser
 from mecanum_mav.protocol.signing import Check, SignatureCheck, ticks_from_unix
@@ -447,11 +448,14 @@ class Link:
             raise LinkDownError("no client connected")  # nobody to send to yet
 
     def send(self, msg: Any) -> bool:
-        """Pack and send one message object; returns False (and counts) on failure."""
+        """Pack and send one message object; returns False (and counts) on failure.
+
+        Packed by the fast codec (:func:`~mecanum_mav.protocol.codec.send_message`: the bytes,
+        sequence numbers, signing and send callback of pymavlink's ``mav.send``)."""
         if self.signature_check is not None:
             self._follow_clock(self.signature_check)
         try:
-            self.conn.mav.send(msg)
+            send_message(self.conn.mav, msg)
         except LinkDownError:
             self.unsent += 1
             return False

@@ -1,12 +1,14 @@
 """Received bytes -> MAVLink messages, never raising: the parsing every link shares.
 
 :class:`MessageParser` wraps a pymavlink ``MAVLink`` parser (robust parsing, MAVLink 2). On
-datagram links (UDP) a datagram holding exactly one MANUAL_CONTROL takes the fast codec
-(:func:`~mecanum_mav.protocol.codec.decode_manual_control`), so the control path never waits on
-pymavlink's pure-Python parser; anything else goes through pymavlink. A MAVLink packet never
-spans UDP datagrams, so on datagram links a leftover partial packet is dropped (and counted)
-instead of swallowing the start of the next datagram. Malformed bytes, bad CRCs and truncated
-packets are counted in :attr:`MessageParser.bad`.
+datagram links (UDP) the fast codec goes first, so the control path never waits on pymavlink's
+pure-Python parser: a datagram holding exactly one MANUAL_CONTROL is decoded by
+:func:`~mecanum_mav.protocol.codec.decode_manual_control`, any other datagram of whole, good
+packets of known messages by :func:`~mecanum_mav.protocol.codec.decode_datagram` (the same
+message objects pymavlink would return); anything else goes through pymavlink. A MAVLink
+packet never spans UDP datagrams, so on datagram links a leftover partial packet is dropped
+(and counted) instead of swallowing the start of the next datagram. Malformed bytes, bad CRCs
+and truncated packets are counted in :attr:`MessageParser.bad`.
 
 With a :class:`~mecanum_mav.protocol.signing.SignatureCheck` (a link with a signing key) every
 message, from the fast path or pymavlink's, is kept only if its packet is correctly signed and
@@ -20,7 +22,7 @@ from __future__ import annotations
 import logging
 from typing import Any
 
-from mecanum_mav.protocol.codec import decode_manual_control
+from mecanum_mav.protocol.codec import decode_datagram, decode_manual_control
 from mecanum_mav.protocol.dialect import mavlink
 from mecanum_mav.protocol.signing import Check, SignatureCheck
 
@@ -62,7 +64,14 @@ class MessageParser:
                 if check is None or check.check(data) is _ACCEPTED:
                     return [fast]
                 return []
-        messages = self._parse_general(data)
+            mav = self.mav
+            # what pymavlink's parser would return, unless it would call back or check keys
+            messages = (decode_datagram(data) if mav.callback is None
+                        and mav.signing.secret_key is None else None)
+            if messages is None:
+                messages = self._parse_general(data)
+        else:
+            messages = self._parse_general(data)
         if check is None or not messages:
             return messages
         return [m for m in messages if check.check(m.get_msgbuf()) is _ACCEPTED]
