@@ -280,3 +280,28 @@ def test_wheel_positions_that_cannot_resolve_rotation_are_rejected():
 def test_a_wheel_position_that_is_not_an_xy_pair_is_rejected():
     with pytest.raises(ValueError, match="pair"):
         MecanumKinematics((0.2, -0.2, 0.0), (0.2, 0.2, 0.0), (-0.2, -0.2, 0.0), (-0.2, 0.2, 0.0))
+
+
+_any_float = st.one_of(st.floats(-5, 5), st.floats(allow_nan=True, allow_infinity=True))
+
+
+@given(_any_float, _any_float, _any_float, st.tuples(st.floats(-1, 1), st.floats(-1, 1)))
+def test_plain_wheel_speeds_give_the_array_paths_numbers(vx, vy, w, centre):
+    kin = MecanumKinematics.from_half_extents(0.2, 0.15)
+    got = kin.wheel_speeds(vx, vy, w, centre)
+    assert type(got) is tuple and all(type(v) is float for v in got)
+    with np.errstate(all="ignore"):
+        expected = kin._to_wheels_array(vx, vy, w, centre)
+    if not np.all(np.isfinite(expected)):
+        expected = np.zeros(4)
+    np.testing.assert_allclose(got, expected, rtol=1e-12, atol=1e-12)
+    assert got == tuple(kin.to_wheel_speeds(vx, vy, w, centre).tolist())
+
+
+@given(st.lists(st.floats(-2, 2), min_size=4, max_size=4))
+def test_plain_twist_from_wheel_deltas_equals_the_array_fit(deltas):
+    kin = MecanumKinematics.from_half_extents(0.2, 0.15)
+    twist = kin.to_twist(deltas)
+    assert isinstance(twist, Twist2d)
+    expected = kin.to_twist(np.array(deltas).reshape(1, 4))[0]
+    np.testing.assert_allclose(tuple(twist), expected, rtol=1e-12, atol=1e-15)

@@ -16,6 +16,7 @@ from mecanum_mav.mecanum.mixing import (
     chassis_from_wheels,
     desaturate,
     desaturate_prioritized,
+    desaturate_prioritized_scalar,
     holonomic_2010,
     max_speed_scaled,
     mix_stick,
@@ -267,6 +268,21 @@ def test_translation_priority_keeps_translation_that_fits(x, y, r):
 def test_prioritized_desaturation_of_any_pattern_fits_within_the_limit(t, r, priority):
     out = desaturate_prioritized(t, r, priority)
     assert np.abs(out).max() <= 1.0 + 1e-9
+
+
+wide = st.one_of(st.floats(-3, 3), st.floats(allow_nan=True, allow_infinity=True),
+                 st.sampled_from([0.0, -0.0, 1e308, -1e308, 5e-324]))
+
+
+@given(st.lists(wide, min_size=4, max_size=4), st.lists(wide, min_size=4, max_size=4),
+       priorities, st.sampled_from([1.0, 0.5, 2.0]))
+def test_scalar_prioritized_desaturation_gives_the_array_versions_numbers(t, r, priority,
+                                                                         limit):
+    with np.errstate(all="ignore"):  # (the array version's own overflow warnings)
+        expected = desaturate_prioritized(t, r, priority, limit)
+    got = desaturate_prioritized_scalar(t, r, priority, limit)
+    assert type(got) is tuple and all(type(v) is float for v in got)
+    assert got == tuple(expected.tolist())
 
 
 def test_proportional_priority_halves_both_parts_when_twice_over():

@@ -22,7 +22,7 @@ from mecanum_mav.mecanum.geometry import Pose2d
 from mecanum_mav.mecanum.kinematics import MecanumKinematics
 from mecanum_mav.mecanum.mixing import (
     Desaturation,
-    desaturate_prioritized,
+    desaturate_prioritized_scalar,
     wheels_from_stick,
 )
 from mecanum_mav.mecanum.shaping import shape_stick
@@ -68,10 +68,10 @@ def autonomous_output(guided: GuidedController, executor: MissionExecutor | None
     if executor is not None:
         guided.setpoint = executor.update(pose, guided.velocity_ned, now_s)
     speeds = guided.update(pose, now_s)
-    translation = kinematics.to_wheel_speeds(speeds.vx_mps, speeds.vy_mps, 0.0)
-    rotation = kinematics.to_wheel_speeds(0.0, 0.0, speeds.yaw_rate)
-    fl, fr, rl, rr = (float(w) for w in desaturate_prioritized(
-        translation / wheel_speed_max_mps, rotation / wheel_speed_max_mps,
-        Desaturation(priority)))
-    wheels = WheelQuad(fl, fr, rl, rr)
+    # Plain floats throughout (no numpy): this runs at CTL_RATE, with caches cold.
+    translation = kinematics.wheel_speeds(speeds.vx_mps, speeds.vy_mps, 0.0)
+    rotation = kinematics.wheel_speeds(0.0, 0.0, speeds.yaw_rate)
+    wheels = WheelQuad(*desaturate_prioritized_scalar(
+        [v / wheel_speed_max_mps for v in translation],
+        [v / wheel_speed_max_mps for v in rotation], priority))
     return wheels, pwm.pulses_us(wheels)

@@ -376,16 +376,20 @@ class RoverCore:
         """After the output went out: odometry from the commanded wheels, telemetry,
         heartbeats, the mission protocol's timeouts and status texts; returns what to send.
 
-        A wake that brought only a stick (outside GUIDED and AUTO) and finds no timer due
-        integrates the commanded wheels and stops there."""
+        A wake that finds no timer due and nothing to report (a stick, a setpoint, a control
+        tick) integrates the commanded wheels and stops there."""
         self._now_s = now_s
         self._hold_wheels(now_s)
-        if (now_s < self._housekeeping_due_s and not self.vehicle.autonomous()
-                and not self.autopilot.executor.running and not self.vehicle.has_events
-                and not self.to_gcs.messages and not self.to_fc.messages):
-            vehicle_due_s = self.vehicle.next_due_s()
-            self._quiet_until_s = min(self._housekeeping_due_s, vehicle_due_s)
-            self._timers_due_s = min(self._housekeeping_timers_s, vehicle_due_s)
+        executor = self.autopilot.executor
+        if (now_s < self._housekeeping_due_s and not self.vehicle.has_events
+                and not executor.has_events and not self.to_gcs.messages
+                and not self.to_fc.messages):
+            if self.vehicle.autonomous() or executor.running:  # the controllers tick
+                self._quiet_until_s = -math.inf
+            else:
+                vehicle_due_s = self.vehicle.next_due_s()
+                self._quiet_until_s = min(self._housekeeping_due_s, vehicle_due_s)
+                self._timers_due_s = min(self._housekeeping_timers_s, vehicle_due_s)
             return NOTHING
         if self.vehicle.fc_lost:
             self._fc_streams_asked = False  # ask a rebooted flight controller again

@@ -159,22 +159,38 @@ class MecanumKinematics:
         ):
             cx, cy = center_of_rotation
             if isinstance(cx, _PY_SCALARS) and isinstance(cy, _PY_SCALARS):
-                # float() also turns numpy scalars into python floats, whose arithmetic
-                # gives inf/NaN quietly instead of raising numpy RuntimeWarnings.
-                w = float(yaw_rate)
-                # Velocity of the robot centre, then the fixed centre-based matrix rows.
-                vxc = float(vx) + w * float(cy)
-                vyc = float(vy) - w * float(cx)
-                k_fl, k_fr, k_rl, k_rr = self._k
-                fl = vxc + vyc + w * k_fl
-                fr = vxc - vyc + w * k_fr
-                rl = vxc - vyc + w * k_rl
-                rr = vxc + vyc + w * k_rr
-                # x - x is 0.0 for finite x and NaN for NaN or inf.
-                if (fl - fl) + (fr - fr) + (rl - rl) + (rr - rr) == 0.0:
-                    return np.array((fl, fr, rl, rr))
-                return np.zeros(4)
+                return np.array(self.wheel_speeds(vx, vy, yaw_rate, (cx, cy)))
         return self._to_wheels_array(vx, vy, yaw_rate, center_of_rotation)
+
+    def wheel_speeds(self, vx: float, vy: float, yaw_rate: float,
+                     center_of_rotation: tuple[float, float] = (0.0, 0.0)
+                     ) -> tuple[float, float, float, float]:
+        """:meth:`to_wheel_speeds` for one command of plain numbers, as a tuple of floats
+        (m/s, FL, FR, RL, RR): the control loop's path, no numpy (a small array costs more
+        than the arithmetic, several times more when the caches are cold).
+
+        ``vx`` (m/s forward), ``vy`` (m/s right), ``yaw_rate`` (rad/s clockwise), body FRD,
+        of ``center_of_rotation`` (x, y metres from the robot centre). Non-finite input, or a
+        wheel speed that overflows, gives four 0.0 (stop).
+
+        Warning: NOT normalized or desaturated (see :meth:`to_wheel_speeds`).
+        """
+        # float() also turns numpy scalars into python floats, whose arithmetic gives
+        # inf/NaN quietly instead of raising numpy RuntimeWarnings.
+        w = float(yaw_rate)
+        cx, cy = center_of_rotation
+        # Velocity of the robot centre, then the fixed centre-based matrix rows.
+        vxc = float(vx) + w * float(cy)
+        vyc = float(vy) - w * float(cx)
+        k_fl, k_fr, k_rl, k_rr = self._k
+        fl = vxc + vyc + w * k_fl
+        fr = vxc - vyc + w * k_fr
+        rl = vxc - vyc + w * k_rl
+        rr = vxc + vyc + w * k_rr
+        # x - x is 0.0 for finite x and NaN for NaN or inf.
+        if (fl - fl) + (fr - fr) + (rl - rl) + (rr - rr) == 0.0:
+            return fl, fr, rl, rr
+        return 0.0, 0.0, 0.0, 0.0
 
     def _to_wheels_array(
         self,
@@ -252,13 +268,16 @@ class MecanumKinematics:
         of the same quantities. Feed it to ``geometry.pose_exp`` to move a pose. Raises
         ValueError if any delta is non-finite or the last axis is not 4 long.
         """
+        plain = self._forward_plain(wheel_deltas)
+        if plain is not None:  # (the odometry's path: no numpy)
+            return Twist2d(*plain)
         if np.ndim(wheel_deltas) == 1:
             dx, dy, dyaw = self._forward(wheel_deltas, "deltas").tolist()
             return Twist2d(dx, dy, dyaw)
         return self._forward(wheel_deltas, "deltas")
 
-    def _forward(self, wheels: npt.ArrayLike, what: str) -> FloatArray:
-        """Least-squares chassis quantities [..., 3] from wheel quantities [..., 4]."""
+    def _forward_plain(self, wheels: object) -> tuple[float, float, float] | None:
+        """The least-squares fit for a tuple or list of 4 finite plain numbers; else None."""
         if (
             isinstance(wheels, (tuple, list))
             and len(wheels) == 4
@@ -267,7 +286,14 @@ class MecanumKinematics:
             fl, fr, rl, rr = (float(v) for v in wheels)
             # x - x is 0.0 for finite x and NaN for NaN or inf.
             if (fl - fl) + (fr - fr) + (rl - rl) + (rr - rr) == 0.0:
-                return np.array(
-                    [a * fl + b * fr + c * rl + d * rr for a, b, c, d in self._pinv_rows]
-                )
+                (a, b, c, d), (e, f, g, h), (i, j, k, m) = self._pinv_rows
+                return (a * fl + b * fr + c * rl + d * rr, e * fl + f * fr + g * rl + h * rr,
+                        i * fl + j * fr + k * rl + m * rr)
+        return None
+
+    def _forward(self, wheels: npt.ArrayLike, what: str) -> FloatArray:
+        """Least-squares chassis quantities [..., 3] from wheel quantities [..., 4]."""
+        plain = self._forward_plain(wheels)
+        if plain is not None:
+            return np.array(plain)
         return _finite_wheels(wheels, what) @ self._pinv_t

@@ -26,7 +26,7 @@ Input shaping for the drive path (deadband, expo, square stick to circle) lives 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from enum import IntEnum
 from typing import Any, TypeGuard
 
@@ -48,6 +48,7 @@ __all__ = [
     "deadband",
     "desaturate",
     "desaturate_prioritized",
+    "desaturate_prioritized_scalar",
     "expo",
     "holonomic_2010",
     "max_speed_scaled",
@@ -196,6 +197,50 @@ def desaturate_prioritized(
     s = np.clip(bound.min(axis=-1, keepdims=True), 0.0, 1.0)
     result: Wheels = kept + s * other
     return result
+
+
+def desaturate_prioritized_scalar(
+    translation: Sequence[float],
+    rotation: Sequence[float],
+    priority: Desaturation | int = Desaturation.ROTATION_PRIORITY,
+    limit: float = 1.0,
+) -> WheelTuple:
+    """:func:`desaturate_prioritized` for one set of plain floats (FL, FR, RL, RR), as a tuple:
+    the same numbers without numpy (the control loop's path; numpy's fixed cost per call is
+    most of the work for four wheels, several times more with cold caches).
+
+    Args:
+        translation, rotation: the wheels' two parts (4 each, any unit, the same for both).
+        priority: a :class:`Desaturation` (see :func:`desaturate_prioritized`).
+        limit: largest allowed magnitude, > 0.
+
+    Returns:
+        Wheel commands with ``max|w| <= limit``; four 0.0 if any value is not finite.
+    """
+    limit = _check_limit(limit)
+    isfinite = math.isfinite
+    if not (all(isfinite(v) for v in translation) and all(isfinite(v) for v in rotation)):
+        return _STOP
+    if priority == Desaturation.PROPORTIONAL:
+        total = [t + r for t, r in zip(translation, rotation, strict=True)]
+        if not all(isfinite(v) for v in total):  # a sum that overflowed
+            return _STOP
+        k = limit / max(max(abs(v) for v in total), limit)
+        return total[0] * k, total[1] * k, total[2] * k, total[3] * k
+    kept, other = ((rotation, translation) if priority == Desaturation.ROTATION_PRIORITY
+                   else (translation, rotation))
+    k = limit / max(max(abs(v) for v in kept), limit)
+    kept = [v * k for v in kept]
+    # Per wheel, |kept + s*other| <= limit holds for s <= (limit - sign(other)*kept) / |other|.
+    s = 1.0
+    for held, part in zip(kept, other, strict=True):
+        if part > 0.0:
+            s = min(s, (limit - held) / part)
+        elif part < 0.0:
+            s = min(s, (limit + held) / -part)
+    s = max(s, 0.0)
+    return (kept[0] + s * other[0], kept[1] + s * other[1], kept[2] + s * other[2],
+            kept[3] + s * other[3])
 
 
 # --------------------------------------------------------------------------- scalar core

@@ -23,9 +23,14 @@ _ORIGIN = Pose2d(0.0, 0.0, 0.0)
 
 def _checked_distances(wheel_distances_m: Sequence[float]) -> tuple[float, ...]:
     """Four finite cumulative wheel distances (m) as floats; ValueError otherwise."""
-    values = tuple(float(v) for v in np.asarray(wheel_distances_m, dtype=np.float64).ravel())
-    if len(values) != 4 or np.ndim(wheel_distances_m) != 1:
-        raise ValueError("wheel distances need exactly 4 values (FL, FR, RL, RR), metres")
+    if (isinstance(wheel_distances_m, (list, tuple)) and len(wheel_distances_m) == 4
+            and all(type(v) is float for v in wheel_distances_m)):
+        values = tuple(wheel_distances_m)  # the control loop's path: plain floats, no numpy
+    else:
+        values = tuple(float(v) for v in np.asarray(wheel_distances_m,
+                                                    dtype=np.float64).ravel())
+        if len(values) != 4 or np.ndim(wheel_distances_m) != 1:
+            raise ValueError("wheel distances need exactly 4 values (FL, FR, RL, RR), metres")
     if not all(math.isfinite(v) for v in values):
         raise ValueError(f"non-finite wheel distances: {values}")
     return values
