@@ -162,3 +162,36 @@ def test_a_signing_link_signs_no_earlier_than_the_newest_verified_packet_it_rece
     finally:
         board.close()
         link.close()
+
+
+def _datagrams(sock: socket.socket, timeout_s: float = 2.0) -> list[bytes]:
+    """Every datagram that reaches ``sock`` within ``timeout_s`` of the first (none: [])."""
+    out: list[bytes] = []
+    deadline = time.monotonic() + timeout_s
+    while (left := deadline - time.monotonic()) > 0 and select.select([sock], [], [], left)[0]:
+        out.append(sock.recv(65536))
+        deadline = min(deadline, time.monotonic() + 0.2)  # the rest follow at once
+    return out
+
+
+def test_send_all_on_a_datagram_link_packs_whole_packets_into_few_datagrams():
+    sink = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    sink.bind(("127.0.0.1", 0))
+    link = open_link(f"udpout:127.0.0.1:{sink.getsockname()[1]}", source_system=1,
+                     source_component=191, name="gcs")
+    try:
+        mav = mavlink.MAVLink(None)
+        texts = [mav.statustext_encode(6, f"message {i:03d}".encode().ljust(50, b"."))
+                 for i in range(40)]  # 40 x 71 bytes: more than one datagram's worth
+        link.send_all(texts)
+        datagrams = _datagrams(sink)
+        assert 2 <= len(datagrams) < len(texts)
+        assert all(len(d) <= links.DATAGRAM_BYTES for d in datagrams)
+        parser = mavlink.MAVLink(None)
+        received = [m for d in datagrams for m in parser.parse_buffer(d) or ()]
+        assert [m.text for m in received] == [t.text for t in texts]
+        assert [m.get_seq() for m in received] == list(range(40))  # one sequence, no gaps
+        assert link.sent == 40
+    finally:
+        link.close()
+        sink.close()

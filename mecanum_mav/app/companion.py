@@ -198,10 +198,10 @@ class Companion:
             return
         if out.override is not None:  # first: the latency-critical part
             self._send_override(out.override)
-        for msg in out.fc:
-            self.fc.send(msg)
-        for msg in out.gcs:
-            self.gcs.send(msg)
+        if out.fc:
+            self.fc.send_all(out.fc)
+        if out.gcs:
+            self.gcs.send_all(out.gcs)
 
     def _send_override(self, override: RcOverride) -> None:
         self._fc_mav.srcSystem = self.core.identity.fc_gcs_sysid  # FC_GCS_SYSID may change

@@ -67,6 +67,7 @@ import socket
 import termios
 import time
 from collections import deque
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, BinaryIO
 
@@ -86,6 +87,9 @@ _READ_CHUNK = 4096
 SEND_WARNING_PERIOD_S = 1.0
 """A link that keeps failing to send is logged at WARNING at most this often."""
 _MAX_READS = 64  # per readiness event: bounded work, the selector calls again if more waits
+DATAGRAM_BYTES = 1400
+""":meth:`Link.send_all` puts at most this many bytes of whole packets in one datagram (below
+a 1500-byte Ethernet MTU with IP and UDP headers: never fragmented)."""
 PEER_TIMEOUT_S = 10.0
 """A ``udpin:`` peer not heard from for this long is no longer sent to, once another is heard."""
 MAX_PEERS = 8
@@ -209,6 +213,7 @@ class Link:
         self._next_prune_s = -math.inf
         # outgoing, stream links only (see flush)
         self._buffered = self._kind != _DATAGRAM
+        self._batch: list[bytes] | None = None  # packets send_all() writes together
         self._head = b""  # the rest of a packet the kernel took part of: goes on first
         self._override: tuple[int, int, list[int]] | None = None  # newest, not yet packed
         self._queue: deque[bytes] = deque()  # everything else, in order
@@ -433,7 +438,10 @@ class Link:
         """
         self._check_open()
         if not self._buffered:
-            self.conn.write(buf)
+            if self._batch is not None:  # (send_all: written together at its end)
+                self._batch.append(buf)
+            else:
+                self.conn.write(buf)
             return
         if self._queued + len(buf) > self._queue_limit:
             raise BlockingIOError(errno.ENOBUFS, f"outgoing queue full ({self._queued} bytes)")
@@ -464,6 +472,37 @@ class Link:
             return False
         self.sent += 1
         return True
+
+    def send_all(self, messages: Sequence[Any]) -> None:
+        """:meth:`send` each of ``messages``, in order. On a datagram link they go in as few
+        datagrams as hold them, whole packets of at most :data:`DATAGRAM_BYTES` together, as
+        ArduPilot sends its streams: a wake's telemetry costs one system call, not one per
+        message (every MAVLink parser reads several packets from one datagram)."""
+        if self._buffered or len(messages) < 2:
+            for msg in messages:
+                self.send(msg)
+            return
+        batch: list[bytes] = []
+        self._batch = batch
+        try:
+            for msg in messages:
+                self.send(msg)
+        finally:
+            self._batch = None
+        start, size = 0, 0
+        for end, packet in enumerate(batch):
+            if size + len(packet) > DATAGRAM_BYTES and end > start:
+                self._write_datagram(b"".join(batch[start:end]))
+                start, size = end, 0
+            size += len(packet)
+        if start < len(batch):
+            self._write_datagram(b"".join(batch[start:]))
+
+    def _write_datagram(self, data: bytes) -> None:
+        try:
+            self.conn.write(data)
+        except Exception as exc:  # a send must never take the control loop down
+            self._send_failed(exc)
 
     def _send_failed(self, exc: Exception) -> None:
         """Count a failed send; warn at most once a second per link (a dead peer would
