@@ -803,3 +803,19 @@ def test_the_companion_shell_counts_junk_datagrams_per_link_and_keeps_driving():
         companion.close()
         sim.stop()
         port.close()
+
+
+def test_sticks_answered_in_their_lane_every_step_still_leave_telemetry_and_heartbeats_on_time():
+    h = armed(lockstep({}))
+    h.dt_s = 0.001  # a stick in every 1 ms step: every pass is a lane pass
+    since = h.gcs.mark()
+    t0 = h.now_s
+    for i in range(2000):
+        o = drive(h, 300 + i % 400)
+        assert o is not None  # each stick answered in the step it arrived
+    seconds = h.now_s - t0
+    odometry = h.gcs.received("ODOMETRY", since)
+    beats = h.gcs.received("HEARTBEAT", since)
+    assert len(odometry) >= int(10 * seconds) - 1  # TLM_POS_RATE 10 Hz
+    assert len(beats) >= int(seconds) - 1  # 1 Hz
+    assert h.core.estimator.pose.x_m > 0.1  # the lane took the odometry of every stick

@@ -279,8 +279,9 @@ def run_idle_floor(gcs_url: str, fc_url: str, stop_fd: int) -> None:
     does on its own (:func:`_idle_duties`: the override refresh, the default telemetry and
     the heartbeats, at the same rates, each later stream riding the refresh's wake as the
     companion's does). Every packet is packed when it is sent (``struct`` from its field
-    values, then header, sequence number and the native CRC); what arrives is read and
-    dropped. Nothing else: no parsing, no decisions. The yardstick for the idle goal."""
+    values, then header, sequence number and the native CRC), one datagram per link and
+    wake; what arrives is read and dropped. Nothing else: no parsing, no decisions. The
+    yardstick for the idle goal."""
     from fastcrc.crc16 import mcrf4xx
 
     header = struct.Struct("<BBBBBBBHB").pack
@@ -313,12 +314,13 @@ def run_idle_floor(gcs_url: str, fc_url: str, stop_fd: int) -> None:
                     while True:
                         os.read(fd, RECV_SIZE)
             now = time.monotonic()
+            out: dict[str, list[bytes]] = {"fc": [], "gcs": []}
             for duty in duties:
                 period, link, wire, next_s = duty
                 if next_s - now > refresh / 2:
                     continue
                 duty[3] = max(next_s + period, now + period / 2)
-                sock, seq = socks[link], seqs[link]
+                seq = seqs[link]
                 for pack, values, msgid, extra in wire:
                     payload = pack(*values)
                     length = len(payload)
@@ -328,9 +330,12 @@ def run_idle_floor(gcs_url: str, fc_url: str, stop_fd: int) -> None:
                                   msgid >> 16) + payload[:length]
                     seq = (seq + 1) & 0xFF
                     crc = mcrf4xx(extra, mcrf4xx(body[1:], 0xFFFF))
-                    with contextlib.suppress(OSError):
-                        sock.send(body + struct.pack("<H", crc))
+                    out[link].append(body + struct.pack("<H", crc))
                 seqs[link] = seq
+            for link, packets in out.items():  # one datagram per link and wake
+                if packets:
+                    with contextlib.suppress(OSError):
+                        socks[link].send(b"".join(packets))
     finally:
         epoll.close()
         for sock in socks.values():

@@ -134,7 +134,7 @@ class Companion:
                     elif events & READABLE:  # (writable: follow() flushes)
                         lane_only = self._drain(link)
                 now = self.clock()
-                if lane_only and now < due and not streams:
+                if lane_only and not streams and core.settled(now):
                     continue  # a stick the lane answered, and nothing else is due
                 for link in streams:  # (a datagram link never goes down)
                     if not link.up and link.reopen(now):

@@ -440,9 +440,9 @@ class RoverCore:
         at once, exactly as :meth:`handle` then :meth:`tick` would answer it, when nothing
         else can be involved: driving in MANUAL, nothing due (no timeout, no timer), a valid
         stick for us from the pilot. Else None, with nothing changed: call :meth:`handle`
-        and :meth:`tick`. After an override from here neither :meth:`tick` nor
-        :meth:`housekeeping` has anything to do before :meth:`next_due_s` (the odometry of
-        the wheels held until now is taken here), so a loop may skip them."""
+        and :meth:`tick`. After an override from here a loop may skip :meth:`tick` and
+        :meth:`housekeeping` while :meth:`settled` (the odometry of the wheels held until
+        now is taken here)."""
         if now_s >= self._quiet_until_s or self.faulted or not self.vehicle.driving():
             return None
         identity, target = self.identity, msg.target  # (_for_us and _from_pilot, inline)
@@ -465,6 +465,14 @@ class RoverCore:
         self._output_wheels = wheels
         self._hold_wheels(now_s)
         return self._override(pulses, now_s)
+
+    def settled(self, now_s: float) -> bool:
+        """Whether :meth:`tick` and :meth:`housekeeping` have nothing to do at ``now_s``: no
+        timer due (the output refresh's included), nothing arrived since housekeeping last
+        looked but sticks the lane answered, nothing waiting to be sent. A loop may then
+        skip them (after :meth:`stick_lane` answered the pass's only message)."""
+        return (now_s < self._quiet_until_s and now_s < self._next_output_s
+                and not self.to_gcs.messages and not self.to_fc.messages)
 
     def _hold_wheels(self, now_s: float) -> None:
         """Odometry from the wheels commanded until ``now_s``; from now on, the output's."""

@@ -42,7 +42,7 @@ from mecanum_mav.control.core import (
     Storage,
 )
 from mecanum_mav.io.tlog import tlog_record
-from mecanum_mav.protocol.codec import ManualControl, encode_rc_override
+from mecanum_mav.protocol.codec import ManualControl, encode_rc_override, send_message
 from mecanum_mav.protocol.dialect import mavlink
 from mecanum_mav.protocol.framing import MessageParser
 from mecanum_mav.protocol.mission import MissionItem
@@ -213,17 +213,21 @@ class Lockstep:
             core.refuse_unsigned(gcs_wire.check.take_rejections(), now)
         lane = (core.stick_lane(delivered[0], now)
                 if len(delivered) == 1 and type(delivered[0]) is ManualControl else None)
+        due = core.next_due_s()  # (as the companion's loop computed it before its wait)
+        lane_only = False
         if lane is not None:  # the pilot's stick in its lane, as the companion answers it
             self._write(Outbox((), (), lane))
-            woke = True
+            woke = lane_only = True
         else:
             for msg in delivered:
                 self._write(core.handle(msg, now))
                 woke = True
         for msg in self._fc_to_core.deliver() if self.fc_link_up else self._fc_to_core.drop():
             self._write(core.handle(msg, now, from_fc=True))
-            woke = True
-        if woke or now >= core.next_due_s():
+            woke, lane_only = True, False
+        # As the companion's loop: a pass that was only a stick the lane answered skips the
+        # tick and housekeeping until a timer is due.
+        if (woke and not (lane_only and core.settled(now))) or now >= due:
             self._write(core.tick(now))
             self._write(core.housekeeping(now))
         received = self._core_to_fc.deliver() if self.fc_link_up else self._core_to_fc.drop()
@@ -308,9 +312,9 @@ class Lockstep:
             packet = encode_rc_override(sender, *out.override)  # the companion's fast codec
             self._core_to_fc.write(packet)
         for msg in out.fc:
-            self._core_to_fc.sender.send(msg)
+            send_message(self._core_to_fc.sender, msg)  # the companion's fast codec
         for msg in out.gcs:
-            self._core_to_gcs.sender.send(msg)
+            send_message(self._core_to_gcs.sender, msg)
         if out.gcs:  # the ground station has it at once (gcs.messages, gcs.arrived_s)
             self.gcs.receive(self._core_to_gcs.deliver(), self.now_s)
 
