@@ -12,9 +12,11 @@ One thread, one loop (:meth:`Companion.run`), top to bottom:
    MANUAL_CONTROL takes the core's lane (``core.stick_lane``) and its override goes out
    before anything else is done.
 3. ``core.tick``: its RC_CHANNELS_OVERRIDE goes out at once; then ``core.housekeeping``:
-   odometry, telemetry, heartbeats and status texts. A wake that brought only a stick the
-   lane answered skips this and step 4 when no timer is due yet: the control path is then
-   the floor's (read, mix, send) plus the core's checks.
+   odometry, telemetry, heartbeats and status texts. Each is skipped while the core is
+   :meth:`~mecanum_mav.control.core.RoverCore.settled` (no timer due, nothing arrived but
+   sticks its lane answered, nothing to say): a stick's wake is then read, mix, send, and
+   an idle rover's refresh wake is the refresh alone. (Not with a stream link, whose
+   pacing needs step 4 every pass.)
 4. Each link hands over what still waits in it (:func:`~mecanum_mav.io.links.follow`).
 5. On stop (SIGINT, SIGTERM, :meth:`Companion.stop`): neutral, then the channels released.
 
@@ -127,19 +129,20 @@ class Companion:
             while not self._stop.is_set():
                 due = min(core.next_due_s(), gcs.next_reopen_s, fc.next_reopen_s,
                           gcs.next_send_s, fc.next_send_s)
-                lane_only = False
                 for link, events in selector.wait(due - self.clock()):
                     if link is None:
                         os.read(self._wake_r, 64)
                     elif events & READABLE:  # (writable: follow() flushes)
-                        lane_only = self._drain(link)
+                        self._drain(link)
                 now = self.clock()
-                if lane_only and not streams and core.settled(now):
-                    continue  # a stick the lane answered, and nothing else is due
+                if not streams and core.settled(now):
+                    continue  # the pass was a stick the lane answered: nothing else to do
                 for link in streams:  # (a datagram link never goes down)
                     if not link.up and link.reopen(now):
                         self._report(link, now)  # before anything else goes out on it
                 self._write(core.tick(now))  # the override first,
+                if not streams and core.settled(now):
+                    continue  # the pass was the output's refresh: nothing else is due
                 self._write(core.housekeeping(now))  # then everything else
                 for link, fd in streams.items():
                     self._report(link, now)
@@ -150,37 +153,30 @@ class Companion:
             for override in core.shutdown():  # all of them, in order (close() lingers)
                 self.fc.send_rc_override(*override, replace=False)
 
-    def _drain(self, link: Link) -> bool:
-        """Read ``link`` and answer what came; True if it was only a stick, answered by the
-        core's lane (nothing else then needs the core before its next timer)."""
+    def _drain(self, link: Link) -> None:
         now, from_fc = self.clock(), link is self.fc
-        lane = False
         if not from_fc and link.steady:  # a datagram link: the first one is answered first
-            lane = self._answer(link.read(1), now, from_fc=False)
+            self._answer(link.read(1), now, from_fc=False)
         messages = link.read()
         rejected = link.take_rejections()
         if rejected:  # unsigned or badly signed: counted, said at most once a second
             self.core.refuse_unsigned(rejected, now, from_fc=from_fc)
-        elif lane and not messages:
-            return True
         self._report(link, now)  # it broke, or a tcpin client connected: the core first
         self._answer(messages, now, from_fc=from_fc)
-        return False
 
-    def _answer(self, messages: list[Any], now: float, *, from_fc: bool) -> bool:
+    def _answer(self, messages: list[Any], now: float, *, from_fc: bool) -> None:
         """Hand ``messages`` to the core and send its answers; a lone stick takes the core's
-        lane. True if that answered it."""
+        lane."""
         if not from_fc and len(messages) == 1 and type(messages[0]) is ManualControl:
             override = self.core.stick_lane(messages[0], now)
             if override is not None:  # the pilot's stick, answered at once
                 self._send_override(override)
-                return True
+                return
         handle = self.core.handle
         for msg in messages:
             out = handle(msg, now, from_fc=from_fc)
             if out is not NOTHING:  # a stick is answered by the tick, not here
                 self._write(out)
-        return False
 
     def _report(self, link: Link, now: float) -> None:
         """Tell the core once when ``link`` went down or came back up."""

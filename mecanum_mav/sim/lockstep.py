@@ -214,22 +214,22 @@ class Lockstep:
         lane = (core.stick_lane(delivered[0], now)
                 if len(delivered) == 1 and type(delivered[0]) is ManualControl else None)
         due = core.next_due_s()  # (as the companion's loop computed it before its wait)
-        lane_only = False
         if lane is not None:  # the pilot's stick in its lane, as the companion answers it
             self._write(Outbox((), (), lane))
-            woke = lane_only = True
+            woke = True
         else:
             for msg in delivered:
                 self._write(core.handle(msg, now))
                 woke = True
         for msg in self._fc_to_core.deliver() if self.fc_link_up else self._fc_to_core.drop():
             self._write(core.handle(msg, now, from_fc=True))
-            woke, lane_only = True, False
-        # As the companion's loop: a pass that was only a stick the lane answered skips the
-        # tick and housekeeping until a timer is due.
-        if (woke and not (lane_only and core.settled(now))) or now >= due:
+            woke = True
+        # As the companion's loop: tick and housekeeping, each skipped while the core is
+        # settled (a stick its lane answered; a refresh-only wake's housekeeping).
+        if (woke or now >= due) and not core.settled(now):
             self._write(core.tick(now))
-            self._write(core.housekeeping(now))
+            if not core.settled(now):
+                self._write(core.housekeeping(now))
         received = self._core_to_fc.deliver() if self.fc_link_up else self._core_to_fc.drop()
         if received:
             self._log_fc(received, now)
