@@ -69,9 +69,10 @@ def autonomous_output(guided: GuidedController, executor: MissionExecutor | None
         guided.setpoint = executor.update(pose, guided.velocity_ned, now_s)
     speeds = guided.update(pose, now_s)
     # Plain floats throughout (no numpy): this runs at CTL_RATE, with caches cold.
-    translation = kinematics.wheel_speeds(speeds.vx_mps, speeds.vy_mps, 0.0)
-    rotation = kinematics.wheel_speeds(0.0, 0.0, speeds.yaw_rate)
+    t0, t1, t2, t3 = kinematics.wheel_speeds(speeds.vx_mps, speeds.vy_mps, 0.0)
+    r0, r1, r2, r3 = kinematics.wheel_speeds(0.0, 0.0, speeds.yaw_rate)
+    top = wheel_speed_max_mps
     wheels = WheelQuad(*desaturate_prioritized_scalar(
-        [v / wheel_speed_max_mps for v in translation],
-        [v / wheel_speed_max_mps for v in rotation], priority))
+        (t0 / top, t1 / top, t2 / top, t3 / top), (r0 / top, r1 / top, r2 / top, r3 / top),
+        priority))
     return wheels, pwm.pulses_us(wheels)

@@ -217,30 +217,40 @@ def desaturate_prioritized_scalar(
     Returns:
         Wheel commands with ``max|w| <= limit``; four 0.0 if any value is not finite.
     """
-    limit = _check_limit(limit)
-    isfinite = math.isfinite
-    if not (all(isfinite(v) for v in translation) and all(isfinite(v) for v in rotation)):
+    if limit != 1.0:
+        limit = _check_limit(limit)
+    t0, t1, t2, t3 = translation
+    r0, r1, r2, r3 = rotation
+    # x - x is 0.0 for finite x and NaN for NaN or inf (unrolled: this runs every tick).
+    if (t0 - t0) + (t1 - t1) + (t2 - t2) + (t3 - t3) + (r0 - r0) + (r1 - r1) + (r2 - r2) + (
+            r3 - r3) != 0.0:
         return _STOP
-    if priority == Desaturation.PROPORTIONAL:
-        total = [t + r for t, r in zip(translation, rotation, strict=True)]
-        if not all(isfinite(v) for v in total):  # a sum that overflowed
+    if priority == 0:  # Desaturation.PROPORTIONAL
+        w0, w1, w2, w3 = t0 + r0, t1 + r1, t2 + r2, t3 + r3
+        if (w0 - w0) + (w1 - w1) + (w2 - w2) + (w3 - w3) != 0.0:  # a sum that overflowed
             return _STOP
-        k = limit / max(max(abs(v) for v in total), limit)
-        return total[0] * k, total[1] * k, total[2] * k, total[3] * k
-    kept, other = ((rotation, translation) if priority == Desaturation.ROTATION_PRIORITY
-                   else (translation, rotation))
-    k = limit / max(max(abs(v) for v in kept), limit)
-    kept = [v * k for v in kept]
+        k = limit / max(abs(w0), abs(w1), abs(w2), abs(w3), limit)
+        return w0 * k, w1 * k, w2 * k, w3 * k
+    if priority == 1:  # Desaturation.ROTATION_PRIORITY: rotation kept
+        k0, k1, k2, k3, o0, o1, o2, o3 = r0, r1, r2, r3, t0, t1, t2, t3
+    else:
+        k0, k1, k2, k3, o0, o1, o2, o3 = t0, t1, t2, t3, r0, r1, r2, r3
+    k = limit / max(abs(k0), abs(k1), abs(k2), abs(k3), limit)
+    k0, k1, k2, k3 = k0 * k, k1 * k, k2 * k, k3 * k
     # Per wheel, |kept + s*other| <= limit holds for s <= (limit - sign(other)*kept) / |other|.
     s = 1.0
-    for held, part in zip(kept, other, strict=True):
+    for held, part in ((k0, o0), (k1, o1), (k2, o2), (k3, o3)):
         if part > 0.0:
-            s = min(s, (limit - held) / part)
+            bound = (limit - held) / part
         elif part < 0.0:
-            s = min(s, (limit + held) / -part)
-    s = max(s, 0.0)
-    return (kept[0] + s * other[0], kept[1] + s * other[1], kept[2] + s * other[2],
-            kept[3] + s * other[3])
+            bound = (limit + held) / -part
+        else:
+            continue
+        if bound < s:
+            s = bound
+    if s < 0.0:
+        s = 0.0
+    return k0 + s * o0, k1 + s * o1, k2 + s * o2, k3 + s * o3
 
 
 # --------------------------------------------------------------------------- scalar core
