@@ -261,7 +261,9 @@ class RoverCore:
         self._quiet_until_s = -math.inf
         """Before this nothing but the output refresh can be due (:meth:`tick`)."""
         self._housekeeping_timers_s = -math.inf
-        """The earliest of the timers :meth:`housekeeping` keeps, as it last left them."""
+        """The earliest of the timers :meth:`housekeeping` keeps (heartbeat, streams, mission
+        protocol, setup check), as it last left them; valid before :attr:`_housekeeping_due_s`
+        (a message that may move one resets that)."""
         self._timers_due_s = -math.inf
         """Within the quiet window: the earliest timer but the output refresh's."""
         self._last_override: RcOverride | None = None
@@ -426,7 +428,7 @@ class RoverCore:
             self.streams.next_due_s() - self.output.refresh_period_s / 2)
         self._housekeeping_timers_s = min(
             self._next_heartbeat_s, self.fc_check.next_due_s, self.mission.next_due_s(),
-            self.streams.next_due_s(), self.autopilot.next_due_s())
+            self.streams.next_due_s())
         if self.vehicle.autonomous() or self.autopilot.executor.running:
             self._quiet_until_s = -math.inf
         else:
@@ -518,6 +520,9 @@ class RoverCore:
         """When :meth:`tick` must run next if no message arrives first (monotonic s)."""
         if self._now_s < self._quiet_until_s:  # only the refresh moved since housekeeping
             return min(self._next_output_s, self._timers_due_s)
+        if self._now_s < self._housekeeping_due_s:  # its timers as housekeeping left them
+            return min(self._next_output_s, self._housekeeping_timers_s,
+                       self.vehicle.next_due_s(), self.autopilot.next_due_s())
         return min(self._next_output_s, self._next_heartbeat_s, self.vehicle.next_due_s(),
                    self.streams.next_due_s(), self.autopilot.next_due_s(),
                    self.mission.next_due_s(), self.fc_check.next_due_s)
