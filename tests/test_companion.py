@@ -819,3 +819,43 @@ def test_sticks_answered_in_their_lane_every_step_still_leave_telemetry_and_hear
     assert len(odometry) >= int(10 * seconds) - 1  # TLM_POS_RATE 10 Hz
     assert len(beats) >= int(seconds) - 1  # 1 Hz
     assert h.core.estimator.pose.x_m > 0.1  # the lane took the odometry of every stick
+
+
+def test_a_stick_every_step_stops_driving_the_step_the_flight_controller_times_out():
+    timeout_s = 1.0
+    h = armed(lockstep({"FS_FC_TMO": timeout_s}))
+    h.dt_s = 0.001  # a stick in every step, each one a candidate for the lane
+    h.board.beating = False
+    last_beat = h.core.vehicle.fc_seen_s
+    driving = []
+    for _ in range(int(1.5 * timeout_s / h.dt_s)):
+        o = drive(h, 600)
+        if o is not None and wheels(o) != NEUTRAL:
+            driving.append(o.time_s)
+    assert driving  # it drove until the timeout...
+    assert max(driving) <= last_beat + timeout_s + EPS  # ...and not one step after it
+
+
+def test_sticks_keep_their_lane_while_telemetry_and_heartbeats_fall_due(monkeypatch):
+    h = armed(lockstep({}))
+    h.dt_s = 0.001  # a stick in every step
+    drive(h, 300)
+    long_way, others = [], set()
+    real_handle = h.core.handle
+
+    def handle(msg, now_s, **kwargs):
+        if msg.get_type() == "MANUAL_CONTROL":
+            long_way.append(now_s)
+        elif not kwargs.get("from_fc"):
+            others.add(now_s)  # (the ground station's heartbeat: with it, no stick is alone)
+        return real_handle(msg, now_s, **kwargs)
+
+    monkeypatch.setattr(h.core, "handle", handle)
+    since = h.gcs.mark()
+    for i in range(1500):
+        o = drive(h, 300 + i % 300)
+        assert o is not None and wheels(o) != NEUTRAL  # every stick answered in its step
+    assert len(h.gcs.received("ODOMETRY", since)) >= 14  # 10 Hz
+    assert h.gcs.received("HEARTBEAT", since)
+    # Not one stick that came alone waited for the telemetry's turn.
+    assert [t for t in long_way if t not in others] == []

@@ -260,6 +260,10 @@ class RoverCore:
         """Before this no timer of :meth:`housekeeping` is due (-inf: look at them all)."""
         self._quiet_until_s = -math.inf
         """Before this nothing but the output refresh can be due (:meth:`tick`)."""
+        self._lane_until_s = -math.inf
+        """Before this no timeout that changes the output (the vehicle's) is due and nothing
+        arrived since :meth:`housekeeping`: :meth:`stick_lane` may answer a stick (its own
+        timers, telemetry and heartbeats, wait until after the override)."""
         self._housekeeping_timers_s = -math.inf
         """The earliest of the timers :meth:`housekeeping` keeps (heartbeat, streams, mission
         protocol, setup check), as it last left them; valid before :attr:`_housekeeping_due_s`
@@ -316,7 +320,7 @@ class RoverCore:
         """One message received on the ground-station link (or the flight controller's, with
         ``from_fc``) at ``now_s``; returns what to send in answer."""
         self._now_s = now_s
-        self._quiet_until_s = -math.inf  # something arrived: the next tick looks at it all
+        self._unsettle()  # something arrived: the next tick looks at it all
         kind = msg.get_type()
         if kind != "MANUAL_CONTROL":  # every other message may set a housekeeping timer
             self._housekeeping_due_s = -math.inf
@@ -386,12 +390,7 @@ class RoverCore:
         if (now_s < self._housekeeping_due_s and not self.vehicle.has_events
                 and not executor.has_events and not self.to_gcs.messages
                 and not self.to_fc.messages):
-            if self.vehicle.autonomous() or executor.running:  # the controllers tick
-                self._quiet_until_s = -math.inf
-            else:
-                vehicle_due_s = self.vehicle.next_due_s()
-                self._quiet_until_s = min(self._housekeeping_due_s, vehicle_due_s)
-                self._timers_due_s = min(self._housekeeping_timers_s, vehicle_due_s)
+            self._settle()
             return NOTHING
         if self.vehicle.fc_lost:
             self._fc_streams_asked = False  # ask a rebooted flight controller again
@@ -429,23 +428,35 @@ class RoverCore:
         self._housekeeping_timers_s = min(
             self._next_heartbeat_s, self.fc_check.next_due_s, self.mission.next_due_s(),
             self.streams.next_due_s())
-        if self.vehicle.autonomous() or self.autopilot.executor.running:
-            self._quiet_until_s = -math.inf
-        else:
-            vehicle_due_s = self.vehicle.next_due_s()
-            self._quiet_until_s = min(self._housekeeping_due_s, vehicle_due_s)
-            self._timers_due_s = min(self._housekeeping_timers_s, vehicle_due_s)
+        self._settle()
         return self._take(None)
+
+    def _settle(self) -> None:
+        """After housekeeping: until when a tick may take its short way, and the lane answer
+        (never while the controllers tick)."""
+        if self.vehicle.autonomous() or self.autopilot.executor.running:
+            self._unsettle()
+            return
+        vehicle_due_s = self._lane_until_s = self.vehicle.next_due_s()
+        self._quiet_until_s = min(self._housekeeping_due_s, vehicle_due_s)
+        self._timers_due_s = min(self._housekeeping_timers_s, vehicle_due_s)
+
+    def _unsettle(self) -> None:
+        """Something arrived or changed: the next tick and housekeeping look at everything,
+        and no stick takes the lane before they have."""
+        self._quiet_until_s = self._lane_until_s = -math.inf
 
     def stick_lane(self, msg: ManualControlMsg, now_s: float) -> RcOverride | None:
         """The control path's lane: the pilot's MANUAL_CONTROL answered with its override
         at once, exactly as :meth:`handle` then :meth:`tick` would answer it, when nothing
-        else can be involved: driving in MANUAL, nothing due (no timeout, no timer), a valid
-        stick for us from the pilot. Else None, with nothing changed: call :meth:`handle`
-        and :meth:`tick`. After an override from here a loop may skip :meth:`tick` and
-        :meth:`housekeeping` while :meth:`settled` (the odometry of the wheels held until
-        now is taken here)."""
-        if now_s >= self._quiet_until_s or self.faulted or not self.vehicle.driving():
+        else can be involved: driving in MANUAL, no timeout that changes the output due and
+        nothing else arrived since :meth:`housekeeping`, a valid stick for us from the pilot.
+        Else None, with nothing changed: call :meth:`handle` and :meth:`tick`. A timer of
+        housekeeping's own (telemetry, heartbeats) does not close the lane: the override
+        goes first, then :meth:`tick` (which then has nothing to send) and
+        :meth:`housekeeping`; a loop may skip both while :meth:`settled` (the odometry of the
+        wheels held until now is taken here)."""
+        if now_s >= self._lane_until_s or self.faulted or not self.vehicle.driving():
             return None
         identity, target = self.identity, msg.target  # (_for_us and _from_pilot, inline)
         if ((target and target != identity.sysid)
@@ -495,7 +506,7 @@ class RoverCore:
         link's failsafe fires now (:meth:`Vehicle.on_fc_link_down`,
         :meth:`Vehicle.on_gcs_link_down`); returns what to send (on the other link)."""
         self._now_s = now_s
-        self._quiet_until_s = -math.inf
+        self._unsettle()
         self.say(Severity.WARNING, f"{_LINK_LABELS.get(link, link)} link down: {reason}; "
                                    f"reconnecting")
         if link == "fc":
@@ -510,7 +521,7 @@ class RoverCore:
         controller's, the first thing sent is neutral, never what was output before the break
         (driving needs the flight controller's HEARTBEAT and arming again)."""
         self._now_s = now_s
-        self._quiet_until_s = -math.inf
+        self._unsettle()
         self.say(Severity.NOTICE, f"{_LINK_LABELS.get(link, link)} link reconnected")
         if link == "fc":
             return self._take(self._override(self.pwm.neutral(), now_s))
@@ -538,7 +549,7 @@ class RoverCore:
 
     def reconfigure(self) -> None:
         """Re-read the parameter views the loop uses (after a parameter changed)."""
-        self._quiet_until_s = -math.inf
+        self._unsettle()
         p = self.params
         self.pwm = PwmMap.from_params(p)
         # SYSID_THISMAV is reboot_required: the links keep the id they were opened with.
