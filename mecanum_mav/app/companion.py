@@ -12,11 +12,11 @@ One thread, one loop (:meth:`Companion.run`), top to bottom:
    MANUAL_CONTROL takes the core's lane (``core.stick_lane``) and its override goes out
    before anything else is done.
 3. ``core.tick``: its RC_CHANNELS_OVERRIDE goes out at once; then ``core.housekeeping``:
-   odometry, telemetry, heartbeats and status texts. Each is skipped while the core is
-   :meth:`~mecanum_mav.control.core.RoverCore.settled` (no timer due, nothing arrived but
-   sticks its lane answered, nothing to say): a stick's wake is then read, mix, send, and
-   an idle rover's refresh wake is the refresh alone. (Not with a stream link, whose
-   pacing needs step 4 every pass.)
+   odometry, telemetry, heartbeats and status texts (after a stick the lane answered the
+   tick has nothing to do, and housekeeping takes the odometry, after the send). Each is
+   skipped while the core is :meth:`~mecanum_mav.control.core.RoverCore.settled` (no timer
+   due, nothing new): an idle rover's refresh wake is the refresh alone. (Not with a
+   stream link, whose pacing needs step 4 every pass.)
 4. Each link hands over what still waits in it (:func:`~mecanum_mav.io.links.follow`).
 5. On stop (SIGINT, SIGTERM, :meth:`Companion.stop`): neutral, then the channels released.
 
@@ -136,7 +136,7 @@ class Companion:
                         self._drain(link)
                 now = self.clock()
                 if not streams and core.settled(now):
-                    continue  # the pass was a stick the lane answered: nothing else to do
+                    continue  # nothing arrived and nothing is due
                 for link in streams:  # (a datagram link never goes down)
                     if not link.up and link.reopen(now):
                         self._report(link, now)  # before anything else goes out on it

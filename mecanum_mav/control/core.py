@@ -344,13 +344,13 @@ class RoverCore:
         """Failsafes and the output at ``now_s``: the RC override to send at once, if one is
         due. Call :meth:`housekeeping` after sending it.
 
-        Before :attr:`_quiet_until_s` (set by :meth:`housekeeping`: no message since, no
-        timeout or timer due, not in GUIDED or AUTO, nothing to say) nothing can have changed
-        the output: the tick only repeats the last override when its refresh is due, and
-        after a stick answered by :meth:`stick_lane` it has nothing to do. An idle rover's
-        wakes are mostly these (``OUT_RATE``)."""
+        Before :attr:`_lane_until_s` (set by :meth:`housekeeping`: no message since, no
+        timeout of the vehicle's due, not in GUIDED or AUTO) with nothing new to say, nothing
+        can have changed the output: the tick only repeats the last override when its refresh
+        is due, and after a stick answered by :meth:`stick_lane` it has nothing to do. An
+        idle rover's wakes are mostly these (``OUT_RATE``)."""
         self._now_s = now_s
-        if (now_s < self._quiet_until_s and not self._new_input and not self.to_gcs.messages
+        if (now_s < self._lane_until_s and not self._new_input and not self.to_gcs.messages
                 and not self.to_fc.messages and self._last_override is not None):
             if now_s < self._next_output_s:
                 return NOTHING
@@ -452,10 +452,10 @@ class RoverCore:
         else can be involved: driving in MANUAL, no timeout that changes the output due and
         nothing else arrived since :meth:`housekeeping`, a valid stick for us from the pilot.
         Else None, with nothing changed: call :meth:`handle` and :meth:`tick`. A timer of
-        housekeeping's own (telemetry, heartbeats) does not close the lane: the override
-        goes first, then :meth:`tick` (which then has nothing to send) and
-        :meth:`housekeeping`; a loop may skip both while :meth:`settled` (the odometry of the
-        wheels held until now is taken here)."""
+        housekeeping's own (telemetry, heartbeats) does not close the lane. Send the override,
+        then call :meth:`tick` (it has nothing to send then) and :meth:`housekeeping` (the
+        odometry of the wheels held until now) as after any message; :meth:`settled` says
+        when a loop may skip them."""
         if now_s >= self._lane_until_s or self.faulted or not self.vehicle.driving():
             return None
         identity, target = self.identity, msg.target  # (_for_us and _from_pilot, inline)
@@ -475,16 +475,16 @@ class RoverCore:
         except Exception:  # handle() takes the stick and tick() faults the output
             return None
         self._take_stick(stick, now_s)
-        self._output_wheels = wheels
-        self._hold_wheels(now_s)
+        self._output_wheels = wheels  # (housekeeping takes the odometry, after the send)
         return self._override(pulses, now_s)
 
     def settled(self, now_s: float) -> bool:
         """Whether :meth:`tick` and :meth:`housekeeping` have nothing to do at ``now_s``: no
         timer due (the output refresh's included), nothing arrived since housekeeping last
-        looked but sticks the lane answered, nothing waiting to be sent. A loop may then
-        skip them (after :meth:`stick_lane` answered the pass's only message)."""
+        looked, the odometry up to date with the wheels output, nothing waiting to be sent.
+        A loop may then skip them (after a refresh, or a wake with nothing to read)."""
         return (now_s < self._quiet_until_s and now_s < self._next_output_s
+                and self._output_wheels is self.wheels
                 and not self.to_gcs.messages and not self.to_fc.messages)
 
     def _hold_wheels(self, now_s: float) -> None:

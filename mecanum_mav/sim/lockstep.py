@@ -225,7 +225,7 @@ class Lockstep:
             self._write(core.handle(msg, now, from_fc=True))
             woke = True
         # As the companion's loop: tick and housekeeping, each skipped while the core is
-        # settled (a stick its lane answered; a refresh-only wake's housekeeping).
+        # settled (a wake with nothing new; a refresh-only wake's housekeeping).
         if (woke or now >= due) and not core.settled(now):
             self._write(core.tick(now))
             if not core.settled(now):
