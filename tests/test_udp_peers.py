@@ -108,3 +108,22 @@ def test_at_most_max_peers_are_sent_to_the_longest_silent_dropped_first():
         for sock in socks:
             deliver(link, sock, heartbeat())
         assert who_gets_the_next_message(link, socks) == list(range(2, count))
+
+
+def test_a_ground_station_that_only_sends_sticks_is_a_peer_and_its_stick_is_read_first():
+    stick = bytes(mavlink.MAVLink_manual_control_message(1, 250, 0, 500, 0, 0).pack(
+        mavlink.MAVLink(None, srcSystem=255, srcComponent=190)))
+    with rover_link() as link, senders(2) as (other, sock):
+        deliver(link, other, heartbeat())  # (the first datagram settles the MAVLink version)
+        assert sock.getsockname() not in link.conn.clients
+        sock.sendto(stick, ("127.0.0.1", link.local_port))
+        with selectors.DefaultSelector() as selector:
+            selector.register(link.fileno(), selectors.EVENT_READ)
+            assert selector.select(2.0)
+        received = link.received
+        first = link.read_first()
+        assert [(m.get_type(), m.x, m.get_srcSystem()) for m in first] == [
+            ("MANUAL_CONTROL", 250, 255)]
+        assert link.received == received + 1
+        assert sock.getsockname() in link.conn.clients
+        assert link.read_first() == []  # nothing else waits
