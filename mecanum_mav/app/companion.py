@@ -154,6 +154,9 @@ class Companion:
                 self.fc.send_rc_override(*override, replace=False)
 
     def _drain(self, link: Link) -> None:
+        """Read what waits on ``link`` and answer it: on a datagram link from the ground
+        station the first datagram is answered (a lone stick in its lane) before the rest
+        is read; the rest goes to the core in order."""
         now, from_fc = self.clock(), link is self.fc
         if not from_fc and link.steady:  # a datagram link: the first one is answered first
             self._answer(link.read_first(), now, from_fc=False)
