@@ -3,6 +3,10 @@ ground station in virtual time). Real-socket tests build their own links on port
 
 from __future__ import annotations
 
+import threading
+import time
+from collections.abc import Callable
+
 import pytest
 
 from mecanum_mav.config.params import Params
@@ -24,3 +28,15 @@ def lockstep(params: Params | dict | None = None, **options) -> Lockstep:
 def harness(request) -> Lockstep:
     """A lockstep harness; parametrize indirectly with a dict of parameter values."""
     return lockstep(getattr(request, "param", None))
+
+
+def wait_until(condition: Callable[[], object], timeout_s: float) -> object:
+    """Poll ``condition`` (which another thread or process makes true) every 10 ms until it
+    returns something true, and return that; None at the deadline."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        result = condition()
+        if result:
+            return result
+        threading.Event().wait(0.01)
+    return None

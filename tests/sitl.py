@@ -32,12 +32,13 @@ from typing import TYPE_CHECKING, Any
 
 from pymavlink import mavutil
 
-from mecanum_mav.sim.process import CompanionProcess  # (the tests import it from here)
+from mecanum_mav.sim.process import CompanionProcess, free_port  # (tests import them here)
 
 if TYPE_CHECKING:
     from mecanum_mav.sim.groundstation import ScriptedGroundStation
 
-__all__ = ["CompanionProcess", "Monitor", "PtyCable", "Rig", "Sample", "Sitl", "find_sitl"]
+__all__ = ["CompanionProcess", "Monitor", "PtyCable", "Rig", "Sample", "Sitl", "find_sitl",
+           "free_port"]
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
 DEFAULT_BINARY = REPO_ROOT.parent / "shared" / "ardupilot-sitl" / "ardurover"
@@ -64,13 +65,6 @@ def find_sitl() -> tuple[Path | None, str]:
         return DEFAULT_BINARY, ""
     return None, ("ArduPilot SITL not found: neither ../shared/ardupilot-sitl/ardurover "
                   "(from the repository root) nor $MECANUM_SITL")
-
-
-def free_port(kind: int = socket.SOCK_DGRAM, host: str = "127.0.0.1") -> int:
-    """A port the OS says is free now (bind port 0, read it, close)."""
-    with socket.socket(socket.AF_INET, kind) as s:
-        s.bind((host, 0))
-        return int(s.getsockname()[1])
 
 
 def _kill_group(proc: subprocess.Popen[Any]) -> None:

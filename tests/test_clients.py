@@ -17,6 +17,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 import pytest
+from conftest import wait_until
 
 from mecanum_mav.app.companion import Companion
 from mecanum_mav.config.params import SCHEMA, Params
@@ -25,14 +26,8 @@ from mecanum_mav.mecanum.geo import GlobalOrigin
 from mecanum_mav.mecanum.geometry import Pose2d
 from mecanum_mav.protocol.signing import key_from_text
 from mecanum_mav.sim.board import ORIGIN
+from mecanum_mav.sim.process import free_port
 from mecanum_mav.sim.simfc import SimFlightController
-
-
-def free_udp_port() -> int:
-    """A port the OS just handed out (clients that cannot bind port 0 themselves)."""
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
-        sock.bind(("127.0.0.1", 0))
-        return int(sock.getsockname()[1])
 
 
 @contextmanager
@@ -51,16 +46,6 @@ def rover_for_client(port: int, pose: Pose2d = ORIGIN, signing_key: bytes | None
     finally:
         companion.close()
         sim.stop()
-
-
-def wait_until(condition: Callable[[], object], timeout_s: float) -> object:
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        result = condition()
-        if result:
-            return result
-        time.sleep(0.05)  # polling a condition another thread updates, with a deadline
-    return None
 
 
 class MavProxy:
@@ -103,7 +88,7 @@ def test_mavproxy_with_the_passphrase_arms_and_drives_the_signed_rover_and_witho
         tmp_path):
     """``signing key PASSPHRASE`` in MAVProxy and the same passphrase in --signing-key's file
     give the same key. Before MAVProxy has it, its arm request is refused and said so."""
-    port = free_udp_port()
+    port = free_port()
     passphrase = "rover-on-a-shared-radio"
     with rover_for_client(port, signing_key=key_from_text(passphrase)) as (sim, companion, _):
         mavproxy = MavProxy(port, tmp_path)
@@ -126,7 +111,7 @@ def test_mavproxy_fetches_params_sets_one_arms_and_drives_by_rc_velocity_and_pos
         tmp_path):
     """The rover faces east (heading 90): MAVProxy's ``velocity`` and ``position`` are in the
     body frame (BODY_NED), so "ahead" is east, and ``position 1 0 0`` is the point 1 m ahead."""
-    port = free_udp_port()
+    port = free_port()
     with rover_for_client(port, Pose2d(0.0, 0.0, math.pi / 2)) as (sim, _, params):
         mavproxy = MavProxy(port, tmp_path)
         try:
@@ -156,12 +141,6 @@ def test_mavproxy_fetches_params_sets_one_arms_and_drives_by_rc_velocity_and_pos
             assert not [line for line in mavproxy.lines if "fence breach" in line]
         finally:
             mavproxy.close()
-
-
-def free_tcp_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as sock:
-        sock.bind(("127.0.0.1", 0))
-        return int(sock.getsockname()[1])
 
 
 async def _first(stream, timeout_s: float = 10.0):
@@ -252,7 +231,7 @@ def test_mavsdk_behind_mavproxy_with_the_key_arms_the_signed_rover(tmp_path):
     re-packs what it signs with its own system and component ids, so it is given MAVSDK's
     (245, 190): the rover's answers are addressed to those, and MAVSDK takes only its own."""
     pytest.importorskip("mavsdk")
-    port, out_port, grpc_port = free_udp_port(), free_udp_port(), free_tcp_port()
+    port, out_port, grpc_port = free_port(), free_port(), free_port(socket.SOCK_STREAM)
     passphrase = "rover-on-a-shared-radio"
     with rover_for_client(port, signing_key=key_from_text(passphrase)) as (_, companion, _):
         mavproxy = MavProxy(port, tmp_path, f"--out=udp:127.0.0.1:{out_port}",
@@ -268,7 +247,7 @@ def test_mavsdk_behind_mavproxy_with_the_key_arms_the_signed_rover(tmp_path):
 
 def test_mavsdk_connects_sets_params_arms_and_drives_manual_and_offboard():
     pytest.importorskip("mavsdk")
-    port, grpc_port = free_udp_port(), free_tcp_port()
+    port, grpc_port = free_port(), free_port(socket.SOCK_STREAM)
     with rover_for_client(port) as (sim, _, params):
         asyncio.run(asyncio.wait_for(_mavsdk_scenario(port, grpc_port, sim, params), 90.0))
 
@@ -379,7 +358,7 @@ async def _mavsdk_mission_scenario(port: int, grpc_port: int, sim: SimFlightCont
 
 def test_mavsdk_uploads_a_mission_downloads_it_and_runs_it_to_the_end():
     pytest.importorskip("mavsdk")
-    port, grpc_port = free_udp_port(), free_tcp_port()
+    port, grpc_port = free_port(), free_port(socket.SOCK_STREAM)
     with rover_for_client(port) as (sim, companion, _params):
         origin = set_origin(companion)
         asyncio.run(asyncio.wait_for(
@@ -413,7 +392,7 @@ WP_LINE = re.compile(r"^(\d+) (\d+) (-?\d+\.\d+) (-?\d+\.\d+) ")  # MAVProxy's "
 def test_mavproxy_loads_a_waypoint_file_lists_it_and_clears_it(tmp_path):
     """QGC WPL 110 in a global frame (MAVProxy scales every location command's x/y by 1e7,
     which is right only for global frames). Between list and clear it also runs the mission."""
-    port = free_udp_port()
+    port = free_port()
     with rover_for_client(port) as (sim, companion, _params):
         origin = set_origin(companion)
         legs = [(0.0, 0.0), (0.8, 0.0), (0.8, 0.5)]  # home, then two waypoints (north, east)

@@ -9,6 +9,8 @@ import socket
 import threading
 import time
 
+from conftest import wait_until
+
 from mecanum_mav.config.params import Params
 from mecanum_mav.control.core import LinkCounts, RoverCore
 from mecanum_mav.io import links
@@ -116,15 +118,6 @@ def peek(link) -> bytes:
         return link.conn.port.recv(1, socket.MSG_PEEK | socket.MSG_DONTWAIT)
     except BlockingIOError:
         return b""
-
-
-def wait_until(condition, timeout_s: float) -> bool:
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        if condition():
-            return True
-        threading.Event().wait(0.01)
-    return False
 
 
 def test_a_signing_link_signs_no_earlier_than_the_newest_verified_packet_it_received():

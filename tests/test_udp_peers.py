@@ -110,7 +110,7 @@ def test_at_most_max_peers_are_sent_to_the_longest_silent_dropped_first():
         assert who_gets_the_next_message(link, socks) == list(range(2, count))
 
 
-def test_a_ground_station_that_only_sends_sticks_is_a_peer_and_its_stick_is_read_first():
+def test_a_ground_station_that_only_sends_sticks_is_a_peer_and_its_stick_is_read_alone():
     stick = bytes(mavlink.MAVLink_manual_control_message(1, 250, 0, 500, 0, 0).pack(
         mavlink.MAVLink(None, srcSystem=255, srcComponent=190)))
     with rover_link() as link, senders(2) as (other, sock):
@@ -121,9 +121,9 @@ def test_a_ground_station_that_only_sends_sticks_is_a_peer_and_its_stick_is_read
             selector.register(link.fileno(), selectors.EVENT_READ)
             assert selector.select(2.0)
         received = link.received
-        first = link.read_first()
+        first = link.read(1)
         assert [(m.get_type(), m.x, m.get_srcSystem()) for m in first] == [
             ("MANUAL_CONTROL", 250, 255)]
         assert link.received == received + 1
         assert sock.getsockname() in link.conn.clients
-        assert link.read_first() == []  # nothing else waits
+        assert link.read(1) == []  # nothing else waits

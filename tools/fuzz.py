@@ -66,7 +66,7 @@ from mecanum_mav.protocol.heartbeat import send_gcs_heartbeat
 from mecanum_mav.protocol.modes import Mode
 from mecanum_mav.protocol.rcoverride import release_fields
 from mecanum_mav.sim.fuzz import DatagramFuzzer, SafetyWatch
-from mecanum_mav.sim.process import CompanionProcess
+from mecanum_mav.sim.process import CompanionProcess, free_port
 
 GCS_ID = (255, mavlink.MAV_COMP_ID_MISSIONPLANNER)
 FC_ID = (1, 1)
@@ -79,12 +79,6 @@ STATUS_PREFIX = "mecanum-mav: received "
 
 
 # ---------------------------------------------------------------------------- the process
-
-
-def free_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
 
 
 def udp_socket_state(port: int) -> tuple[int, int]:

@@ -159,7 +159,7 @@ class Companion:
         is read; the rest goes to the core in order."""
         now, from_fc = self.clock(), link is self.fc
         if not from_fc and link.steady:  # a datagram link: the first one is answered first
-            self._answer(link.read_first(), now, from_fc=False)
+            self._answer(link.read(1), now, from_fc=False)
         messages = link.read()
         rejected = link.take_rejections()
         if rejected:  # unsigned or badly signed: counted, said at most once a second

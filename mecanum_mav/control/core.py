@@ -268,8 +268,6 @@ class RoverCore:
         """The earliest of the timers :meth:`housekeeping` keeps (heartbeat, streams, mission
         protocol, setup check), as it last left them; valid before :attr:`_housekeeping_due_s`
         (a message that may move one resets that)."""
-        self._timers_due_s = -math.inf
-        """Within the quiet window: the earliest timer but the output refresh's."""
         self._last_override: RcOverride | None = None
         self._fc_streams_asked = False
         self.fc_check = FcSetupCheck()
@@ -385,7 +383,9 @@ class RoverCore:
         A wake that finds no timer due and nothing to report (a stick, a setpoint, a control
         tick) integrates the commanded wheels and stops there."""
         self._now_s = now_s
-        self._hold_wheels(now_s)
+        if self._wheels_s is not None:  # odometry of the wheels commanded until now
+            self.estimator.on_commanded(self.wheels, now_s - self._wheels_s, now_s)
+        self.wheels, self._wheels_s = self._output_wheels, now_s
         executor = self.autopilot.executor
         if (now_s < self._housekeeping_due_s and not self.vehicle.has_events
                 and not executor.has_events and not self.to_gcs.messages
@@ -422,12 +422,12 @@ class RoverCore:
                     self.say(event.severity, event.text)
                 else:
                     self.refuse(event.refusal, event.text)
-        self._housekeeping_due_s = min(
-            self._next_heartbeat_s, self.fc_check.next_due_s, self.mission.next_due_s(),
-            self.streams.next_due_s() - self.output.refresh_period_s / 2)
-        self._housekeeping_timers_s = min(
-            self._next_heartbeat_s, self.fc_check.next_due_s, self.mission.next_due_s(),
-            self.streams.next_due_s())
+        timers_s = min(self._next_heartbeat_s, self.fc_check.next_due_s,
+                       self.mission.next_due_s())
+        streams_s = self.streams.next_due_s()
+        self._housekeeping_timers_s = min(timers_s, streams_s)
+        # (telemetry may ride a wake up to half a refresh period early)
+        self._housekeeping_due_s = min(timers_s, streams_s - self.output.refresh_period_s / 2)
         self._settle()
         return self._take(None)
 
@@ -437,9 +437,8 @@ class RoverCore:
         if self.vehicle.autonomous() or self.autopilot.executor.running:
             self._unsettle()
             return
-        vehicle_due_s = self._lane_until_s = self.vehicle.next_due_s()
-        self._quiet_until_s = min(self._housekeeping_due_s, vehicle_due_s)
-        self._timers_due_s = min(self._housekeeping_timers_s, vehicle_due_s)
+        self._lane_until_s = self.vehicle.next_due_s()
+        self._quiet_until_s = min(self._housekeeping_due_s, self._lane_until_s)
 
     def _unsettle(self) -> None:
         """Something arrived or changed: the next tick and housekeeping look at everything,
@@ -487,12 +486,6 @@ class RoverCore:
                 and self._output_wheels is self.wheels
                 and not self.to_gcs.messages and not self.to_fc.messages)
 
-    def _hold_wheels(self, now_s: float) -> None:
-        """Odometry from the wheels commanded until ``now_s``; from now on, the output's."""
-        if self._wheels_s is not None:
-            self.estimator.on_commanded(self.wheels, now_s - self._wheels_s, now_s)
-        self.wheels, self._wheels_s = self._output_wheels, now_s
-
     def _handler_failed(self, kind: str, now_s: float) -> RcOverride:
         """A message handler raised: logged, said, neutral at once and latched."""
         log.exception("error handling %s", kind)
@@ -529,8 +522,6 @@ class RoverCore:
 
     def next_due_s(self) -> float:
         """When :meth:`tick` must run next if no message arrives first (monotonic s)."""
-        if self._now_s < self._quiet_until_s:  # only the refresh moved since housekeeping
-            return min(self._next_output_s, self._timers_due_s)
         if self._now_s < self._housekeeping_due_s:  # its timers as housekeeping left them
             return min(self._next_output_s, self._housekeeping_timers_s,
                        self.vehicle.next_due_s(), self.autopilot.next_due_s())

@@ -74,7 +74,7 @@ from typing import Any, BinaryIO
 import serial
 
 from mecanum_mav.io.tlog import tlog_record
-from mecanum_mav.protocol.codec import decode_manual_control, encode_rc_override, send_message
+from mecanum_mav.protocol.codec import encode_rc_override, send_message
 from mecanum_mav.protocol.dialect import mavlink, mavutil
 from mecanum_mav.protocol.framing import MessageParser
 from mecanum_mav.protocol.signing import Check, SignatureCheck, ticks_from_unix
@@ -214,7 +214,6 @@ class Link:
         # outgoing, stream links only (see flush)
         self._buffered = self._kind != _DATAGRAM
         self._batch: list[bytes] | None = None  # packets send_all() writes together
-        self._lean = not self._buffered and check is None  # read_first()'s own way
         self._head = b""  # the rest of a packet the kernel took part of: goes on first
         self._override: tuple[int, int, list[int]] | None = None  # newest, not yet packed
         self._queue: deque[bytes] = deque()  # everything else, in order
@@ -256,7 +255,6 @@ class Link:
         """Record every message received and sent to ``tlog`` in the telemetry-log format
         MAVProxy and Mission Planner read: 8-byte big-endian Unix microseconds, raw packet."""
         self._tlog = tlog
-        self._lean = False
         self.conn.mav.set_send_callback(self._record)
 
     def _record(self, msg: Any) -> None:
@@ -338,34 +336,11 @@ class Link:
         self.received += len(messages)
         return messages
 
-    def read_first(self) -> list[Any]:
-        """:meth:`read` of one datagram (a datagram link), the control path's way: on a link
-        without signing or a tlog, a lone MANUAL_CONTROL is decoded by the fast codec with
-        nothing in between; anything else takes :meth:`read`'s way."""
-        if not self._lean:
-            return self.read(1)
-        conn = self.conn
-        try:
-            data, address = conn.port.recvfrom(_READ_CHUNK)
-        except _NOTHING_TO_READ:
-            return []
-        except OSError as exc:
-            log.debug("%s: read failed: %s", self.name, exc)
-            return []
-        stick = None if conn.broadcast or conn.first_byte else decode_manual_control(data)
-        if stick is None:
-            messages = self._took(data, address)
-            self.received += len(messages)
-            return messages
-        if self._udp_server:
-            self._heard(address)
-        self.received += 1
-        return [stick]
-
     def _read_datagrams(self, max_reads: int) -> list[Any]:
         """pymavlink's recv, less its overhead; it would also make every sender on a udpin
         link a peer (see :meth:`_heard`)."""
-        recvfrom = self.conn.port.recvfrom
+        conn, parse = self.conn, self.parser.parse
+        recvfrom = conn.port.recvfrom
         messages: list[Any] = []
         for _ in range(max_reads):
             try:
@@ -375,24 +350,19 @@ class Link:
             except OSError as exc:
                 log.debug("%s: read failed: %s", self.name, exc)
                 break
-            messages += self._took(data, address)
+            if conn.broadcast:
+                conn.last_address = address
+            if conn.first_byte:
+                conn.auto_mavlink_version(data)
+            parsed = parse(data)
+            if parsed:
+                if self._udp_server:
+                    self._heard(address)
+                if self._tlog is not None:
+                    for msg in parsed:
+                        self._record(msg)
+                messages += parsed
         return messages
-
-    def _took(self, data: bytes, address: Any) -> list[Any]:
-        """The messages of one datagram from ``address``; its sender heard, recorded."""
-        conn = self.conn
-        if conn.broadcast:
-            conn.last_address = address
-        if conn.first_byte:
-            conn.auto_mavlink_version(data)
-        parsed: list[Any] = self.parser.parse(data)
-        if parsed:
-            if self._udp_server:
-                self._heard(address)
-            if self._tlog is not None:
-                for msg in parsed:
-                    self._record(msg)
-        return parsed
 
     def _read_stream(self, max_reads: int) -> list[Any]:
         conn, parse = self.conn, self.parser.parse
@@ -555,11 +525,7 @@ class Link:
         neutral, then release, all of them reach the board)."""
         if not self._buffered:  # a datagram link: never down, nothing waits in it
             try:
-                packet = encode_rc_override(self.conn.mav, target_system, target_component,
-                                            channels)
-                if self._tlog is not None:
-                    self._record_packet(packet)
-                self.conn.write(packet)
+                self.conn.write(self._pack_override(target_system, target_component, channels))
             except Exception as exc:  # a send must never take the control loop down
                 self._send_failed(exc)
             else:
@@ -589,8 +555,7 @@ class Link:
         """The packet (and the tlog's record of it): packed now, with the next sequence
         number."""
         packet = encode_rc_override(self.conn.mav, target_system, target_component, channels)
-        if self._tlog is not None:
-            self._record_packet(packet)
+        self._record_packet(packet)
         return packet
 
     # ----------------------------------------------------------------- pacing (stream links)

@@ -11,13 +11,22 @@ from __future__ import annotations
 import contextlib
 import os
 import signal
+import socket
 import subprocess
 import sys
 import time
 from pathlib import Path
 from types import TracebackType
 
-__all__ = ["CompanionProcess", "process_cpu_s"]
+__all__ = ["CompanionProcess", "free_port", "process_cpu_s"]
+
+def free_port(kind: int = socket.SOCK_DGRAM, host: str = "127.0.0.1") -> int:
+    """A port the OS says is free now (bind port 0, read it, close): for programs that cannot
+    bind port 0 themselves and say which one they got (SITL, MAVProxy, MAVSDK)."""
+    with socket.socket(socket.AF_INET, kind) as s:
+        s.bind((host, 0))
+        return int(s.getsockname()[1])
+
 
 _PACKAGE_ROOT = Path(__file__).resolve().parents[2]
 """Where the package being run lives: the child imports the same code (a checkout too)."""
