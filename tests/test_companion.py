@@ -614,6 +614,7 @@ def test_an_exception_in_the_control_path_ends_at_neutral_and_latches(monkeypatc
     assert wheels(drive(h, 1000)) == FORWARD
     with monkeypatch.context() as patch:
         patch.setattr("mecanum_mav.control.chain.wheels_from_stick", broken)
+        patch.setattr(h.core, "_lane", broken)  # (the stick lane, which mixes inline, too)
         since = h.gcs.mark()
         o = drive(h, 1000)
         assert o is not None and wheels(o) == NEUTRAL  # in answer to the stick
@@ -629,6 +630,14 @@ def test_an_exception_in_the_control_path_ends_at_neutral_and_latches(monkeypatc
     assert len(seen) >= 19 and all(wheels(o) == NEUTRAL for o in seen)
     o = drive(h, 1000)
     assert o is not None and wheels(o) == FORWARD
+    assert not h.core.faulted
+
+
+def test_a_stick_lane_that_raises_leaves_the_stick_to_the_general_path(monkeypatch):
+    h = armed(lockstep())
+    monkeypatch.setattr(h.core, "_lane", broken)
+    o = drive(h, 1000)
+    assert o is not None and wheels(o) == FORWARD  # answered the long way, in its step
     assert not h.core.faulted
 
 
@@ -648,6 +657,7 @@ def test_an_exception_in_a_message_handler_latches_neutral_until_the_next_valid_
         return real(*args, **kwargs)
 
     monkeypatch.setattr(core, "stick_from_manual_control", once)
+    monkeypatch.setattr(h.core, "_lane", broken)  # (the stick lane decodes inline: fails too)
     since = h.gcs.mark()
     o = drive(h, 1000)
     assert o is not None and wheels(o) == NEUTRAL  # at once, in the step it arrived
@@ -670,6 +680,7 @@ def test_a_mode_change_clears_the_exception_latch(monkeypatch):
     assert wheels(drive(h, 1000)) == FORWARD
     with monkeypatch.context() as patch:
         patch.setattr("mecanum_mav.control.chain.wheels_from_stick", broken)
+        patch.setattr(h.core, "_lane", broken)  # (the stick lane, which mixes inline, too)
         assert wheels(drive(h, 1000)) == NEUTRAL
     h.run_for(0.5)
     assert h.core.faulted and all(wheels(o) == NEUTRAL for o in h.overrides[-5:])

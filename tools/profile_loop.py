@@ -9,7 +9,8 @@ loopback); its sections are wrapped with timers of the loop thread's own CPU
 - ``wait``: the poller's ``wait`` (the wake-up: epoll),
 - ``read``: reading and parsing what arrived (``Companion._drain`` less the core's ``handle``
   and ``stick_lane``, and less any sends from inside it),
-- ``handle``, ``lane``: the core's message handling, and the stick's lane,
+- ``handle``, ``lane``: the core's message handling, and the stick's lane (``stick_lane``
+  and, after the send, ``stick_sent``),
 - ``tick``, ``housekeeping``: the core's output (a refresh-only wake's too), and the rest,
 - ``send override``, ``send other``: packing and writing what goes out,
 - ``loop``: everything else in the loop (timers, ``next_due_s``, link upkeep).
@@ -85,13 +86,15 @@ def instrumented(clock: Clock, params: Params, gcs_url: str, fc_url: str
     companion_module.Poller = TimedPoller  # type: ignore[misc]
     comp = companion_module.Companion(params, gcs_url, fc_url)
     core = comp.core
-    for name, attr in (("handle", "handle"), ("lane", "stick_lane"), ("tick", "tick"),
-                       ("housekeeping", "housekeeping")):
+    for name, attr in (("handle", "handle"), ("lane", "stick_lane"), ("lane", "stick_sent"),
+                       ("tick", "tick"), ("housekeeping", "housekeeping")):
         setattr(core, attr, clock.wrap(name, getattr(core, attr)))
     comp._drain = clock.wrap("read", comp._drain)  # type: ignore[method-assign]
     for link in (comp.gcs, comp.fc):
         link.send_rc_override = clock.wrap("send override",  # type: ignore[method-assign]
                                            link.send_rc_override)
+        link.send_packet = clock.wrap("send override",  # type: ignore[method-assign]
+                                      link.send_packet)
         link.send = clock.wrap("send other", link.send)  # type: ignore[method-assign]
     return comp
 

@@ -8,9 +8,10 @@ One thread, one loop (:meth:`Companion.run`), top to bottom:
    :class:`~mecanum_mav.io.poller.Poller`; it never polls, so an idle companion uses no CPU).
 2. Read everything waiting on a link; each message goes to ``core.handle`` and its answers
    out at once. Under overload this drains the queue and the core acts on the newest stick.
-   On a datagram link the first datagram is answered before the rest are read: a lone
-   MANUAL_CONTROL takes the core's lane (``core.stick_lane``) and its override goes out
-   before anything else is done.
+   On a datagram link the first datagram is answered before the rest are read: the pilot's
+   MANUAL_CONTROL takes the core's lane (``core.stick_lane``, compiled in
+   :mod:`mecanum_mav.control.lane`: the datagram to the override's packet in one call) and
+   the packet goes out before anything else is done (unsigned links only).
 3. ``core.tick``: its RC_CHANNELS_OVERRIDE goes out at once; then ``core.housekeeping``:
    odometry, telemetry, heartbeats and status texts (after a stick the lane answered the
    tick has nothing to do, and housekeeping takes the odometry, after the send). Each is
@@ -63,7 +64,6 @@ from mecanum_mav.control.core import (
 from mecanum_mav.io.links import Link, follow, open_link
 from mecanum_mav.io.poller import READABLE, Poller
 from mecanum_mav.io.storage import FileStorage
-from mecanum_mav.protocol.codec import ManualControl
 from mecanum_mav.protocol.statustext import Severity
 
 __all__ = ["Companion"]
@@ -109,6 +109,8 @@ class Companion:
                                   source_component=FC_LINK_COMPID, name="fc",
                                   signing_key=fc_signing_key)
         self._fc_mav = self.fc.mav
+        self._lane_links = self.gcs.unchecked and self.fc.unchecked
+        """The stick lane may answer (its packets are unsigned; keys are fixed at start)."""
         if tlog is not None:
             self.gcs.record_to(tlog)
             self.fc.record_to(tlog)
@@ -155,11 +157,13 @@ class Companion:
 
     def _drain(self, link: Link) -> None:
         """Read what waits on ``link`` and answer it: on a datagram link from the ground
-        station the first datagram is answered (a lone stick in its lane) before the rest
-        is read; the rest goes to the core in order."""
+        station the first datagram is answered before the rest is read (a pilot's stick in
+        the core's lane, its override sent at once); the rest goes to the core in order."""
         now, from_fc = self.clock(), link is self.fc
-        if not from_fc and link.steady:  # a datagram link: the first one is answered first
-            self._answer(link.read(1), now, from_fc=False)
+        if not from_fc and link.steady:
+            got = link.receive_datagram()
+            if got is not None:
+                self._answer_first(link, *got, now)
         messages = link.read()
         rejected = link.take_rejections()
         if rejected:  # unsigned or badly signed: counted, said at most once a second
@@ -167,14 +171,21 @@ class Companion:
         self._report(link, now)  # it broke, or a tcpin client connected: the core first
         self._answer(messages, now, from_fc=from_fc)
 
-    def _answer(self, messages: list[Any], now: float, *, from_fc: bool) -> None:
-        """Hand ``messages`` to the core and send its answers; a lone stick takes the core's
-        lane."""
-        if not from_fc and len(messages) == 1 and type(messages[0]) is ManualControl:
-            override = self.core.stick_lane(messages[0], now)
-            if override is not None:  # the pilot's stick, answered at once
-                self._send_override(override)
+    def _answer_first(self, link: Link, data: bytes, address: Any, now: float) -> None:
+        """The first datagram waiting on the ground station's datagram link: the pilot's
+        stick in the core's lane (its override packed in one call and sent before anything
+        else is done), or else parsed and handed to the core."""
+        if self._lane_links:
+            packet = self.core.stick_lane(data, now, self._fc_mav.seq)
+            if packet is not None:
+                self.fc.send_packet(packet)  # the pilot's stick, answered at once
+                self.core.stick_sent()
+                link.answered(data, address)
                 return
+        self._answer(link.parse_datagram(data, address), now, from_fc=False)
+
+    def _answer(self, messages: list[Any], now: float, *, from_fc: bool) -> None:
+        """Hand ``messages`` to the core and send its answers."""
         handle = self.core.handle
         for msg in messages:
             out = handle(msg, now, from_fc=from_fc)

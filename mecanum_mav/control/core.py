@@ -54,6 +54,7 @@ from mecanum_mav.control.chain import Output, manual_output
 from mecanum_mav.control.estimator import WheelOdometryEstimator
 from mecanum_mav.control.fccheck import FcSetupCheck
 from mecanum_mav.control.guided import SetpointError, decode_setpoint
+from mecanum_mav.control.lane import LaneAnswer, StickLane, compile_stick_lane
 from mecanum_mav.control.missions import MissionControl
 from mecanum_mav.control.pwm import PwmMap
 from mecanum_mav.control.rcinput import RC_CHANNELS_INTERVAL_US, ReceiverInput
@@ -269,6 +270,10 @@ class RoverCore:
         protocol, setup check), as it last left them; valid before :attr:`_housekeeping_due_s`
         (a message that may move one resets that)."""
         self._last_override: RcOverride | None = None
+        self._lane: StickLane
+        """The stick lane compiled for the configuration (:meth:`reconfigure`)."""
+        self._lane_answer: LaneAnswer | None = None
+        self._lane_s = -math.inf
         self._fc_streams_asked = False
         self.fc_check = FcSetupCheck()
         """The read-only check of the flight controller's setup, run when it appears."""
@@ -347,6 +352,8 @@ class RoverCore:
         can have changed the output: the tick only repeats the last override when its refresh
         is due, and after a stick answered by :meth:`stick_lane` it has nothing to do. An
         idle rover's wakes are mostly these (``OUT_RATE``)."""
+        if self._lane_answer is not None:  # (the shell calls it after the send)
+            self.stick_sent()
         self._now_s = now_s
         if (now_s < self._lane_until_s and not self._new_input and not self.to_gcs.messages
                 and not self.to_fc.messages and self._last_override is not None):
@@ -445,37 +452,45 @@ class RoverCore:
         and no stick takes the lane before they have."""
         self._quiet_until_s = self._lane_until_s = -math.inf
 
-    def stick_lane(self, msg: ManualControlMsg, now_s: float) -> RcOverride | None:
-        """The control path's lane: the pilot's MANUAL_CONTROL answered with its override
-        at once, exactly as :meth:`handle` then :meth:`tick` would answer it, when nothing
-        else can be involved: driving in MANUAL, no timeout that changes the output due and
-        nothing else arrived since :meth:`housekeeping`, a valid stick for us from the pilot.
-        Else None, with nothing changed: call :meth:`handle` and :meth:`tick`. A timer of
-        housekeeping's own (telemetry, heartbeats) does not close the lane. Send the override,
-        then call :meth:`tick` (it has nothing to send then) and :meth:`housekeeping` (the
-        odometry of the wheels held until now) as after any message; :meth:`settled` says
-        when a loop may skip them."""
+    def stick_lane(self, datagram: bytes, now_s: float, seq: int) -> bytes | None:
+        """The control path's lane: a datagram holding the pilot's MANUAL_CONTROL answered at
+        once with the RC_CHANNELS_OVERRIDE packet to send, numbered ``seq``: exactly what
+        :meth:`handle` then :meth:`tick` would answer, when nothing else can be involved:
+        driving in MANUAL, no timeout that changes the output due and nothing else arrived
+        since :meth:`housekeeping`, and a datagram the compiled lane answers
+        (:mod:`mecanum_mav.control.lane`: one valid stick for us from the pilot). Else None,
+        with nothing changed: parse the datagram and call :meth:`handle` and :meth:`tick`.
+
+        Send the packet first, then call :meth:`stick_sent`: the stick is taken and the
+        output recorded there, after the send. A timer of housekeeping's own (telemetry,
+        heartbeats) does not close the lane; call :meth:`tick` (nothing to send then) and
+        :meth:`housekeeping` (the odometry of the wheels held until now) as after any
+        message; :meth:`settled` says when a loop may skip them. The packet is unsigned: a
+        link that signs must not use the lane."""
         if now_s >= self._lane_until_s or self.faulted or not self.vehicle.driving():
             return None
-        identity, target = self.identity, msg.target  # (_for_us and _from_pilot, inline)
-        if ((target and target != identity.sysid)
-                or (identity.gcs_sysid and msg.get_srcSystem() != identity.gcs_sysid)):
+        try:
+            answer = self._lane(datagram, seq)
+        except Exception:  # never seen; handle() and tick() take it the general way
+            log.exception("error in the stick lane")
             return None
+        if answer is None:
+            return None
+        self._lane_answer, self._lane_s = answer, now_s
+        return answer[0]
+
+    def stick_sent(self) -> None:
+        """After the packet :meth:`stick_lane` returned went out: the stick taken and the
+        output recorded (for the refresh, the odometry and telemetry), at the lane's time."""
+        answer, now_s = self._lane_answer, self._lane_s
+        if answer is None:
+            return
+        self._lane_answer = None
+        _, stick, wheels, pulses = answer
         self._now_s = now_s
-        try:
-            stick = stick_from_manual_control(msg.x, msg.y, msg.r, msg.z,
-                                              z_scale=self.input.z_scale)
-        except InputError:  # refused: handle() says why
-            return None
-        except Exception:
-            return self._handler_failed("MANUAL_CONTROL", now_s)
-        try:
-            wheels, pulses = manual_output(*stick, self.input, self.pwm)
-        except Exception:  # handle() takes the stick and tick() faults the output
-            return None
         self._take_stick(stick, now_s)
-        self._output_wheels = wheels  # (housekeeping takes the odometry, after the send)
-        return self._override(pulses, now_s)
+        self._output_wheels = wheels  # (housekeeping takes the odometry)
+        self._override(pulses, now_s)
 
     def settled(self, now_s: float) -> bool:
         """Whether :meth:`tick` and :meth:`housekeeping` have nothing to do at ``now_s``: no
@@ -546,6 +561,7 @@ class RoverCore:
         # SYSID_THISMAV is reboot_required: the links keep the id they were opened with.
         self.identity = replace(IdentityConfig.from_params(p), sysid=self._boot_sysid)
         self.input = InputConfig.from_params(p)
+        self._lane = compile_stick_lane(self.input, self.pwm, self.identity, FC_LINK_COMPID)
         self.output = OutputConfig.from_params(p)
         self.rc_input = RcInputConfig.from_params(p)
         self.receiver_config = ReceiverConfig.from_params(p)

@@ -208,6 +208,7 @@ class Link:
         self._tlog: BinaryIO | None = None
         self.conn.mav.file = self  # every packet goes out through write(), which sees a break
         self._udp_server = bool(getattr(self.conn, "udp_server", False))
+        self._recvfrom: Any = getattr(self.conn.port, "recvfrom", None)  # (datagram links)
         self._peers_s: dict[Any, float] = {}  # udpin peers -> when last heard (monotonic s)
         self.peer_timeout_s = PEER_TIMEOUT_S
         self._next_prune_s = -math.inf
@@ -339,30 +340,70 @@ class Link:
     def _read_datagrams(self, max_reads: int) -> list[Any]:
         """pymavlink's recv, less its overhead; it would also make every sender on a udpin
         link a peer (see :meth:`_heard`)."""
-        conn, parse = self.conn, self.parser.parse
-        recvfrom = conn.port.recvfrom
         messages: list[Any] = []
         for _ in range(max_reads):
-            try:
-                data, address = recvfrom(_READ_CHUNK)
-            except _NOTHING_TO_READ:  # (refused: an earlier send found no one listening)
+            got = self.receive_datagram()
+            if got is None:
                 break
-            except OSError as exc:
-                log.debug("%s: read failed: %s", self.name, exc)
-                break
-            if conn.broadcast:
-                conn.last_address = address
-            if conn.first_byte:
-                conn.auto_mavlink_version(data)
-            parsed = parse(data)
-            if parsed:
-                if self._udp_server:
-                    self._heard(address)
-                if self._tlog is not None:
-                    for msg in parsed:
-                        self._record(msg)
-                messages += parsed
+            messages += self._parse_datagram(*got)
         return messages
+
+    @property
+    def unchecked(self) -> bool:
+        """A datagram link that neither checks nor makes signatures: what it receives may be
+        answered straight from the datagram (:meth:`receive_datagram`), and it may send a
+        packet packed elsewhere (:meth:`send_packet`)."""
+        return not self._buffered and self.signature_check is None and (
+            not self.conn.mav.signing.sign_outgoing)
+
+    def receive_datagram(self) -> tuple[bytes, Any] | None:
+        """One datagram and its sender's address, unparsed and not yet counted, or None when
+        none waits (or the read failed); never raises. Hand it to :meth:`parse_datagram`, or
+        to :meth:`answered` when it was answered without parsing. Datagram links only."""
+        try:
+            return self._recvfrom(_READ_CHUNK)  # type: ignore[no-any-return]
+        except _NOTHING_TO_READ:  # (refused: an earlier send found no one listening)
+            return None
+        except OSError as exc:
+            log.debug("%s: read failed: %s", self.name, exc)
+            return None
+
+    def parse_datagram(self, data: bytes, address: Any) -> list[Any]:
+        """The messages of a datagram from :meth:`receive_datagram`, counted as :meth:`read`
+        counts them."""
+        messages = self._parse_datagram(data, address)
+        check = self.signature_check
+        if check is not None:
+            self._catch_up(check)
+        self.received += len(messages)
+        return messages
+
+    def answered(self, data: bytes, address: Any) -> None:
+        """A datagram from :meth:`receive_datagram` holding one message, answered without
+        parsing (the stick lane): counted, its sender heard, recorded, as if read."""
+        conn = self.conn
+        if conn.broadcast:
+            conn.last_address = address
+        if self._udp_server:
+            self._heard(address)
+        if self._tlog is not None:
+            self._record_packet(data)
+        self.received += 1
+
+    def _parse_datagram(self, data: bytes, address: Any) -> list[Any]:
+        conn = self.conn
+        if conn.broadcast:
+            conn.last_address = address
+        if conn.first_byte:
+            conn.auto_mavlink_version(data)
+        parsed = self.parser.parse(data)
+        if parsed:
+            if self._udp_server:
+                self._heard(address)
+            if self._tlog is not None:
+                for msg in parsed:
+                    self._record(msg)
+        return parsed
 
     def _read_stream(self, max_reads: int) -> list[Any]:
         conn, parse = self.conn, self.parser.parse
@@ -549,6 +590,20 @@ class Link:
             self._send_failed(exc)
         else:
             self.sent += 1
+
+    def send_packet(self, packet: bytes) -> None:
+        """Send a packet packed elsewhere with this link's next sequence number (the stick
+        lane's override), which then advances; never raises. An :attr:`unchecked` link
+        only."""
+        mav = self.conn.mav
+        mav.seq = (mav.seq + 1) & 0xFF
+        try:
+            self.conn.write(packet)
+        except Exception as exc:  # a send must never take the control loop down
+            self._send_failed(exc)
+        else:
+            self.sent += 1
+        self._record_packet(packet)
 
     def _pack_override(self, target_system: int, target_component: int,
                        channels: list[int]) -> bytes:

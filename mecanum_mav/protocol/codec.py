@@ -33,13 +33,15 @@ from __future__ import annotations
 import struct
 from collections.abc import Callable, Sequence
 from operator import attrgetter, itemgetter
-from typing import Any
+from typing import Any, NamedTuple
 
 from mecanum_mav.protocol.dialect import mavlink
 from mecanum_mav.protocol.signing import IFLAG_SIGNED, SIGNATURE_BLOCK_LEN, signature_block
 
 __all__ = [
+    "STICK_WIRE",
     "ManualControl",
+    "StickWire",
     "decode_datagram",
     "decode_manual_control",
     "encode_rc_override",
@@ -149,6 +151,35 @@ def decode_manual_control(datagram: bytes) -> ManualControl | None:
         payload = payload + bytes(_MANUAL_SIZE - length)
     values = _MANUAL.unpacker.unpack(payload)
     return ManualControl(values, (datagram[5], datagram[6]), bytes(datagram))
+
+
+class StickWire(NamedTuple):
+    """What a one-call stick lane (:mod:`mecanum_mav.control.lane`) needs to read a
+    MANUAL_CONTROL datagram and pack its RC_CHANNELS_OVERRIDE without this module's calls:
+    the same structs, ids, ``crc_extra`` bytes and CRC function as :func:`decode_manual_control`
+    and :func:`encode_rc_override` (tests hold the lane to them byte for byte)."""
+
+    crc16: Callable[[bytes | bytearray, int], int]
+    """CRC-16/MCRF4XX continued from a CRC (0xFFFF starts one)."""
+    magic: int
+    header: struct.Struct
+    """MAVLink 2 header: magic len incompat compat seq sys comp msgid (16 + 8 bit)."""
+    crc: struct.Struct
+    manual_id: int
+    manual_crc_extra: bytes
+    manual_size: int
+    """The MANUAL_CONTROL payload's full size in this dialect (a packet may truncate it)."""
+    manual_unpack: Callable[[bytes], tuple[Any, ...]]
+    """The full payload -> its fields in wire order: x, y, z, r, buttons, target, ..."""
+    override_id: int
+    override_crc_extra: bytes
+    override_pack: Callable[..., bytes]
+    """chan1..8, target system, target component, chan9..18 -> the full payload."""
+
+
+STICK_WIRE = StickWire(_crc16, _MAGIC, _HEADER, _CRC, _MANUAL_ID, _MANUAL_CRC_EXTRA,
+                       _MANUAL_SIZE, _MANUAL.unpacker.unpack, _OVERRIDE_ID,
+                       _OVERRIDE_CRC_EXTRA, _OVERRIDE.unpacker.pack)
 
 
 def _frame(mav: Any, msgid: int, crc_extra: bytes, payload: bytes,

@@ -42,7 +42,7 @@ from mecanum_mav.control.core import (
     Storage,
 )
 from mecanum_mav.io.tlog import tlog_record
-from mecanum_mav.protocol.codec import ManualControl, encode_rc_override, send_message
+from mecanum_mav.protocol.codec import encode_rc_override, send_message
 from mecanum_mav.protocol.dialect import mavlink
 from mecanum_mav.protocol.framing import MessageParser
 from mecanum_mav.protocol.mission import MissionItem
@@ -208,16 +208,13 @@ class Lockstep:
         gcs_wire = self._gcs_to_core
         gcs_wire.follow_clock(now)
         self._core_to_gcs.follow_clock(now)
-        delivered = gcs_wire.deliver()
-        if gcs_wire.check is not None and gcs_wire.check.new_rejections:
-            core.refuse_unsigned(gcs_wire.check.take_rejections(), now)
-        lane = (core.stick_lane(delivered[0], now)
-                if len(delivered) == 1 and type(delivered[0]) is ManualControl else None)
         due = core.next_due_s()  # (as the companion's loop computed it before its wait)
-        if lane is not None:  # the pilot's stick in its lane, as the companion answers it
-            self._write(Outbox((), (), lane))
+        if self._stick_lane(now):  # the pilot's stick in its lane, as the companion answers it
             woke = True
         else:
+            delivered = gcs_wire.deliver()
+            if gcs_wire.check is not None and gcs_wire.check.new_rejections:
+                core.refuse_unsigned(gcs_wire.check.take_rejections(), now)
             for msg in delivered:
                 self._write(core.handle(msg, now))
                 woke = True
@@ -303,6 +300,23 @@ class Lockstep:
         return [o for o in self.overrides if o.time_s >= time_s]
 
     # ------------------------------------------------------------------ plumbing
+
+    def _stick_lane(self, now: float) -> bool:
+        """A lone datagram from the ground station answered in the core's stick lane, its
+        packet on the wire to the board, as the companion's loop does (on unsigned wires)."""
+        wire, out = self._gcs_to_core, self._core_to_fc
+        if len(wire.queue) != 1 or wire.check is not None or out.check is not None:
+            return False
+        sender = out.sender
+        packet = self.core.stick_lane(wire.queue[0], now, sender.seq)
+        if packet is None:
+            return False
+        sender.seq = (sender.seq + 1) & 0xFF
+        out.write(packet)
+        self.core.stick_sent()
+        wire.queue = []
+        wire.received += 1
+        return True
 
     def _write(self, out: Outbox) -> None:
         """Put the core's output on the wires, as the companion's shell does."""

@@ -1,0 +1,174 @@
+"""The stick lane: a pilot's MANUAL_CONTROL datagram -> its RC_CHANNELS_OVERRIDE packet, one call.
+
+The control path's latency is what a Python process does between the wake and the send, and
+at 50 Hz every message arrives to cold caches, where each Python function entered costs
+microseconds. :func:`compile_stick_lane` builds, once per configuration, a single function
+that does the whole of :func:`~mecanum_mav.control.sticks.stick_from_manual_control`,
+:func:`~mecanum_mav.control.chain.manual_output` (shaping, Cartesian mixing with its
+desaturation, PWM) and :func:`~mecanum_mav.protocol.codec.encode_rc_override` inline, with the
+configuration's constants bound: no calls but ``struct``, the CRC and ``round``. The polar
+mixing algorithms are called (:func:`~mecanum_mav.mecanum.mixing.wheels_from_stick`), one
+call. Measured with ``tools/bench_latency.py``: it takes the companion's median stick-to-PWM
+delay at 50 Hz from about 1.6x to about 1.15x the floor relay's (docs/benchmarks.md).
+
+Everything it computes is bit for bit what those functions compute (tests/test_lane.py holds
+it to them for every configuration, with hypothesis), and it answers only what needs no
+decision beyond them: a datagram holding exactly one unsigned MAVLink 2 MANUAL_CONTROL with a
+good CRC, addressed to this vehicle (or to all) from the pilot (``SYSID_MYGCS``), with valid
+axes. Anything else gives None and takes the general path, which refuses bad input with its
+reason. Whether the rover may drive at all is the core's decision
+(:meth:`~mecanum_mav.control.core.RoverCore.stick_lane`).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+from mecanum_mav.config.views import IdentityConfig, InputConfig
+from mecanum_mav.control.pwm import PwmMap
+from mecanum_mav.control.sticks import INVALID_AXIS, Stick
+from mecanum_mav.mecanum.mixing import Desaturation, WheelTuple, wheels_from_stick
+from mecanum_mav.protocol.codec import STICK_WIRE
+from mecanum_mav.protocol.rcoverride import override_fields
+
+__all__ = ["LaneAnswer", "StickLane", "compile_stick_lane"]
+
+LaneAnswer = tuple[bytes, Stick, WheelTuple, tuple[int, ...]]
+"""The RC_CHANNELS_OVERRIDE packet; the stick (normalized x forward, y right, r clockwise, as
+:func:`~mecanum_mav.control.sticks.stick_from_manual_control` gives it); the wheel commands
+(normalized FL, FR, RL, RR); the pulse widths (us, same order)."""
+
+StickLane = Callable[[bytes, int], LaneAnswer | None]
+"""``lane(datagram, seq)``: the answer to one datagram, its packet numbered ``seq``, or None."""
+
+
+def compile_stick_lane(config: InputConfig, pwm: PwmMap, identity: IdentityConfig,
+                       source_component: int) -> StickLane:
+    """The stick lane for one configuration (build it again when a parameter changes).
+
+    Args:
+        config: shaping and mixing (``INP_*``, ``MAN_Z_SCALE``, ``MIX_*``).
+        pwm: the wheels' channels and pulse ranges (``MOT_*``).
+        identity: this vehicle's id, the pilot's (``SYSID_MYGCS``), the flight controller's
+            (the override's target) and the id the override is sent as (``FC_GCS_SYSID``).
+        source_component: the component id the override is sent as.
+
+    Returns:
+        ``lane(datagram, seq)``: for a datagram the lane answers (module description), the
+        unsigned MAVLink 2 RC_CHANNELS_OVERRIDE packet with sequence number ``seq`` and what it
+        was computed from (:data:`LaneAnswer`); else None.
+    """
+    wire = STICK_WIRE
+    crc16, header, crc_field = wire.crc16, wire.header.pack, wire.crc.pack
+    magic, manual_low, manual_extra = wire.magic, wire.manual_id & 0xFF, wire.manual_crc_extra
+    manual_size, manual_unpack = wire.manual_size, wire.manual_unpack
+    override_low, override_high = wire.override_id & 0xFFFF, wire.override_id >> 16
+    override_extra, override_pack = wire.override_crc_extra, wire.override_pack
+    assert wire.manual_id < 256, "MANUAL_CONTROL's id fits one byte"
+    sysid, pilot = identity.sysid, identity.gcs_sysid
+    target, source = (identity.fc_sysid, identity.fc_compid), (identity.fc_gcs_sysid,
+                                                              source_component)
+    invalid, z_scale = INVALID_AXIS, config.z_scale
+    band, weight, circle = config.deadband, config.expo, config.circle
+    if not (0.0 <= band < 1.0 and 0.0 <= weight <= 1.0):
+        raise ValueError(f"deadband {band!r} or expo {weight!r} out of range")
+    gain = 1.0 / (1.0 - band)
+    algorithm, priority = config.algorithm, int(config.desaturation)
+    cartesian = algorithm == "cartesian"
+    if not cartesian:
+        wheels_from_stick(0.0, 0.0, 0.0, algorithm, priority=priority)  # KeyError: unknown
+    proportional, rotation_first = (priority == Desaturation.PROPORTIONAL,
+                                    priority == Desaturation.ROTATION_PRIORITY)
+    outputs = [(w.trim, w.maximum - w.trim, w.trim - w.minimum, w.reversed) for w in pwm.wheels]
+    template = override_fields(pwm.channels, pwm.neutral())
+    slots = [channel - 1 for channel in pwm.channels]
+    sqrt = math.sqrt
+
+    def lane(datagram: bytes, seq: int) -> LaneAnswer | None:
+        # One unsigned MAVLink 2 MANUAL_CONTROL, whole, good CRC (as decode_manual_control).
+        size = len(datagram)
+        if (size < 13 or datagram[0] != magic or datagram[2] or datagram[7] != manual_low
+                or datagram[8] or datagram[9]):
+            return None
+        length = datagram[1]
+        end = 10 + length
+        if size != end + 2 or length > manual_size or (
+                datagram[end] | datagram[end + 1] << 8) != crc16(
+                manual_extra, crc16(datagram[1:end], 0xFFFF)):
+            return None
+        x, y, z, r, _buttons, to = manual_unpack(
+            datagram[10:end] + bytes(manual_size - length))[:6]
+        # For us, from the pilot, valid axes (as RoverCore._for_us, _from_pilot and
+        # stick_from_manual_control; else the general path refuses it, saying why).
+        if (to and to != sysid) or (pilot and datagram[5] != pilot):
+            return None
+        if x == invalid:
+            x = 0
+        if y == invalid:
+            y = 0
+        if r == invalid:
+            r = 0
+        if not (-1000 <= x <= 1000 and -1000 <= y <= 1000 and -1000 <= r <= 1000):
+            return None
+        sx, sy, sr = x / 1000.0, y / 1000.0, r / 1000.0
+        if z_scale and z != invalid:
+            if not 0 <= z <= 1000:
+                return None
+            k = z / 1000.0
+            sx, sy, sr = sx * k, sy * k, sr * k
+        stick = (sx, sy, sr)
+        # Shaping (as shape_stick): per axis deadband and expo, then the circle.
+        shaped = []
+        for v in stick:
+            magnitude = -v if v < 0.0 else v
+            if magnitude <= band:
+                shaped.append(0.0)
+                continue
+            magnitude = (magnitude - band) * gain  # (|axis| <= 1: no limit needed)
+            magnitude = (1.0 - weight) * magnitude + weight * magnitude * magnitude * magnitude
+            shaped.append(-magnitude if v < 0.0 else magnitude)
+        sx, sy, sr = shaped
+        if circle:
+            length_sq = sx * sx + sy * sy
+            if length_sq > 1.0:
+                norm = sqrt(length_sq)
+                sx, sy = sx / norm, sy / norm
+        # Mixing (as wheels_from_stick; Cartesian inline, with its desaturation).
+        if cartesian:
+            a, b = sx + sy, sx - sy
+            t = max(abs(a), abs(b))
+            ar = abs(sr)
+            if t + ar > 1.0:
+                if proportional:
+                    k = 1.0 / (t + ar)
+                    a, b, sr = a * k, b * k, sr * k
+                elif rotation_first:
+                    k = (1.0 - ar) / t
+                    a, b = a * k, b * k
+                else:  # translation first
+                    if t > 1.0:
+                        a, b, t = a / t, b / t, 1.0
+                    sr = math.copysign(1.0 - t, sr) if ar > 0.0 else 0.0
+            wheels = (a + sr, b - sr, b + sr, a - sr)
+        else:
+            wheels = wheels_from_stick(sx, sy, sr, algorithm, priority=priority)
+        # PWM (as PwmMap.pulses_us), then the override's fields and packet (as
+        # encode_rc_override: MAVLink 2 payload truncation, the native CRC).
+        fields = template.copy()
+        pulses = []
+        for command, (trim, up, down, mirrored), slot in zip(wheels, outputs, slots,
+                                                             strict=True):
+            c = -command if mirrored else command
+            c = -1.0 if c < -1.0 else (1.0 if c > 1.0 else c)
+            pulse = round(trim + c * (up if c >= 0.0 else down))
+            pulses.append(pulse)
+            fields[slot] = pulse
+        payload = override_pack(*fields[:8], *target, *fields[8:])
+        size = len(payload.rstrip(b"\x00")) or 1
+        body = header(magic, size, 0, 0, seq, *source, override_low,
+                      override_high) + payload[:size]
+        packet = body + crc_field(crc16(override_extra, crc16(body[1:], 0xFFFF)))
+        return packet, stick, wheels, tuple(pulses)
+
+    return lane
