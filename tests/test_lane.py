@@ -49,16 +49,16 @@ def stick_packet(x: int, y: int, z: int, r: int, *, target: int = 1, source: int
 
 
 def general_path(datagram_axes: tuple[int, int, int, int], config: InputConfig, pwm: PwmMap,
-                 identity: IdentityConfig, seq: int) -> tuple[bytes, object, object, object]:
+                 identity: IdentityConfig, seq: int) -> tuple[object, ...]:
     """What RoverCore.handle then tick compute for the same stick, and the companion sends."""
     x, y, z, r = datagram_axes
     stick = stick_from_manual_control(x, y, r, z, z_scale=config.z_scale)
     wheels, pulses = manual_output(*stick, config, pwm)
     mav = mavlink.MAVLink(None, srcSystem=identity.fc_gcs_sysid, srcComponent=FC_LINK_COMPID)
     mav.seq = seq
-    packet = encode_rc_override(mav, identity.fc_sysid, identity.fc_compid,
-                                override_fields(pwm.channels, pulses))
-    return packet, stick, wheels, pulses
+    fields = override_fields(pwm.channels, pulses)
+    packet = encode_rc_override(mav, identity.fc_sysid, identity.fc_compid, fields)
+    return packet, stick, wheels, pulses, fields
 
 
 @settings(max_examples=400, deadline=None)
@@ -70,10 +70,11 @@ def test_the_lane_answers_a_stick_exactly_as_the_general_path(config, pwm, x, y,
     lane = compile_stick_lane(config, pwm, identity, FC_LINK_COMPID)
     answer = lane(stick_packet(x, y, z, r), seq)
     assert answer is not None
-    packet, stick, wheels, pulses = answer
+    packet, stick, wheels, pulses, fields = answer
     expected = general_path((x, y, z, r), config, pwm, identity, seq)
     assert packet == expected[0]  # byte for byte
-    assert (stick, tuple(wheels), pulses) == (expected[1], tuple(expected[2]), expected[3])
+    assert (stick, tuple(wheels), pulses, fields) == (expected[1], tuple(expected[2]),
+                                                      *expected[3:])
 
 
 @pytest.mark.parametrize("algorithm", ALGORITHM_NAMES)

@@ -115,7 +115,7 @@ class Companion:
             self.gcs.record_to(tlog)
             self.fc.record_to(tlog)
         self._up = {self.gcs: True, self.fc: True}
-        self._stop = threading.Event()
+        self._stopping = False  # (a plain flag: the loop reads it every pass)
         self._wake_r, self._wake_w = os.pipe()
         self._thread: threading.Thread | None = None
 
@@ -128,7 +128,7 @@ class Companion:
         registered = {link: follow(selector, link, None, link) for link in (gcs, fc)}
         streams = {link: fd for link, fd in registered.items() if not link.steady}
         try:
-            while not self._stop.is_set():
+            while not self._stopping:
                 due = min(core.next_due_s(), gcs.next_reopen_s, fc.next_reopen_s,
                           gcs.next_send_s, fc.next_send_s)
                 for link, events in selector.wait(due - self.clock()):
@@ -142,10 +142,14 @@ class Companion:
                 for link in streams:  # (a datagram link never goes down)
                     if not link.up and link.reopen(now):
                         self._report(link, now)  # before anything else goes out on it
-                self._write(core.tick(now))  # the override first,
+                out = core.tick(now)
+                if out is not NOTHING:
+                    self._write(out)  # the override first,
                 if not streams and core.settled(now):
                     continue  # the pass was the output's refresh: nothing else is due
-                self._write(core.housekeeping(now))  # then everything else
+                out = core.housekeeping(now)
+                if out is not NOTHING:
+                    self._write(out)  # then everything else
                 for link, fd in streams.items():
                     self._report(link, now)
                     streams[link] = follow(selector, link, fd, link)
@@ -158,31 +162,31 @@ class Companion:
     def _drain(self, link: Link) -> None:
         """Read what waits on ``link`` and answer it: on a datagram link from the ground
         station the first datagram is answered before the rest is read (a pilot's stick in
-        the core's lane, its override sent at once); the rest goes to the core in order."""
+        the core's lane, its override packed in one call and sent before anything else is
+        done; else parsed and handed to the core); the rest goes to the core in order."""
         now, from_fc = self.clock(), link is self.fc
-        if not from_fc and link.steady:
+        steady = link.steady
+        if not from_fc and steady:  # the first datagram is answered first:
             got = link.receive_datagram()
             if got is not None:
-                self._answer_first(link, *got, now)
+                data, address = got
+                packet = (self.core.stick_lane(data, now, self._fc_mav.seq)
+                          if self._lane_links else None)
+                if packet is not None:  # the pilot's stick, in its lane: sent at once
+                    self.fc.send_packet(packet)
+                    self.core.stick_sent()
+                    link.answered(data, address)
+                else:
+                    self._answer(link.parse_datagram(data, address), now, from_fc=False)
         messages = link.read()
-        rejected = link.take_rejections()
-        if rejected:  # unsigned or badly signed: counted, said at most once a second
-            self.core.refuse_unsigned(rejected, now, from_fc=from_fc)
-        self._report(link, now)  # it broke, or a tcpin client connected: the core first
-        self._answer(messages, now, from_fc=from_fc)
-
-    def _answer_first(self, link: Link, data: bytes, address: Any, now: float) -> None:
-        """The first datagram waiting on the ground station's datagram link: the pilot's
-        stick in the core's lane (its override packed in one call and sent before anything
-        else is done), or else parsed and handed to the core."""
-        if self._lane_links:
-            packet = self.core.stick_lane(data, now, self._fc_mav.seq)
-            if packet is not None:
-                self.fc.send_packet(packet)  # the pilot's stick, answered at once
-                self.core.stick_sent()
-                link.answered(data, address)
-                return
-        self._answer(link.parse_datagram(data, address), now, from_fc=False)
+        if link.signature_check is not None:
+            rejected = link.take_rejections()
+            if rejected:  # unsigned or badly signed: counted, said at most once a second
+                self.core.refuse_unsigned(rejected, now, from_fc=from_fc)
+        if not steady:
+            self._report(link, now)  # it broke, or a tcpin client connected: the core first
+        if messages:
+            self._answer(messages, now, from_fc=from_fc)
 
     def _answer(self, messages: list[Any], now: float, *, from_fc: bool) -> None:
         """Hand ``messages`` to the core and send its answers."""
@@ -231,7 +235,7 @@ class Companion:
 
     def stop(self, timeout_s: float = 5.0) -> None:
         """Ask the loop to end (neutral, then release) and wait for it; idempotent."""
-        self._stop.set()
+        self._stopping = True
         with contextlib.suppress(OSError):
             os.write(self._wake_w, b"x")
         if self._thread is not None:

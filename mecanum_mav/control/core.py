@@ -261,6 +261,8 @@ class RoverCore:
         """Before this no timer of :meth:`housekeeping` is due (-inf: look at them all)."""
         self._quiet_until_s = -math.inf
         """Before this nothing but the output refresh can be due (:meth:`tick`)."""
+        self._lane_driving = False
+        """The vehicle was driving (:meth:`Vehicle.driving`) when housekeeping settled."""
         self._lane_until_s = -math.inf
         """Before this no timeout that changes the output (the vehicle's) is due and nothing
         arrived since :meth:`housekeeping`: :meth:`stick_lane` may answer a stick (its own
@@ -397,7 +399,8 @@ class RoverCore:
         if (now_s < self._housekeeping_due_s and not self.vehicle.has_events
                 and not executor.has_events and not self.to_gcs.messages
                 and not self.to_fc.messages):
-            self._settle()
+            if not (self._lane_driving and now_s < self._lane_until_s):
+                self._settle()  # (after a stick in its lane the lane's bounds still hold)
             return NOTHING
         if self.vehicle.fc_lost:
             self._fc_streams_asked = False  # ask a rebooted flight controller again
@@ -446,6 +449,9 @@ class RoverCore:
             return
         self._lane_until_s = self.vehicle.next_due_s()
         self._quiet_until_s = min(self._housekeeping_due_s, self._lane_until_s)
+        # Driving in MANUAL changes only with a message (which unsettles) or a vehicle
+        # timeout (which ends the lane): what stick_lane needs, looked at once here.
+        self._lane_driving = self.vehicle.driving()
 
     def _unsettle(self) -> None:
         """Something arrived or changed: the next tick and housekeeping look at everything,
@@ -467,7 +473,7 @@ class RoverCore:
         :meth:`housekeeping` (the odometry of the wheels held until now) as after any
         message; :meth:`settled` says when a loop may skip them. The packet is unsigned: a
         link that signs must not use the lane."""
-        if now_s >= self._lane_until_s or self.faulted or not self.vehicle.driving():
+        if now_s >= self._lane_until_s or self.faulted or not self._lane_driving:
             return None
         try:
             answer = self._lane(datagram, seq)
@@ -486,11 +492,11 @@ class RoverCore:
         if answer is None:
             return
         self._lane_answer = None
-        _, stick, wheels, pulses = answer
+        _, stick, wheels, pulses, fields = answer
         self._now_s = now_s
         self._take_stick(stick, now_s)
         self._output_wheels = wheels  # (housekeeping takes the odometry)
-        self._override(pulses, now_s)
+        self._override(pulses, now_s, fields)
 
     def settled(self, now_s: float) -> bool:
         """Whether :meth:`tick` and :meth:`housekeeping` have nothing to do at ``now_s``: no
@@ -537,9 +543,14 @@ class RoverCore:
 
     def next_due_s(self) -> float:
         """When :meth:`tick` must run next if no message arrives first (monotonic s)."""
-        if self._now_s < self._housekeeping_due_s:  # its timers as housekeeping left them
-            return min(self._next_output_s, self._housekeeping_timers_s,
-                       self.vehicle.next_due_s(), self.autopilot.next_due_s())
+        now_s = self._now_s
+        if now_s < self._housekeeping_due_s:  # its timers as housekeeping left them
+            # The vehicle's timeouts only move later without a message (which unsettles):
+            # until the one housekeeping saw, that one stands for them (a wake at most early).
+            vehicle_s = (self._lane_until_s if now_s < self._lane_until_s
+                         else self.vehicle.next_due_s())
+            return min(self._next_output_s, self._housekeeping_timers_s, vehicle_s,
+                       self.autopilot.next_due_s())
         return min(self._next_output_s, self._next_heartbeat_s, self.vehicle.next_due_s(),
                    self.streams.next_due_s(), self.autopilot.next_due_s(),
                    self.mission.next_due_s(), self.fc_check.next_due_s)
@@ -640,15 +651,18 @@ class RoverCore:
         x, y, r = self.stick
         return manual_output(x, y, r, self.input, self.pwm)
 
-    def _override(self, pulses: tuple[int, ...], now_s: float) -> RcOverride:
+    def _override(self, pulses: tuple[int, ...], now_s: float,
+                  fields: list[int] | None = None) -> RcOverride:
+        """The override setting the wheels to ``pulses`` (its ``fields`` if already made)."""
         self.pulses_us = pulses
         self._new_input = False
         self._autopilot_active = False
         self._next_output_s = now_s + self.output.refresh_period_s - TIMER_SLACK_S
         identity = self.identity
+        if fields is None:
+            fields = override_fields(self.pwm.channels, pulses)
         override = self._last_override = _new_override((identity.fc_sysid, identity.fc_compid,
-                                                        override_fields(self.pwm.channels,
-                                                                        pulses)))
+                                                        fields))
         return override
 
     def _take(self, override: RcOverride | None) -> Outbox:

@@ -34,10 +34,11 @@ from mecanum_mav.protocol.rcoverride import override_fields
 
 __all__ = ["LaneAnswer", "StickLane", "compile_stick_lane"]
 
-LaneAnswer = tuple[bytes, Stick, WheelTuple, tuple[int, ...]]
+LaneAnswer = tuple[bytes, Stick, WheelTuple, tuple[int, ...], list[int]]
 """The RC_CHANNELS_OVERRIDE packet; the stick (normalized x forward, y right, r clockwise, as
 :func:`~mecanum_mav.control.sticks.stick_from_manual_control` gives it); the wheel commands
-(normalized FL, FR, RL, RR); the pulse widths (us, same order)."""
+(normalized FL, FR, RL, RR); the pulse widths (us, same order); the packet's 18
+``chanN_raw`` fields (as :func:`~mecanum_mav.protocol.rcoverride.override_fields`)."""
 
 StickLane = Callable[[bytes, int], LaneAnswer | None]
 """``lane(datagram, seq)``: the answer to one datagram, its packet numbered ``seq``, or None."""
@@ -169,6 +170,6 @@ def compile_stick_lane(config: InputConfig, pwm: PwmMap, identity: IdentityConfi
         body = header(magic, size, 0, 0, seq, *source, override_low,
                       override_high) + payload[:size]
         packet = body + crc_field(crc16(override_extra, crc16(body[1:], 0xFFFF)))
-        return packet, stick, wheels, tuple(pulses)
+        return packet, stick, wheels, tuple(pulses), fields
 
     return lane

@@ -340,12 +340,17 @@ class Link:
     def _read_datagrams(self, max_reads: int) -> list[Any]:
         """pymavlink's recv, less its overhead; it would also make every sender on a udpin
         link a peer (see :meth:`_heard`)."""
+        recvfrom, parse = self._recvfrom, self._parse_datagram
         messages: list[Any] = []
         for _ in range(max_reads):
-            got = self.receive_datagram()
-            if got is None:
+            try:
+                data, address = recvfrom(_READ_CHUNK)
+            except _NOTHING_TO_READ:  # (refused: an earlier send found no one listening)
                 break
-            messages += self._parse_datagram(*got)
+            except OSError as exc:
+                log.debug("%s: read failed: %s", self.name, exc)
+                break
+            messages += parse(data, address)
         return messages
 
     @property
@@ -362,7 +367,7 @@ class Link:
         to :meth:`answered` when it was answered without parsing. Datagram links only."""
         try:
             return self._recvfrom(_READ_CHUNK)  # type: ignore[no-any-return]
-        except _NOTHING_TO_READ:  # (refused: an earlier send found no one listening)
+        except _NOTHING_TO_READ:
             return None
         except OSError as exc:
             log.debug("%s: read failed: %s", self.name, exc)
@@ -384,6 +389,8 @@ class Link:
         conn = self.conn
         if conn.broadcast:
             conn.last_address = address
+        if conn.first_byte:
+            conn.auto_mavlink_version(data)
         if self._udp_server:
             self._heard(address)
         if self._tlog is not None:
@@ -603,7 +610,8 @@ class Link:
             self._send_failed(exc)
         else:
             self.sent += 1
-        self._record_packet(packet)
+        if self._tlog is not None:
+            self._record_packet(packet)
 
     def _pack_override(self, target_system: int, target_component: int,
                        channels: list[int]) -> bytes:
