@@ -148,3 +148,15 @@ def test_shape_stick_equals_deadband_then_expo_then_circle(x, y, r, band, weight
         ref[0], ref[1] = square_to_circle(ref[0], ref[1])
     got = shape_stick(x, y, r, deadband_width=band, expo_weight=weight, circle=circle)
     assert got == pytest.approx(tuple(ref), abs=1e-12)
+
+
+@given(st.lists(st.floats(allow_nan=True, allow_infinity=True), min_size=4, max_size=4),
+       st.lists(st.booleans(), min_size=4, max_size=4))
+def test_the_four_wheel_pwm_is_each_wheels_own(wheels, reversed_):
+    params = Params()
+    for key, rev in zip(("FL", "FR", "RL", "RR"), reversed_, strict=True):
+        params.set(f"MOT_{key}_REV", int(rev))
+        params.set(f"MOT_{key}_TRIM", 1480 + 10 * len(key) * rev)
+    out = PwmMap.from_params(params)
+    assert out.pulses_us(wheels) == tuple(w.pulse_us(c) for w, c in zip(out.wheels, wheels,
+                                                                           strict=True))

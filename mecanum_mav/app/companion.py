@@ -109,6 +109,9 @@ class Companion:
                                   source_component=FC_LINK_COMPID, name="fc",
                                   signing_key=fc_signing_key)
         self._fc_mav = self.fc.mav
+        self._gcs_datagrams = self.gcs if self.gcs.steady else None
+        """The ground station's link when it is a datagram link (its first datagram waiting
+        is answered before the rest are read)."""
         self._lane_links = self.gcs.unchecked and self.fc.unchecked
         """The stick lane may answer (its packets are unsigned; keys are fixed at start)."""
         if tlog is not None:
@@ -165,8 +168,7 @@ class Companion:
         the core's lane, its override packed in one call and sent before anything else is
         done; else parsed and handed to the core); the rest goes to the core in order."""
         now, from_fc = self.clock(), link is self.fc
-        steady = link.steady
-        if not from_fc and steady:  # the first datagram is answered first:
+        if link is self._gcs_datagrams:  # the first datagram is answered first:
             got = link.receive_datagram()
             if got is not None:
                 data, address = got
@@ -183,7 +185,7 @@ class Companion:
             rejected = link.take_rejections()
             if rejected:  # unsigned or badly signed: counted, said at most once a second
                 self.core.refuse_unsigned(rejected, now, from_fc=from_fc)
-        if not steady:
+        if link is not self._gcs_datagrams and not link.steady:
             self._report(link, now)  # it broke, or a tcpin client connected: the core first
         if messages:
             self._answer(messages, now, from_fc=from_fc)

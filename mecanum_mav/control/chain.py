@@ -14,6 +14,8 @@ and the pulse widths in microseconds for the same wheels.
 
 from __future__ import annotations
 
+from functools import partial
+
 from mecanum_mav.config.views import InputConfig
 from mecanum_mav.control.executor import MissionExecutor
 from mecanum_mav.control.guided import GuidedController
@@ -29,6 +31,9 @@ from mecanum_mav.mecanum.shaping import shape_stick
 from mecanum_mav.mecanum.wheels import WheelQuad
 
 __all__ = ["Output", "autonomous_output", "manual_output"]
+
+_wheel_quad = partial(tuple.__new__, WheelQuad)
+"""``WheelQuad(*values)`` without the generated ``__new__``'s Python frame (a 50 Hz path)."""
 
 Output = tuple[tuple[float, float, float, float], tuple[int, int, int, int]]
 """(normalized wheel commands FL, FR, RL, RR; pulse widths in us, same order)."""
@@ -72,7 +77,7 @@ def autonomous_output(guided: GuidedController, executor: MissionExecutor | None
     t0, t1, t2, t3 = kinematics.wheel_speeds(speeds.vx_mps, speeds.vy_mps, 0.0)
     r0, r1, r2, r3 = kinematics.wheel_speeds(0.0, 0.0, speeds.yaw_rate)
     top = wheel_speed_max_mps
-    wheels = WheelQuad(*desaturate_prioritized_scalar(
+    wheels = _wheel_quad(desaturate_prioritized_scalar(
         (t0 / top, t1 / top, t2 / top, t3 / top), (r0 / top, r1 / top, r2 / top, r3 / top),
         priority))
     return wheels, pwm.pulses_us(wheels)

@@ -396,8 +396,8 @@ class RoverCore:
             self.estimator.on_commanded(self.wheels, now_s - self._wheels_s, now_s)
         self.wheels, self._wheels_s = self._output_wheels, now_s
         executor = self.autopilot.executor
-        if (now_s < self._housekeeping_due_s and not self.vehicle.has_events
-                and not executor.has_events and not self.to_gcs.messages
+        if (now_s < self._housekeeping_due_s and not self.vehicle.events
+                and not executor.events and not self.to_gcs.messages
                 and not self.to_fc.messages):
             if not (self._lane_driving and now_s < self._lane_until_s):
                 self._settle()  # (after a stick in its lane the lane's bounds still hold)
@@ -426,7 +426,7 @@ class RoverCore:
             self.mission.send_current()  # MISSION_CURRENT at 1 Hz, as ArduPilot
             self._next_heartbeat_s = now_s + HEARTBEAT_PERIOD_S - TIMER_SLACK_S
         self.mission.tick(now_s)
-        if self.vehicle.has_events:
+        if self.vehicle.events:
             for event in self.vehicle.take_events():
                 if event.refusal is None:
                     self.say(event.severity, event.text)
@@ -445,7 +445,7 @@ class RoverCore:
         """After housekeeping: until when a tick may take its short way, and the lane answer
         (never while the controllers tick)."""
         if self.vehicle.autonomous() or self.autopilot.executor.running:
-            self._unsettle()
+            self._quiet_until_s = self._lane_until_s = -math.inf  # (as _unsettle)
             return
         self._lane_until_s = self.vehicle.next_due_s()
         self._quiet_until_s = min(self._housekeeping_due_s, self._lane_until_s)
@@ -545,12 +545,14 @@ class RoverCore:
         """When :meth:`tick` must run next if no message arrives first (monotonic s)."""
         now_s = self._now_s
         if now_s < self._housekeeping_due_s:  # its timers as housekeeping left them
-            # The vehicle's timeouts only move later without a message (which unsettles):
-            # until the one housekeeping saw, that one stands for them (a wake at most early).
-            vehicle_s = (self._lane_until_s if now_s < self._lane_until_s
-                         else self.vehicle.next_due_s())
-            return min(self._next_output_s, self._housekeeping_timers_s, vehicle_s,
-                       self.autopilot.next_due_s())
+            if now_s < self._lane_until_s and self._lane_driving:
+                # Driving in MANUAL (no control ticks), and the vehicle's timeouts only move
+                # later without a message (which unsettles): until the one housekeeping saw,
+                # that one stands for them (a wake at most early).
+                return min(self._next_output_s, self._housekeeping_timers_s,
+                           self._lane_until_s)
+            return min(self._next_output_s, self._housekeeping_timers_s,
+                       self.vehicle.next_due_s(), self.autopilot.next_due_s())
         return min(self._next_output_s, self._next_heartbeat_s, self.vehicle.next_due_s(),
                    self.streams.next_due_s(), self.autopilot.next_due_s(),
                    self.mission.next_due_s(), self.fc_check.next_due_s)

@@ -119,7 +119,8 @@ class MissionExecutor:
         self.arrival_errors: dict[int, float] = {}
         self._positions: dict[int, Vec] = {}
         self._jumps: dict[int, int] = {}
-        self._events: list[ExecutorEvent] = []
+        self.events: list[ExecutorEvent] = []
+        """The events since :meth:`take_events`, oldest first (empty: none)."""
         self._follower = LegFollower()
         self._step: _Step | None = None
         self._speed: float | None = None
@@ -237,14 +238,9 @@ class MissionExecutor:
         self.running = False
         self._step = None
 
-    @property
-    def has_events(self) -> bool:
-        """Whether :meth:`take_events` has anything."""
-        return bool(self._events)
-
     def take_events(self) -> list[ExecutorEvent]:
         """Events since the last call, oldest first."""
-        events, self._events = self._events, []
+        events, self.events = self.events, []
         return events
 
     # ------------------------------------------------------------------ the loop
@@ -450,4 +446,4 @@ class MissionExecutor:
 
     def _emit(self, kind: str, seq: int, text: str = "",
               severity: Severity = Severity.INFO) -> None:
-        self._events.append(ExecutorEvent(kind, seq, text, severity))
+        self.events.append(ExecutorEvent(kind, seq, text, severity))

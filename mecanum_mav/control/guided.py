@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import partial
 
 from mecanum_mav.config.params import Params
 from mecanum_mav.config.views import GuidedConfig
@@ -38,6 +39,9 @@ from mecanum_mav.protocol.limits import (
     MAX_SETPOINT_YAW_RATE_RADPS,
     MAX_SPEED_MPS,
 )
+
+_chassis_speeds = partial(tuple.__new__, ChassisSpeeds)
+"""``ChassisSpeeds(*values)`` without the generated ``__new__``'s Python frame (each tick)."""
 
 __all__ = ["FRAMES", "GuidedController", "Setpoint", "SetpointError", "decode_setpoint"]
 
@@ -198,7 +202,7 @@ class GuidedController:
         # turn does not bend the path.
         heading = pose.yaw_rad + yaw_rate * c.yaw_lead_s
         vx, vy = ned_to_body(*want, heading)
-        return ChassisSpeeds(vx, vy, yaw_rate)
+        return _chassis_speeds((vx, vy, yaw_rate))
 
     def _translation(self, sp: Setpoint | None, pose: Pose2d, lapsed: bool, speed_max: float,
                      accel_max: float) -> tuple[float, float]:

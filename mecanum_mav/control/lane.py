@@ -81,7 +81,7 @@ def compile_stick_lane(config: InputConfig, pwm: PwmMap, identity: IdentityConfi
         wheels_from_stick(0.0, 0.0, 0.0, algorithm, priority=priority)  # KeyError: unknown
     proportional, rotation_first = (priority == Desaturation.PROPORTIONAL,
                                     priority == Desaturation.ROTATION_PRIORITY)
-    outputs = [(w.trim, w.maximum - w.trim, w.trim - w.minimum, w.reversed) for w in pwm.wheels]
+    spans = pwm.spans
     template = override_fields(pwm.channels, pwm.neutral())
     slots = [channel - 1 for channel in pwm.channels]
     sqrt = math.sqrt
@@ -158,7 +158,7 @@ def compile_stick_lane(config: InputConfig, pwm: PwmMap, identity: IdentityConfi
         # encode_rc_override: MAVLink 2 payload truncation, the native CRC).
         fields = template.copy()
         pulses = []
-        for command, (trim, up, down, mirrored), slot in zip(wheels, outputs, slots,
+        for command, (trim, up, down, mirrored), slot in zip(wheels, spans, slots,
                                                              strict=True):
             c = -command if mirrored else command
             c = -1.0 if c < -1.0 else (1.0 if c > 1.0 else c)

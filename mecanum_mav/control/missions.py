@@ -123,7 +123,7 @@ class MissionControl:
         if now_s >= self.service.next_due_s():
             self.link.tick(now_s)
             self._take_protocol_events(now_s)
-        if self.executor.has_events:
+        if self.executor.events:
             self.take_executor_events(now_s)
 
     def send_current(self) -> None:

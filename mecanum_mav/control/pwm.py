@@ -94,9 +94,14 @@ class PwmMap:
         w = self.wheels
         object.__setattr__(self, "channels", tuple(x.channel for x in w))
         object.__setattr__(self, "_neutral", (w[0].trim, w[1].trim, w[2].trim, w[3].trim))
+        object.__setattr__(self, "spans", tuple((x.trim, x.maximum - x.trim, x.trim - x.minimum,
+                                                 x.reversed) for x in w))
 
     channels: tuple[int, ...] = field(init=False)
     """RC channel numbers (1..18) of FL, FR, RL, RR."""
+    spans: tuple[tuple[int, int, int, bool], ...] = field(init=False, repr=False,
+                                                         compare=False)
+    """Per wheel, FL, FR, RL, RR: trim, maximum - trim, trim - minimum (us), reversed."""
     _neutral: tuple[int, int, int, int] = field(init=False, repr=False, compare=False)
 
     def neutral(self) -> tuple[int, int, int, int]:
@@ -104,10 +109,21 @@ class PwmMap:
         return self._neutral
 
     def pulses_us(self, wheels: Sequence[float] | NDArray[np.float64]) -> tuple[int, int, int, int]:
-        """Pulse widths (us) for one set of four normalized wheel commands FL, FR, RL, RR."""
-        w = self.wheels
-        return (w[0].pulse_us(float(wheels[0])), w[1].pulse_us(float(wheels[1])),
-                w[2].pulse_us(float(wheels[2])), w[3].pulse_us(float(wheels[3])))
+        """Pulse widths (us) for one set of four normalized wheel commands FL, FR, RL, RR:
+        :meth:`WheelOutput.pulse_us` of each, in one call (it runs at the output rate, with
+        cold caches)."""
+        isfinite = math.isfinite
+        pulses = []
+        for command, (trim, up, down, mirrored) in zip(wheels, self.spans, strict=True):
+            c = float(command)
+            if not isfinite(c):
+                pulses.append(trim)
+                continue
+            if mirrored:
+                c = -c
+            c = -1.0 if c < -1.0 else (1.0 if c > 1.0 else c)
+            pulses.append(round(trim + c * (up if c >= 0.0 else down)))
+        return pulses[0], pulses[1], pulses[2], pulses[3]
 
     def pulses_us_array(self, wheels: ArrayLike) -> NDArray[np.int64]:
         """Vectorized :meth:`pulses_us` for ``[..., 4]`` commands; returns ``[..., 4]`` ints."""

@@ -100,7 +100,8 @@ class Vehicle:
         """When the receiver last gave valid input (monotonic s), None before."""
         self.rc_failsafe = self.config.receiver_failsafe
         """The receiver failsafe is active (see the module docstring)."""
-        self._events: list[Event] = []
+        self.events: list[Event] = []
+        """The state changes since :meth:`take_events`, oldest first (empty: none)."""
 
     def reconfigure(self, params: Params) -> None:
         """Take the failsafe parameters from ``params`` (after a parameter changed)."""
@@ -282,7 +283,8 @@ class Vehicle:
 
     def autonomous(self) -> bool:
         """True when the controllers may move the wheels: armed, GUIDED or AUTO, no failsafe."""
-        return self.armed and self.mode in _AUTONOMOUS and not self.failsafe
+        return self.armed and self.mode in _AUTONOMOUS and not (
+            self.fc_lost or self.gcs_failsafe or self.rc_failsafe)  # (not failsafe)
 
     def guided(self) -> bool:
         """True when GUIDED setpoints may move the wheels: armed, GUIDED, no failsafe."""
@@ -297,21 +299,16 @@ class Vehicle:
         """Any link or receiver failsafe is active (the heartbeat then reports CRITICAL)."""
         return self.fc_lost or self.gcs_failsafe or self.rc_failsafe
 
-    @property
-    def has_events(self) -> bool:
-        """Whether :meth:`take_events` has anything."""
-        return bool(self._events)
-
     def take_events(self) -> list[Event]:
         """The state changes since the last call, oldest first (for STATUSTEXT)."""
-        events, self._events = self._events, []
+        events, self.events = self.events, []
         return events
 
     # ----------------------------------------------------------------- helpers
 
     def _say(self, severity: Severity, text: str) -> None:
-        self._events.append(Event(severity, text))
+        self.events.append(Event(severity, text))
 
     def _refuse(self, reason: str, kind: Refusal) -> Decision:
-        self._events.append(Event(Severity.WARNING, reason, kind))
+        self.events.append(Event(Severity.WARNING, reason, kind))
         return Decision(False, reason)

@@ -329,28 +329,23 @@ class Link:
         ``max_reads`` datagrams or chunks: ``read(1)`` takes one datagram); never raises."""
         if self._buffered:
             messages = self._read_stream(max_reads)
-        else:
-            messages = self._read_datagrams(max_reads)
+        else:  # pymavlink's recv, less its overhead (it would also make every sender on a
+            # udpin link a peer, see _heard); inline: this runs after every stick
+            recvfrom, parse = self._recvfrom, self._parse_datagram
+            messages = []
+            for _ in range(max_reads):
+                try:
+                    data, address = recvfrom(_READ_CHUNK)
+                except _NOTHING_TO_READ:  # (refused: an earlier send found no one listening)
+                    break
+                except OSError as exc:
+                    log.debug("%s: read failed: %s", self.name, exc)
+                    break
+                messages += parse(data, address)
         check = self.signature_check  # (its clock advances on sends: a heartbeat a second)
         if check is not None:
             self._catch_up(check)
         self.received += len(messages)
-        return messages
-
-    def _read_datagrams(self, max_reads: int) -> list[Any]:
-        """pymavlink's recv, less its overhead; it would also make every sender on a udpin
-        link a peer (see :meth:`_heard`)."""
-        recvfrom, parse = self._recvfrom, self._parse_datagram
-        messages: list[Any] = []
-        for _ in range(max_reads):
-            try:
-                data, address = recvfrom(_READ_CHUNK)
-            except _NOTHING_TO_READ:  # (refused: an earlier send found no one listening)
-                break
-            except OSError as exc:
-                log.debug("%s: read failed: %s", self.name, exc)
-                break
-            messages += parse(data, address)
         return messages
 
     @property
@@ -572,12 +567,16 @@ class Link:
         else waits, and a later override does not replace it (the last words at shutdown:
         neutral, then release, all of them reach the board)."""
         if not self._buffered:  # a datagram link: never down, nothing waits in it
+            packet = encode_rc_override(self.conn.mav, target_system, target_component,
+                                        channels)
             try:
-                self.conn.write(self._pack_override(target_system, target_component, channels))
+                self.conn.write(packet)
             except Exception as exc:  # a send must never take the control loop down
                 self._send_failed(exc)
             else:
                 self.sent += 1
+            if self._tlog is not None:
+                self._record_packet(packet)
             return
         try:
             self._check_open()

@@ -278,12 +278,13 @@ class MecanumKinematics:
 
     def _forward_plain(self, wheels: object) -> tuple[float, float, float] | None:
         """The least-squares fit for a tuple or list of 4 finite plain numbers; else None."""
-        if (
-            isinstance(wheels, (tuple, list))
-            and len(wheels) == 4
-            and all(isinstance(v, _PY_SCALARS) for v in wheels)
-        ):
-            fl, fr, rl, rr = (float(v) for v in wheels)
+        if isinstance(wheels, (tuple, list)) and len(wheels) == 4:
+            fl, fr, rl, rr = wheels
+            scalars = _PY_SCALARS  # (no generator: each is a frame on the control path)
+            if not (isinstance(fl, scalars) and isinstance(fr, scalars)
+                    and isinstance(rl, scalars) and isinstance(rr, scalars)):
+                return None
+            fl, fr, rl, rr = float(fl), float(fr), float(rl), float(rr)
             # x - x is 0.0 for finite x and NaN for NaN or inf.
             if (fl - fl) + (fr - fr) + (rl - rl) + (rr - rr) == 0.0:
                 (a, b, c, d), (e, f, g, h), (i, j, k, m) = self._pinv_rows

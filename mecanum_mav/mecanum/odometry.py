@@ -23,14 +23,16 @@ _ORIGIN = Pose2d(0.0, 0.0, 0.0)
 
 def _checked_distances(wheel_distances_m: Sequence[float]) -> tuple[float, ...]:
     """Four finite cumulative wheel distances (m) as floats; ValueError otherwise."""
-    if (isinstance(wheel_distances_m, (list, tuple)) and len(wheel_distances_m) == 4
-            and all(type(v) is float for v in wheel_distances_m)):
-        values = tuple(wheel_distances_m)  # the control loop's path: plain floats, no numpy
-    else:
-        values = tuple(float(v) for v in np.asarray(wheel_distances_m,
-                                                    dtype=np.float64).ravel())
-        if len(values) != 4 or np.ndim(wheel_distances_m) != 1:
-            raise ValueError("wheel distances need exactly 4 values (FL, FR, RL, RR), metres")
+    if isinstance(wheel_distances_m, (list, tuple)) and len(wheel_distances_m) == 4:
+        # the control loop's path: plain floats, no numpy, no generator frames
+        a, b, c, d = wheel_distances_m
+        if type(a) is float and type(b) is float and type(c) is float and type(d) is float:
+            if (a - a) + (b - b) + (c - c) + (d - d) == 0.0:  # (x - x is NaN for NaN, inf)
+                return a, b, c, d
+            raise ValueError(f"non-finite wheel distances: {(a, b, c, d)}")
+    values = tuple(float(v) for v in np.asarray(wheel_distances_m, dtype=np.float64).ravel())
+    if len(values) != 4 or np.ndim(wheel_distances_m) != 1:
+        raise ValueError("wheel distances need exactly 4 values (FL, FR, RL, RR), metres")
     if not all(math.isfinite(v) for v in values):
         raise ValueError(f"non-finite wheel distances: {values}")
     return values
@@ -147,7 +149,8 @@ class MecanumOdometry:
         """
         distances = _checked_distances(wheel_distances_m)
         yaw = _checked_yaw(yaw_rad)
-        deltas = [now - before for now, before in zip(distances, self._distances, strict=True)]
+        (a, b, c, d), (e, f, g, h) = distances, self._distances
+        deltas = (a - e, b - f, c - g, d - h)
         dx, dy, dyaw = self._kinematics.to_twist(deltas)
         if yaw is None:
             self._pose = pose_exp(self._pose, Twist2d(dx, dy, dyaw))

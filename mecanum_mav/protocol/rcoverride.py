@@ -91,7 +91,7 @@ def override_fields(channels: Sequence[int], pulses_us: Sequence[int]) -> list[i
         channels: RC channel numbers of FL, FR, RL, RR.
         pulses_us: pulse widths in microseconds, same order.
     """
-    fields = _untouched()
+    fields = _UNTOUCHED.copy()
     for channel, pulse in zip(channels, pulses_us, strict=True):
         fields[channel - 1] = int(pulse)
     return fields
