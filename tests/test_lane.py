@@ -64,11 +64,13 @@ def general_path(datagram_axes: tuple[int, int, int, int], config: InputConfig, 
 @settings(max_examples=400, deadline=None)
 @given(config=configs, pwm=pwm_maps(), x=axes, y=axes, r=axes,
        z=st.one_of(st.integers(0, 1000), st.just(INVALID_AXIS)), seq=st.integers(0, 255),
-       fc=st.tuples(st.integers(1, 255), st.integers(0, 255), st.integers(1, 255)))
-def test_the_lane_answers_a_stick_exactly_as_the_general_path(config, pwm, x, y, r, z, seq, fc):
+       fc=st.tuples(st.integers(1, 255), st.integers(0, 255), st.integers(1, 255)),
+       target=st.sampled_from([0, 1]))  # (0, all: the packet's payload is truncated more)
+def test_the_lane_answers_a_stick_exactly_as_the_general_path(config, pwm, x, y, r, z, seq, fc,
+                                                              target):
     identity = replace(IDENTITY, fc_sysid=fc[0], fc_compid=fc[1], fc_gcs_sysid=fc[2])
     lane = compile_stick_lane(config, pwm, identity, FC_LINK_COMPID)
-    answer = lane(stick_packet(x, y, z, r), seq)
+    answer = lane(stick_packet(x, y, z, r, target=target), seq)
     assert answer is not None
     packet, stick, wheels, pulses, fields = answer
     expected = general_path((x, y, z, r), config, pwm, identity, seq)

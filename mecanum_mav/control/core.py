@@ -392,9 +392,7 @@ class RoverCore:
         A wake that finds no timer due and nothing to report (a stick, a setpoint, a control
         tick) integrates the commanded wheels and stops there."""
         self._now_s = now_s
-        if self._wheels_s is not None:  # odometry of the wheels commanded until now
-            self.estimator.on_commanded(self.wheels, now_s - self._wheels_s, now_s)
-        self.wheels, self._wheels_s = self._output_wheels, now_s
+        self._wheels_held(self._output_wheels, now_s)
         executor = self.autopilot.executor
         if (now_s < self._housekeeping_due_s and not self.vehicle.events
                 and not executor.events and not self.to_gcs.messages
@@ -441,6 +439,12 @@ class RoverCore:
         self._settle()
         return self._take(None)
 
+    def _wheels_held(self, wheels: tuple[float, float, float, float], now_s: float) -> None:
+        """The odometry of the wheels commanded until ``now_s``; ``wheels`` from then on."""
+        if self._wheels_s is not None:
+            self.estimator.on_commanded(self.wheels, now_s - self._wheels_s, now_s)
+        self.wheels, self._wheels_s = wheels, now_s
+
     def _settle(self) -> None:
         """After housekeeping: until when a tick may take its short way, and the lane answer
         (never while the controllers tick)."""
@@ -467,12 +471,12 @@ class RoverCore:
         (:mod:`mecanum_mav.control.lane`: one valid stick for us from the pilot). Else None,
         with nothing changed: parse the datagram and call :meth:`handle` and :meth:`tick`.
 
-        Send the packet first, then call :meth:`stick_sent`: the stick is taken and the
-        output recorded there, after the send. A timer of housekeeping's own (telemetry,
-        heartbeats) does not close the lane; call :meth:`tick` (nothing to send then) and
-        :meth:`housekeeping` (the odometry of the wheels held until now) as after any
-        message; :meth:`settled` says when a loop may skip them. The packet is unsigned: a
-        link that signs must not use the lane."""
+        Send the packet first, then call :meth:`stick_sent`: the stick is taken, the output
+        recorded and the odometry of the wheels held until now taken there, after the send.
+        A timer of housekeeping's own (telemetry, heartbeats) does not close the lane; call
+        :meth:`tick` (nothing to send then) and :meth:`housekeeping` as after any message;
+        :meth:`settled` says when a loop may skip them (after a stick in its lane, unless a
+        timer is due). The packet is unsigned: a link that signs must not use the lane."""
         if now_s >= self._lane_until_s or self.faulted or not self._lane_driving:
             return None
         try:
@@ -486,8 +490,9 @@ class RoverCore:
         return answer[0]
 
     def stick_sent(self) -> None:
-        """After the packet :meth:`stick_lane` returned went out: the stick taken and the
-        output recorded (for the refresh, the odometry and telemetry), at the lane's time."""
+        """After the packet :meth:`stick_lane` returned went out: the stick taken, the output
+        recorded (for the refresh and telemetry) and the odometry of the wheels held until
+        then taken, at the lane's time."""
         answer, now_s = self._lane_answer, self._lane_s
         if answer is None:
             return
@@ -495,8 +500,9 @@ class RoverCore:
         _, stick, wheels, pulses, fields = answer
         self._now_s = now_s
         self._take_stick(stick, now_s)
-        self._output_wheels = wheels  # (housekeeping takes the odometry)
         self._override(pulses, now_s, fields)
+        self._output_wheels = wheels
+        self._wheels_held(wheels, now_s)  # (after the send: the odometry up to now)
 
     def settled(self, now_s: float) -> bool:
         """Whether :meth:`tick` and :meth:`housekeeping` have nothing to do at ``now_s``: no

@@ -63,13 +63,14 @@ def compile_stick_lane(config: InputConfig, pwm: PwmMap, identity: IdentityConfi
     wire = STICK_WIRE
     crc16, header, crc_field = wire.crc16, wire.header.pack, wire.crc.pack
     magic, manual_low, manual_extra = wire.magic, wire.manual_id & 0xFF, wire.manual_crc_extra
-    manual_size, manual_unpack = wire.manual_size, wire.manual_unpack
+    manual_size = wire.manual_size
+    axes_from, axes_size = wire.manual_axes.unpack_from, wire.manual_axes.size
     override_low, override_high = wire.override_id & 0xFFFF, wire.override_id >> 16
     override_extra, override_pack = wire.override_crc_extra, wire.override_pack
     assert wire.manual_id < 256, "MANUAL_CONTROL's id fits one byte"
     sysid, pilot = identity.sysid, identity.gcs_sysid
-    target, source = (identity.fc_sysid, identity.fc_compid), (identity.fc_gcs_sysid,
-                                                              source_component)
+    target_system, target_component = identity.fc_sysid, identity.fc_compid
+    source_system = identity.fc_gcs_sysid
     invalid, z_scale = INVALID_AXIS, config.z_scale
     band, weight, circle = config.deadband, config.expo, config.circle
     if not (0.0 <= band < 1.0 and 0.0 <= weight <= 1.0):
@@ -98,8 +99,10 @@ def compile_stick_lane(config: InputConfig, pwm: PwmMap, identity: IdentityConfi
                 datagram[end] | datagram[end + 1] << 8) != crc16(
                 manual_extra, crc16(datagram[1:end], 0xFFFF)):
             return None
-        x, y, z, r, _buttons, to = manual_unpack(
-            datagram[10:end] + bytes(manual_size - length))[:6]
+        if length >= axes_size:  # the axes and target whole: read them in place
+            x, y, z, r, _buttons, to = axes_from(datagram, 10)
+        else:  # MAVLink 2 dropped trailing zero bytes: put them back
+            x, y, z, r, _buttons, to = axes_from(datagram[10:end] + bytes(axes_size - length))
         # For us, from the pilot, valid axes (as RoverCore._for_us, _from_pilot and
         # stick_from_manual_control; else the general path refuses it, saying why).
         if (to and to != sysid) or (pilot and datagram[5] != pilot):
@@ -165,10 +168,10 @@ def compile_stick_lane(config: InputConfig, pwm: PwmMap, identity: IdentityConfi
             pulse = round(trim + c * (up if c >= 0.0 else down))
             pulses.append(pulse)
             fields[slot] = pulse
-        payload = override_pack(*fields[:8], *target, *fields[8:])
+        payload = override_pack(*fields[:8], target_system, target_component, *fields[8:])
         size = len(payload.rstrip(b"\x00")) or 1
-        body = header(magic, size, 0, 0, seq, *source, override_low,
-                      override_high) + payload[:size]
+        body = header(magic, size, 0, 0, seq, source_system, source_component,
+                      override_low, override_high) + payload[:size]
         packet = body + crc_field(crc16(override_extra, crc16(body[1:], 0xFFFF)))
         return packet, stick, wheels, tuple(pulses), fields
 

@@ -169,8 +169,8 @@ class StickWire(NamedTuple):
     manual_crc_extra: bytes
     manual_size: int
     """The MANUAL_CONTROL payload's full size in this dialect (a packet may truncate it)."""
-    manual_unpack: Callable[[bytes], tuple[Any, ...]]
-    """The full payload -> its fields in wire order: x, y, z, r, buttons, target, ..."""
+    manual_axes: struct.Struct
+    """The payload's first fields in wire order: x, y, z, r, buttons, target."""
     override_id: int
     override_crc_extra: bytes
     override_pack: Callable[..., bytes]
@@ -178,7 +178,7 @@ class StickWire(NamedTuple):
 
 
 STICK_WIRE = StickWire(_crc16, _MAGIC, _HEADER, _CRC, _MANUAL_ID, _MANUAL_CRC_EXTRA,
-                       _MANUAL_SIZE, _MANUAL.unpacker.unpack, _OVERRIDE_ID,
+                       _MANUAL_SIZE, struct.Struct("<hhhhHB"), _OVERRIDE_ID,
                        _OVERRIDE_CRC_EXTRA, _OVERRIDE.unpacker.pack)
 
 
