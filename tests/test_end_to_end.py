@@ -181,6 +181,8 @@ def test_mecanum_mav_sim_drives_forward_and_sigterm_ends_with_neutral_then_relea
     assert distances and min(distances[-1]) > 0.3, distances[-1:]  # every wheel rolled forward
     overrides = [channels(m) for m in messages if m.get_type() == "RC_CHANNELS_OVERRIDE"]
     assert overrides[-4] == override_fields(WHEELS, [2000] * 4)  # driving when it was stopped
+    sticks = [m for m in messages if m.get_type() == "MANUAL_CONTROL"]
+    assert len(sticks) > 50 and sticks[-1].x == 1000  # the pilot's sticks (the lane's too)
     # then exactly: neutral, neutral, release, and nothing at all after them
     assert [channels(m) if m.get_type() == "RC_CHANNELS_OVERRIDE" else m.get_type()
             for m in messages[-3:]] == [NEUTRAL, NEUTRAL, RELEASE]
