@@ -127,3 +127,21 @@ def test_a_ground_station_that_only_sends_sticks_is_a_peer_and_its_stick_is_read
         assert link.received == received + 1
         assert sock.getsockname() in link.conn.clients
         assert link.read(1) == []  # nothing else waits
+
+
+def test_a_ground_station_whose_stick_the_lane_answered_is_a_peer_and_counted():
+    stick = bytes(mavlink.MAVLink_manual_control_message(1, 250, 0, 500, 0, 0).pack(
+        mavlink.MAVLink(None, srcSystem=255, srcComponent=190)))
+    with rover_link() as link, senders(2) as (other, sock):
+        deliver(link, other, heartbeat())  # (the first datagram settles the MAVLink version)
+        sock.sendto(stick, ("127.0.0.1", link.local_port))
+        with selectors.DefaultSelector() as selector:
+            selector.register(link.fileno(), selectors.EVENT_READ)
+            assert selector.select(2.0)
+        received = link.received
+        data, address = link.receive_datagram()
+        assert data == stick and link.received == received  # unparsed, not yet counted
+        link.answered(data, address)  # (as the companion does after the lane's send)
+        assert link.received == received + 1
+        assert sock.getsockname() in link.conn.clients
+        assert link.receive_datagram() is None  # nothing else waits
