@@ -289,6 +289,22 @@ def test_a_signed_ground_station_arms_and_drives_the_signed_rover():
 
 
 @pytest.mark.parametrize("key", [None, b"\x07" * 32], ids=["unsigned", "wrong key"])
+def test_a_strangers_lone_stick_does_not_take_the_lane_while_the_pilot_drives(key):
+    h = signed_rover()
+    h.gcs.arm()
+    drive_for(h, 0.5)  # the pilot drives forward: every pass is a candidate for the lane
+    reverse = bytes(mavlink.MAVLink_manual_control_message(1, -1000, 0, 500, 0, 0).pack(
+        stranger(key)))
+    start = h.now_s
+    for _ in range(10):
+        h.inject(reverse)  # alone on the wire, between the pilot's sticks
+        h.step()
+    pulses = wheel_pulses(h, start)
+    assert pulses and all(p == FORWARD for p in pulses)
+    assert h.core.refusals.counts[Refusal.SIGNATURE] == 10
+
+
+@pytest.mark.parametrize("key", [None, b"\x07" * 32], ids=["unsigned", "wrong key"])
 def test_unsigned_or_wrongly_signed_inputs_change_nothing_and_are_counted(key):
     h = signed_rover()
     params_before = h.core.params["OUT_RATE"]

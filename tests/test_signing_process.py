@@ -122,11 +122,23 @@ def test_a_signed_pymavlink_ground_station_arms_and_drives_and_unsigned_commands
                 peers.gcs.mav.manual_control_send(1, 1000, 0, 500, 0, 0)
                 return FORWARD in peers.overrides[driving_since:]
             assert peers.pump(forward, 5.0), companion.log()
+            # a stranger's unsigned stick, alone on the link while the pilot drives, moves
+            # nothing (two refreshes after the pilot's last stick, nothing else is waiting)
+            def refreshed(count: int) -> Callable[[], bool]:
+                seen = len(peers.overrides)
+                return lambda: len(peers.overrides) >= seen + count
+            assert peers.pump(refreshed(2), 2.0), companion.log()
+            since_stranger = len(peers.overrides)
+            peers.gcs.write(mavlink.MAVLink_manual_control_message(
+                1, -1000, 0, 500, 0, 0).pack(stranger))
+            assert peers.pump(refreshed(2), 2.0), companion.log()
+            assert peers.overrides[since_stranger:] == [FORWARD] * (
+                len(peers.overrides) - since_stranger)
             # everything the rover sent was signed (pymavlink with the key verified it)
             assert peers.received and all(m._signed for m in peers.received)
             companion.terminate()
             assert companion.wait(10.0) == 0
-        assert "signature 1" in companion.log()  # the status line at exit
+        assert "signature 2" in companion.log()  # the status line at exit: both refused
     finally:
         peers.close()
 
