@@ -169,3 +169,27 @@ def test_the_core_lane_is_closed_while_disarmed_and_follows_a_parameter_change()
     expected = general_path((500, 0, 500, 0), core.input, core.pwm, core.identity, 0)
     assert core._lane(stick_packet(500, 0, 500, 0), 0) == expected
 
+
+
+@settings(max_examples=1000, deadline=None)
+@given(st.one_of(
+    st.binary(max_size=64),
+    st.tuples(axes, axes, axes, st.integers(0, 42), st.integers(0, 255)).map(
+        lambda t: _flip(stick_packet(t[0], t[1], 500, t[2]), t[3], t[4]))))
+def test_any_datagram_is_refused_or_answered_as_its_decoded_stick(datagram):
+    from mecanum_mav.protocol.codec import decode_manual_control
+
+    config, pwm = InputConfig.from_params(Params()), PwmMap.from_params(Params())
+    answer = compile_stick_lane(config, pwm, IDENTITY, FC_LINK_COMPID)(datagram, 9)
+    if answer is None:
+        return
+    msg = decode_manual_control(datagram)  # the general path's own decoder agrees...
+    assert msg is not None and msg.target in (0, IDENTITY.sysid)
+    assert answer == general_path((msg.x, msg.y, msg.z, msg.r), config, pwm, IDENTITY, 9)
+
+
+def _flip(packet: bytes, at: int, value: int) -> bytes:
+    """``packet`` with the byte at ``at`` (if there is one) replaced by ``value``."""
+    if at >= len(packet):
+        return packet
+    return packet[:at] + bytes((value,)) + packet[at + 1:]
