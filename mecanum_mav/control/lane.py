@@ -6,10 +6,11 @@ microseconds. :func:`compile_stick_lane` builds, once per configuration, a singl
 that does the whole of :func:`~mecanum_mav.control.sticks.stick_from_manual_control`,
 :func:`~mecanum_mav.control.chain.manual_output` (shaping, Cartesian mixing with its
 desaturation, PWM) and :func:`~mecanum_mav.protocol.codec.encode_rc_override` inline, with the
-configuration's constants bound: no calls but ``struct``, the CRC and ``round``. The polar
-mixing algorithms are called (:func:`~mecanum_mav.mecanum.mixing.wheels_from_stick`), one
-call. Measured with ``tools/bench_latency.py``: it takes the companion's median stick-to-PWM
-delay at 50 Hz from about 1.6x to about 1.15x the floor relay's (docs/benchmarks.md).
+configuration's constants bound: no Python function is entered (only built-ins: ``struct``,
+the CRC, ``round``, ``abs``). The polar mixing algorithms are called
+(:func:`~mecanum_mav.mecanum.mixing.wheels_from_stick`), one call. Measured with
+``tools/bench_latency.py``: with the rest of its session's work it took the companion's median
+stick-to-PWM delay at 50 Hz from 1.5-1.6x to 0.9-1.3x the floor relay's (docs/benchmarks.md).
 
 Everything it computes is bit for bit what those functions compute (tests/test_lane.py holds
 it to them for every configuration, with hypothesis), and it answers only what needs no
