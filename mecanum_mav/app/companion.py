@@ -185,7 +185,7 @@ class Companion:
             rejected = link.take_rejections()
             if rejected:  # unsigned or badly signed: counted, said at most once a second
                 self.core.refuse_unsigned(rejected, now, from_fc=from_fc)
-        if link is not self._gcs_datagrams and not link.steady:
+        if not link.steady:
             self._report(link, now)  # it broke, or a tcpin client connected: the core first
         if messages:
             self._answer(messages, now, from_fc=from_fc)

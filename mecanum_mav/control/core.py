@@ -354,8 +354,6 @@ class RoverCore:
         can have changed the output: the tick only repeats the last override when its refresh
         is due, and after a stick answered by :meth:`stick_lane` it has nothing to do. An
         idle rover's wakes are mostly these (``OUT_RATE``)."""
-        if self._lane_answer is not None:  # (the shell calls it after the send)
-            self.stick_sent()
         self._now_s = now_s
         if (now_s < self._lane_until_s and not self._new_input and not self.to_gcs.messages
                 and not self.to_fc.messages and self._last_override is not None):
@@ -449,7 +447,7 @@ class RoverCore:
         """After housekeeping: until when a tick may take its short way, and the lane answer
         (never while the controllers tick)."""
         if self.vehicle.autonomous() or self.autopilot.executor.running:
-            self._quiet_until_s = self._lane_until_s = -math.inf  # (as _unsettle)
+            self._unsettle()
             return
         self._lane_until_s = self.vehicle.next_due_s()
         self._quiet_until_s = min(self._housekeeping_due_s, self._lane_until_s)

@@ -6,9 +6,10 @@ microseconds. :func:`compile_stick_lane` builds, once per configuration, a singl
 that does the whole of :func:`~mecanum_mav.control.sticks.stick_from_manual_control`,
 :func:`~mecanum_mav.control.chain.manual_output` (shaping, Cartesian mixing with its
 desaturation, PWM) and :func:`~mecanum_mav.protocol.codec.encode_rc_override` inline, with the
-configuration's constants bound: no Python function is entered (only built-ins: ``struct``,
-the CRC, ``round``, ``abs``). The polar mixing algorithms are called
-(:func:`~mecanum_mav.mecanum.mixing.wheels_from_stick`), one call. Measured with
+configuration's constants bound. It enters two Python functions, the library's own: the
+mixing (:func:`~mecanum_mav.mecanum.mixing.mix_pairs` for Cartesian, the closed-form
+desaturation; :func:`~mecanum_mav.mecanum.mixing.wheels_from_stick` for the polar
+algorithms) and :meth:`~mecanum_mav.control.pwm.PwmMap.pulses_us`. Measured with
 ``tools/bench_latency.py``: with the rest of its session's work it took the companion's median
 stick-to-PWM delay at 50 Hz from 1.5-1.6x to 0.9-1.3x the floor relay's (docs/benchmarks.md).
 
@@ -29,7 +30,7 @@ from collections.abc import Callable
 from mecanum_mav.config.views import IdentityConfig, InputConfig
 from mecanum_mav.control.pwm import PwmMap
 from mecanum_mav.control.sticks import INVALID_AXIS, Stick
-from mecanum_mav.mecanum.mixing import Desaturation, WheelTuple, wheels_from_stick
+from mecanum_mav.mecanum.mixing import WheelTuple, mix_pairs, wheels_from_stick
 from mecanum_mav.protocol.codec import STICK_WIRE
 from mecanum_mav.protocol.rcoverride import override_fields
 
@@ -81,9 +82,7 @@ def compile_stick_lane(config: InputConfig, pwm: PwmMap, identity: IdentityConfi
     cartesian = algorithm == "cartesian"
     if not cartesian:
         wheels_from_stick(0.0, 0.0, 0.0, algorithm, priority=priority)  # KeyError: unknown
-    proportional, rotation_first = (priority == Desaturation.PROPORTIONAL,
-                                    priority == Desaturation.ROTATION_PRIORITY)
-    spans = pwm.spans
+    pulses_us = pwm.pulses_us
     template = override_fields(pwm.channels, pwm.neutral())
     slots = [channel - 1 for channel in pwm.channels]
     sqrt = math.sqrt
@@ -139,41 +138,22 @@ def compile_stick_lane(config: InputConfig, pwm: PwmMap, identity: IdentityConfi
             if length_sq > 1.0:
                 norm = sqrt(length_sq)
                 sx, sy = sx / norm, sy / norm
-        # Mixing (as wheels_from_stick; Cartesian inline, with its desaturation).
+        # Mixing (as wheels_from_stick: Cartesian is the pair mix, with its desaturation),
+        # PWM, then the override's fields and packet (as encode_rc_override: MAVLink 2
+        # payload truncation, the native CRC).
         if cartesian:
-            a, b = sx + sy, sx - sy
-            t = max(abs(a), abs(b))
-            ar = abs(sr)
-            if t + ar > 1.0:
-                if proportional:
-                    k = 1.0 / (t + ar)
-                    a, b, sr = a * k, b * k, sr * k
-                elif rotation_first:
-                    k = (1.0 - ar) / t
-                    a, b = a * k, b * k
-                else:  # translation first
-                    if t > 1.0:
-                        a, b, t = a / t, b / t, 1.0
-                    sr = math.copysign(1.0 - t, sr) if ar > 0.0 else 0.0
-            wheels = (a + sr, b - sr, b + sr, a - sr)
+            wheels = mix_pairs(sx + sy, sx - sy, sr, priority)
         else:
             wheels = wheels_from_stick(sx, sy, sr, algorithm, priority=priority)
-        # PWM (as PwmMap.pulses_us), then the override's fields and packet (as
-        # encode_rc_override: MAVLink 2 payload truncation, the native CRC).
+        pulses = pulses_us(wheels)
         fields = template.copy()
-        pulses = []
-        for command, (trim, up, down, mirrored), slot in zip(wheels, spans, slots,
-                                                             strict=True):
-            c = -command if mirrored else command
-            c = -1.0 if c < -1.0 else (1.0 if c > 1.0 else c)
-            pulse = round(trim + c * (up if c >= 0.0 else down))
-            pulses.append(pulse)
+        for slot, pulse in zip(slots, pulses, strict=True):
             fields[slot] = pulse
         payload = override_pack(*fields[:8], target_system, target_component, *fields[8:])
         size = len(payload.rstrip(b"\x00")) or 1
         body = header(magic, size, 0, 0, seq, source_system, source_component,
                       override_low, override_high) + payload[:size]
         packet = body + crc_field(crc16(override_extra, crc16(body[1:], 0xFFFF)))
-        return packet, stick, wheels, tuple(pulses), fields
+        return packet, stick, wheels, pulses, fields
 
     return lane

@@ -330,18 +330,14 @@ class Link:
         if self._buffered:
             messages = self._read_stream(max_reads)
         else:  # pymavlink's recv, less its overhead (it would also make every sender on a
-            # udpin link a peer, see _heard); inline: this runs after every stick
-            recvfrom, parse = self._recvfrom, self._parse_datagram
+            # udpin link a peer, see _heard)
+            receive, parse = self.receive_datagram, self._parse_datagram
             messages = []
             for _ in range(max_reads):
-                try:
-                    data, address = recvfrom(_READ_CHUNK)
-                except _NOTHING_TO_READ:  # (refused: an earlier send found no one listening)
+                got = receive()
+                if got is None:
                     break
-                except OSError as exc:
-                    log.debug("%s: read failed: %s", self.name, exc)
-                    break
-                messages += parse(data, address)
+                messages += parse(*got)
         check = self.signature_check  # (its clock advances on sends: a heartbeat a second)
         if check is not None:
             self._catch_up(check)
@@ -362,7 +358,7 @@ class Link:
         to :meth:`answered` when it was answered without parsing. Datagram links only."""
         try:
             return self._recvfrom(_READ_CHUNK)  # type: ignore[no-any-return]
-        except _NOTHING_TO_READ:
+        except _NOTHING_TO_READ:  # (refused: an earlier send found no one listening)
             return None
         except OSError as exc:
             log.debug("%s: read failed: %s", self.name, exc)
@@ -381,23 +377,23 @@ class Link:
     def answered(self, data: bytes, address: Any) -> None:
         """A datagram from :meth:`receive_datagram` holding one message, answered without
         parsing (the stick lane): counted, its sender heard, recorded, as if read."""
-        conn = self.conn
-        if conn.broadcast:
-            conn.last_address = address
-        if conn.first_byte:
-            conn.auto_mavlink_version(data)
+        self._arrived(data, address)
         if self._udp_server:
             self._heard(address)
-        if self._tlog is not None:
-            self._record_packet(data)
+        self._record_packet(data)
         self.received += 1
 
-    def _parse_datagram(self, data: bytes, address: Any) -> list[Any]:
+    def _arrived(self, data: bytes, address: Any) -> None:
+        """What every datagram read does first, parsed or not: pymavlink's bookkeeping of
+        the sender (a broadcast link's reply address) and of the MAVLink version."""
         conn = self.conn
         if conn.broadcast:
             conn.last_address = address
         if conn.first_byte:
             conn.auto_mavlink_version(data)
+
+    def _parse_datagram(self, data: bytes, address: Any) -> list[Any]:
+        self._arrived(data, address)
         parsed = self.parser.parse(data)
         if parsed:
             if self._udp_server:
@@ -541,11 +537,14 @@ class Link:
         if start < len(batch):
             self._write_datagram(b"".join(batch[start:]))
 
-    def _write_datagram(self, data: bytes) -> None:
+    def _write_datagram(self, data: bytes) -> bool:
+        """Write one datagram; False (and counted) if that failed. Never raises."""
         try:
             self.conn.write(data)
         except Exception as exc:  # a send must never take the control loop down
             self._send_failed(exc)
+            return False
+        return True
 
     def _send_failed(self, exc: Exception) -> None:
         """Count a failed send; warn at most once a second per link (a dead peer would
@@ -567,16 +566,9 @@ class Link:
         else waits, and a later override does not replace it (the last words at shutdown:
         neutral, then release, all of them reach the board)."""
         if not self._buffered:  # a datagram link: never down, nothing waits in it
-            packet = encode_rc_override(self.conn.mav, target_system, target_component,
-                                        channels)
-            try:
-                self.conn.write(packet)
-            except Exception as exc:  # a send must never take the control loop down
-                self._send_failed(exc)
-            else:
+            if self._write_datagram(self._pack_override(target_system, target_component,
+                                                        channels)):
                 self.sent += 1
-            if self._tlog is not None:
-                self._record_packet(packet)
             return
         try:
             self._check_open()
@@ -603,14 +595,9 @@ class Link:
         only."""
         mav = self.conn.mav
         mav.seq = (mav.seq + 1) & 0xFF
-        try:
-            self.conn.write(packet)
-        except Exception as exc:  # a send must never take the control loop down
-            self._send_failed(exc)
-        else:
+        if self._write_datagram(packet):
             self.sent += 1
-        if self._tlog is not None:
-            self._record_packet(packet)
+        self._record_packet(packet)
 
     def _pack_override(self, target_system: int, target_component: int,
                        channels: list[int]) -> bytes:

@@ -52,6 +52,7 @@ __all__ = [
     "expo",
     "holonomic_2010",
     "max_speed_scaled",
+    "mix_pairs",
     "mix_stick",
     "normalize",
     "polar_2011",
@@ -260,11 +261,19 @@ def _clamp1(v: float) -> float:
     return -1.0 if v < -1.0 else (1.0 if v > 1.0 else v)
 
 
-def _mix_scalar(a: float, b: float, r: float, priority: int) -> WheelTuple:
-    """Wheels from pair translations ``a`` (FL/RR), ``b`` (FR/RL) and rotation ``r``, limit 1.
+def mix_pairs(a: float, b: float, r: float, priority: Desaturation | int) -> WheelTuple:
+    """Desaturated wheel commands from the pair translations and the rotation, plain floats.
 
-    Closed forms of :func:`desaturate` and :func:`desaturate_prioritized` for the mecanum
-    pattern, where every wheel's rotation part has magnitude ``|r|``.
+    Args:
+        a: the FL/RR pair's translation, ``x + y`` (normalized, x forward, y right).
+        b: the FR/RL pair's translation, ``x - y``.
+        r: rotation, normalized, clockwise seen from above, in [-1, 1].
+        priority: how translation and rotation share the wheels when they saturate.
+
+    Returns:
+        ``(FL, FR, RL, RR)``, each in [-1, 1] for ``|a|, |b|, |r| <= 1``. Closed forms of
+        :func:`desaturate` and :func:`desaturate_prioritized` for the mecanum pattern, where
+        every wheel's rotation part has magnitude ``|r|``; no checks (finite input expected).
     """
     t = max(abs(a), abs(b))
     ar = abs(r)
@@ -312,7 +321,7 @@ def _cartesian_scalar(x: float, y: float, r: float, heading_deg: float, priority
     if heading_deg:
         c, s = math.cos(math.radians(heading_deg)), math.sin(math.radians(heading_deg))
         xs, ys = xs * c + ys * s, ys * c - xs * s
-    return _mix_scalar(xs + ys, xs - ys, _clamp1(r), priority)
+    return mix_pairs(xs + ys, xs - ys, _clamp1(r), priority)
 
 
 def _polar_2011_scalar(magnitude: float, direction_deg: float, r: float, priority: int
@@ -321,7 +330,7 @@ def _polar_2011_scalar(magnitude: float, direction_deg: float, r: float, priorit
         return _STOP
     m, d = _clamp1(magnitude), math.radians(direction_deg)
     x, y = m * math.cos(d), m * math.sin(d)
-    return _mix_scalar(x + y, x - y, _clamp1(r), priority)
+    return mix_pairs(x + y, x - y, _clamp1(r), priority)
 
 
 def _max_speed_scaled_scalar(magnitude: float, direction_deg: float, r: float, priority: int
@@ -332,7 +341,7 @@ def _max_speed_scaled_scalar(magnitude: float, direction_deg: float, r: float, p
     c, s = math.cos(d), math.sin(d)
     a, b = c + s, c - s  # max(|a|, |b|) >= 1 since a^2 + b^2 = 2
     k = _clamp1(magnitude) / max(abs(a), abs(b))
-    return _mix_scalar(a * k, b * k, _clamp1(r), priority)
+    return mix_pairs(a * k, b * k, _clamp1(r), priority)
 
 
 def _holonomic_2010_scalar(magnitude: float, direction_deg: float, r: float) -> WheelTuple:
@@ -365,7 +374,7 @@ def _mix_vector(
     ok: NDArray[np.bool_],
     priority: Desaturation | int,
 ) -> Wheels:
-    """Vector twin of :func:`_mix_scalar`; rows where ``ok`` is False become zeros."""
+    """Vector twin of :func:`mix_pairs`; rows where ``ok`` is False become zeros."""
     a, b, r, ok = np.broadcast_arrays(a, b, r, ok)
     a = np.where(ok, a, 0.0)
     b = np.where(ok, b, 0.0)
