@@ -158,6 +158,19 @@ def _kind(conn: Any) -> str:
     return _DATAGRAM
 
 
+def _fixed_destination(conn: Any) -> tuple[str, int] | None:
+    """Where every datagram of a ``udpout:`` connection goes (its host resolved once), or
+    None: a ``udpin:`` link answers its peers, a broadcast link its first reply, and a host
+    that does not resolve is left to pymavlink."""
+    if not isinstance(conn, mavutil.mavudp) or conn.udp_server or conn.broadcast:
+        return None
+    host, port = conn.destination_addr
+    try:
+        return socket.gethostbyname(host), int(port)
+    except OSError:
+        return None
+
+
 class Link:
     """One MAVLink connection with non-blocking reads for a selector-driven loop.
 
@@ -209,11 +222,16 @@ class Link:
         self.conn.mav.file = self  # every packet goes out through write(), which sees a break
         self._udp_server = bool(getattr(self.conn, "udp_server", False))
         self._recvfrom: Any = getattr(self.conn.port, "recvfrom", None)  # (datagram links)
+        self._sendto: Any = getattr(self.conn.port, "sendto", None)
+        self._destination = _fixed_destination(self.conn)
         self._peers_s: dict[Any, float] = {}  # udpin peers -> when last heard (monotonic s)
         self.peer_timeout_s = PEER_TIMEOUT_S
         self._next_prune_s = -math.inf
         # outgoing, stream links only (see flush)
         self._buffered = self._kind != _DATAGRAM
+        self.steady = not self._buffered
+        """A datagram link: its descriptor never changes, nothing waits in it, it never goes
+        down; :func:`follow` has nothing to do for it after the first call."""
         self._batch: list[bytes] | None = None  # packets send_all() writes together
         self._head = b""  # the rest of a packet the kernel took part of: goes on first
         self._override: tuple[int, int, list[int]] | None = None  # newest, not yet packed
@@ -262,9 +280,9 @@ class Link:
         self._record_packet(msg.get_msgbuf())
 
     def _record_packet(self, packet: bytes) -> None:
-        if self._tlog is not None:
-            with contextlib.suppress(OSError, ValueError):
-                self._tlog.write(tlog_record(int(time.time() * 1e6), packet))
+        """Record ``packet`` in the tlog (callers check that there is one: hot paths)."""
+        with contextlib.suppress(OSError, ValueError, AttributeError):
+            self._tlog.write(tlog_record(int(time.time() * 1e6), packet))  # type: ignore[union-attr]
 
     @property
     def mav(self) -> Any:
@@ -286,11 +304,6 @@ class Link:
         """File descriptor to wait on (may change for ``tcpin`` after a client connects)."""
         return int(self.conn.fd)
 
-    @property
-    def steady(self) -> bool:
-        """A datagram link: its descriptor never changes, nothing waits in it, it never goes
-        down; :func:`follow` has nothing to do for it after the first call."""
-        return not self._buffered
 
     def wait_fd(self) -> int | None:
         """The descriptor to wait on, or None while there is none: a link that is down
@@ -380,7 +393,8 @@ class Link:
         self._arrived(data, address)
         if self._udp_server:
             self._heard(address)
-        self._record_packet(data)
+        if self._tlog is not None:
+            self._record_packet(data)
         self.received += 1
 
     def _arrived(self, data: bytes, address: Any) -> None:
@@ -480,7 +494,7 @@ class Link:
             if self._batch is not None:  # (send_all: written together at its end)
                 self._batch.append(buf)
             else:
-                self.conn.write(buf)
+                self._put_datagram(buf)
             return
         if self._queued + len(buf) > self._queue_limit:
             raise BlockingIOError(errno.ENOBUFS, f"outgoing queue full ({self._queued} bytes)")
@@ -537,10 +551,20 @@ class Link:
         if start < len(batch):
             self._write_datagram(b"".join(batch[start:]))
 
+    def _put_datagram(self, data: bytes) -> None:
+        """Hand one datagram to the kernel; raises what the socket raises. To a fixed
+        destination (``udpout:``) it goes straight to the socket, so a failed send is seen
+        (pymavlink's ``write`` drops socket errors); else through pymavlink (a ``udpin:``
+        link's peers, a broadcast link's first reply)."""
+        if self._destination is not None:
+            self._sendto(data, self._destination)
+        else:
+            self.conn.write(data)
+
     def _write_datagram(self, data: bytes) -> bool:
         """Write one datagram; False (and counted) if that failed. Never raises."""
         try:
-            self.conn.write(data)
+            self._put_datagram(data)
         except Exception as exc:  # a send must never take the control loop down
             self._send_failed(exc)
             return False
@@ -597,14 +621,16 @@ class Link:
         mav.seq = (mav.seq + 1) & 0xFF
         if self._write_datagram(packet):
             self.sent += 1
-        self._record_packet(packet)
+        if self._tlog is not None:
+            self._record_packet(packet)
 
     def _pack_override(self, target_system: int, target_component: int,
                        channels: list[int]) -> bytes:
         """The packet (and the tlog's record of it): packed now, with the next sequence
         number."""
         packet = encode_rc_override(self.conn.mav, target_system, target_component, channels)
-        self._record_packet(packet)
+        if self._tlog is not None:
+            self._record_packet(packet)
         return packet
 
     # ----------------------------------------------------------------- pacing (stream links)
