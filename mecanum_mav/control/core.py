@@ -407,20 +407,24 @@ class RoverCore:
             if verdict is not None:
                 self.say(Severity.WARNING if self.fc_check.hazards else Severity.NOTICE,
                          verdict)
-        # Telemetry rides the output refresh's wake-ups when it is due within half a period.
-        due = self.streams.due(now_s, self.output.refresh_period_s / 2)
+        # Telemetry and heartbeats ride the output refresh's wake-ups: each goes on the first
+        # wake within half a refresh period of its time, early or late (see _ride), on its grid.
+        ride_s = self.output.refresh_period_s / 2
+        due = self.streams.due(now_s, ride_s)
         if due:
             state = self._telemetry_state(now_s)
             for name in due:
                 build(name, self.to_gcs, state)
-        if now_s >= self._next_heartbeat_s:
+        if now_s + ride_s >= self._next_heartbeat_s:
             self._update_drop_rate()
             vehicle = self.vehicle
             send_rover_heartbeat(self.to_gcs, vehicle.mode, armed=vehicle.armed,
                                  failsafe=vehicle.failsafe)
             send_gcs_heartbeat(self.to_fc)
             self.mission.send_current()  # MISSION_CURRENT at 1 Hz, as ArduPilot
-            self._next_heartbeat_s = now_s + HEARTBEAT_PERIOD_S - TIMER_SLACK_S
+            following = self._next_heartbeat_s + HEARTBEAT_PERIOD_S
+            self._next_heartbeat_s = (following if following > now_s
+                                      else now_s + HEARTBEAT_PERIOD_S - TIMER_SLACK_S)
         self.mission.tick(now_s)
         if self.vehicle.events:
             for event in self.vehicle.take_events():
@@ -428,14 +432,20 @@ class RoverCore:
                     self.say(event.severity, event.text)
                 else:
                     self.refuse(event.refusal, event.text)
-        timers_s = min(self._next_heartbeat_s, self.fc_check.next_due_s,
-                       self.mission.next_due_s())
-        streams_s = self.streams.next_due_s()
-        self._housekeeping_timers_s = min(timers_s, streams_s)
-        # (telemetry may ride a wake up to half a refresh period early)
-        self._housekeeping_due_s = min(timers_s, streams_s - self.output.refresh_period_s / 2)
+        timers_s = min(self.fc_check.next_due_s, self.mission.next_due_s())
+        periodic_s = min(self._next_heartbeat_s, self.streams.next_due_s())
+        self._housekeeping_timers_s = min(timers_s, self._ride(periodic_s, ride_s))
+        self._housekeeping_due_s = min(timers_s, periodic_s - ride_s)
         self._settle()
         return self._take(None)
+
+    def _ride(self, periodic_s: float, ride_s: float) -> float:
+        """When the loop must wake for a periodic send due at ``periodic_s``: not at all when
+        the output refresh's wake comes first or within ``ride_s`` after it (the send rides
+        that wake, at most ``ride_s`` late, as it rides one up to ``ride_s`` early), so an
+        idle rover wakes at the refresh rate only, not also at each stream's."""
+        late_s = periodic_s + ride_s
+        return late_s if self._next_output_s <= late_s else periodic_s
 
     def _wheels_held(self, wheels: tuple[float, float, float, float], now_s: float) -> None:
         """The odometry of the wheels commanded until ``now_s``; ``wheels`` from then on."""
