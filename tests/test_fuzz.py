@@ -5,8 +5,9 @@ The short CI version of ``tools/fuzz.py``: the same generator
 (:class:`mecanum_mav.sim.fuzz.SafetyWatch`). In the lockstep harness (virtual time, exact) the
 datagrams go straight into the core's parsers as raw bytes: 30,000 on the ground-station link
 while disarmed, 10,000 on the flight-controller link while armed in HOLD, ten per 2 ms step
-(5,000 a second of virtual time). Then one short run of the tool itself against the real
-process.
+(5,000 a second of virtual time); then 10,000 shaped like the pilot's stick at the stick lane
+while the pilot drives in MANUAL, one per step. Then one short run of the tool itself against
+the real process.
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 import pytest
+from conftest import lockstep
 
 from mecanum_mav.control.refusals import Refusal
 from mecanum_mav.protocol.dialect import mavlink
@@ -30,6 +32,7 @@ from mecanum_mav.sim.fuzz import MESSAGE_IDS, DatagramFuzzer, SafetyWatch
 SEED = 20240611
 GCS_COUNT = 30_000
 FC_COUNT = 10_000
+LANE_COUNT = 10_000
 PER_STEP = 10
 TOOL = Path(__file__).resolve().parent.parent / "tools" / "fuzz.py"
 
@@ -125,17 +128,67 @@ def test_fuzzed_flight_controller_datagrams_while_armed_in_hold_never_move_a_whe
     assert drives_after(h)
 
 
+def test_hostile_sticks_in_the_lane_while_the_pilot_drives_never_move_a_wheel(
+        errors: Callable[[], list[str]], monkeypatch: pytest.MonkeyPatch) -> None:
+    h = lockstep({"SYSID_MYGCS": 255})  # only the pilot (the harness's ground station) drives
+    h.run_for(0.5)
+    h.gcs.sticks(0, 0, 0)
+    h.gcs.arm()
+    assert h.core.vehicle.mode is Mode.MANUAL and h.core.vehicle.armed
+    answered: list[bytes] = []  # what the lane answered
+    lane = h.core.stick_lane
+
+    def watched(datagram: bytes, now_s: float, seq: int) -> bytes | None:
+        packet = lane(datagram, now_s, seq)
+        if packet is not None:
+            answered.append(datagram)
+        return packet
+
+    monkeypatch.setattr(h.core, "stick_lane", watched)
+    fuzzer = DatagramFuzzer(SEED, rover_sysid=1, gcs_sysid=255)
+    watch = SafetyWatch(h.params, h.now_s)
+    start, messages = h.now_s, len(h.gcs.messages)
+    pilot_mav = mavlink.MAVLink(None, srcSystem=255, srcComponent=190)
+    pilot: set[bytes] = set()
+    for step in range(LANE_COUNT):  # one datagram a step, alone on the wire: the lane sees it
+        if step % 10 == 0:  # the pilot, centred, at 50 Hz
+            stick = pilot_mav.manual_control_encode(1, 0, 0, 500, 0, 0).pack(pilot_mav)
+            pilot.add(stick)
+            h.inject(stick)
+        else:
+            h.inject(fuzzer.lane_datagram())
+        h.step()
+    for seen in h.overrides_since(start):
+        watch.on_override(seen.channels)
+    for msg, t in zip(h.gcs.messages[messages:], h.gcs.arrived_s[messages:], strict=True):
+        watch.on_gcs_message(msg, t)
+    watch.finish(h.now_s)
+    assert watch.problems() == []
+    assert watch.overrides > 900 and watch.heartbeats >= 15
+    assert h.core.vehicle.armed and h.core.vehicle.mode is Mode.MANUAL
+    assert not h.core.vehicle.input_stale
+    assert all(datagram in pilot for datagram in answered)  # the lane answered the pilot only,
+    assert len(answered) > 0.9 * LANE_COUNT / 10  # ... nearly every stick of the pilot's
+    assert errors() == []
+    assert set(fuzzer.counts) == {"stranger_stick", "stick_elsewhere", "stick_out_of_range",
+                                  "stick_corrupted", "stick_truncated", "random_bytes"}
+    assert h.core.refusals.counts[Refusal.STICK] > 0
+    assert drives_after(h)
+
+
 def test_the_fuzz_tool_passes_against_the_real_process_with_a_fixed_seed() -> None:
     done = subprocess.run([sys.executable, str(TOOL), "--seed", str(SEED), "--gcs-count",
-                           "3000", "--fc-count", "1000"], capture_output=True, text=True,
-                          timeout=120)
+                           "3000", "--fc-count", "1000", "--lane-count", "3000"],
+                          capture_output=True, text=True, timeout=120)
     out = done.stdout
     assert done.returncode == 0, out + done.stderr
     assert "FAIL" not in out, out
     for check in ("gcs: the companion process is alive", "fc: the companion process is alive",
+                  "lane: the companion process is alive",
+                  "still armed in MANUAL after the stick lane's fuzz",
                   "afterwards: MANUAL_CONTROL x=500 drives", "SIGTERM: exit status 0"):
         assert f"PASS  {check}" in out, out
-    for phase in ("gcs", "fc"):
+    for phase in ("gcs", "fc", "lane"):
         for check in (r"[1-9][\d,]* overrides, 0 neither neutral nor released",
                       r"[1-9]\d* HEARTBEATs, worst gap [01]\.\d+ s \(< 1\.5 s\)",
                       r"[1-9][\d,]* ODOMETRY/LOCAL_POSITION_NED, 0 not finite",

@@ -16,8 +16,14 @@ Method
     2. gcs: ``--gcs-count`` fuzzed datagrams on the ground-station link, disarmed;
     3. the genuine ground station arms (COMMAND_LONG) in HOLD, its streams reset to default;
     4. fc: ``--fc-count`` fuzzed datagrams on the flight-controller link, armed and holding;
-    5. afterwards: disarm, MANUAL, arm, and drive with MANUAL_CONTROL x=500: the wheels must
-       move; then SIGTERM: exit status 0, the last overrides neutral then released.
+    5. lane: the genuine ground station sets ``SYSID_MYGCS`` to itself (PARAM_SET), disarms,
+       sets MANUAL and arms; then ``--lane-count`` datagrams shaped like its stick that must
+       move nothing (:meth:`~mecanum_mav.sim.fuzz.DatagramFuzzer.lane_datagram`: strangers'
+       sticks, its own for another vehicle, out of range, corrupted or truncated, random
+       bytes), one at a time so that the stick lane decides each, with its own centred stick
+       every tenth: driving in MANUAL, the wheels must stay neutral;
+    6. afterwards: drive with MANUAL_CONTROL x=500: the wheels must move; then SIGTERM: exit
+       status 0, the last overrides neutral then released.
 
     Throughout, every RC_CHANNELS_OVERRIDE the flight controller receives must be neutral
     (each wheel's trim) or the release, the rover's HEARTBEAT must reach the ground station
@@ -36,13 +42,14 @@ Method
 
 The exit status is 0 when every check passed, 1 otherwise.
 
-    .venv/bin/python tools/fuzz.py [--seed N] [--gcs-count N] [--fc-count N]
+    .venv/bin/python tools/fuzz.py [--seed N] [--gcs-count N] [--fc-count N] [--lane-count N]
 """
 
 from __future__ import annotations
 
 import argparse
 import contextlib
+import itertools
 import os
 import selectors
 import signal
@@ -183,7 +190,7 @@ class Peers:
                     self.watch.on_gcs_message(msg, now)
                     if msg.get_type() == "HEARTBEAT" and msg.get_srcSystem() == ROVER[0]:
                         self.heartbeat = msg
-                    elif msg.get_type() in ("COMMAND_ACK", "STATUSTEXT"):
+                    elif msg.get_type() in ("COMMAND_ACK", "STATUSTEXT", "PARAM_VALUE"):
                         self.gcs_messages.append(msg)
             else:
                 for msg in messages:
@@ -226,6 +233,24 @@ class Peers:
                          min(0.5, max(0.0, deadline - time.monotonic()))):
                 return self._ack(command, mark)
         return None
+
+    def set_param(self, name: str, value: float, timeout_s: float = 3.0) -> float | None:
+        """PARAM_SET from the genuine ground station, retried; the value its PARAM_VALUE
+        reports, or None."""
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            mark = len(self.gcs_messages)
+            self.gcs.mav.param_set_send(*ROVER, name.encode(), value,
+                                        mavlink.MAV_PARAM_TYPE_REAL32)
+            if self.wait(lambda since=mark: self._param_value(name, since) is not None,
+                         min(0.5, max(0.0, deadline - time.monotonic()))):
+                return self._param_value(name, mark)
+        return None
+
+    def _param_value(self, name: str, since: int) -> float | None:
+        """The value of the first PARAM_VALUE for ``name`` from index ``since`` on."""
+        return next((float(m.param_value) for m in self.gcs_messages[since:]
+                     if m.get_type() == "PARAM_VALUE" and m.param_id == name), None)
 
     def _acked(self, command: int, since: int) -> bool:
         return self._ack(command, since) is not None
@@ -274,21 +299,22 @@ class Phase:
 
 def send_paced(peers: Peers, companion: FuzzedCompanion, phase: Phase,
                sock: socket.socket, dest: tuple[str, int], port: int, count: int,
-               make: Callable[[], bytes]) -> None:
+               make: Callable[[], bytes], batch: int = BATCH) -> None:
     """Send ``count`` datagrams from ``make`` to ``dest`` (the companion's socket bound to
-    ``port``), pacing on its receive queue; fills in the phase's figures."""
+    ``port``) ``batch`` at a time, pacing on its receive queue; fills in the phase's figures.
+    With ``batch`` 1 each waits until the companion has read the one before."""
     limit = receive_buffer_bytes() // 2
     _, dropped_before = udp_socket_state(port)
     cpu_before = companion.cpu_s()
     start = time.monotonic()
     sent, next_report = 0, start + 10.0
     while sent < count and companion.alive():
-        for _ in range(min(BATCH, count - sent)):
+        for _ in range(min(batch, count - sent)):
             with contextlib.suppress(BlockingIOError):
                 sock.sendto(make(), dest)
             sent += 1
         peers.pump(0.0)
-        while udp_socket_state(port)[0] > limit and companion.alive():
+        while udp_socket_state(port)[0] > (limit if batch > 1 else 0) and companion.alive():
             phase.paused += 1
             peers.pump(0.0005)
         if time.monotonic() >= next_report:
@@ -305,7 +331,8 @@ def send_paced(peers: Peers, companion: FuzzedCompanion, phase: Phase,
 Checks = list[tuple[bool, str]]
 
 
-def run(seed: int, gcs_count: int, fc_count: int, workdir: Path) -> tuple[list[Phase], Checks]:
+def run(seed: int, gcs_count: int, fc_count: int, lane_count: int, workdir: Path
+        ) -> tuple[list[Phase], Checks]:
     """All phases; (the phases, the checks as (passed, text))."""
     params = Params()
     pwm = PwmMap.from_params(params)
@@ -368,28 +395,36 @@ def run(seed: int, gcs_count: int, fc_count: int, workdir: Path) -> tuple[list[P
         assert dest is not None
         send_paced(peers, companion, phase, peers.fc.conn.port, dest, dest[1], fc_count,
                    fuzzer.fc_datagram)
-        peers.wait(peers.seen_heartbeat, 1.5)
-        phase.status = companion.status(peers.wait)
-        phase.counts = dict(fuzzer.counts)
-        beat = peers.heartbeat
-        still = (beat is not None and bool(beat.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED)
-                 and beat.custom_mode == Mode.HOLD)
-        phase.watch = peers.new_watch()
-        phases.append(phase)
-        phase_checks(check, phase, companion)
-        check(still, "still armed in HOLD after the flight-controller fuzz")
-        if not companion.alive():
+        if not end_armed_phase(peers, companion, phase, fuzzer, Mode.HOLD,
+                               "the flight-controller fuzz", phases, check):
             return phases, checks
 
-        # 5. a normal arm and drive
+        # 5. lane: the pilot drives in MANUAL, centred, among its stick's look-alikes
+        pilot = peers.set_param("SYSID_MYGCS", GCS_ID[0])
         disarmed = peers.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 0)
         manual = peers.command(mavlink.MAV_CMD_DO_SET_MODE,
                                mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, Mode.MANUAL)
         peers.manual(0)
         armed = peers.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 1)
-        check((disarmed, manual, armed) == (accepted,) * 3,
-              f"afterwards: disarm, MANUAL, arm accepted (ACK results {disarmed}, {manual}, "
-              f"{armed})")
+        if not check(pilot == GCS_ID[0] and (disarmed, manual, armed) == (accepted,) * 3,
+                     f"lane: SYSID_MYGCS set to {pilot}; disarm, MANUAL, arm accepted (ACK "
+                     f"results {disarmed}, {manual}, {armed})"):
+            return phases, checks
+        peers.new_watch()
+        phase = Phase("lane")
+        fuzzer.counts.clear()
+        turn = itertools.count()
+
+        def lane_datagram() -> bytes:  # the pilot's own centred stick every tenth
+            return centred if next(turn) % 10 == 0 else fuzzer.lane_datagram()
+
+        send_paced(peers, companion, phase, gcs_sock, gcs_dest, gcs_port, lane_count,
+                   lane_datagram, batch=1)
+        if not end_armed_phase(peers, companion, phase, fuzzer, Mode.MANUAL,
+                               "the stick lane's fuzz", phases, check):
+            return phases, checks
+
+        # 6. a normal drive
         fl = pwm.channels[0] - 1
         trim = pwm.neutral()[0]
 
@@ -425,6 +460,24 @@ def run(seed: int, gcs_count: int, fc_count: int, workdir: Path) -> tuple[list[P
             print("companion log (tail):\n" + companion.log())
         companion.kill()
         peers.close()
+
+
+def end_armed_phase(peers: Peers, companion: FuzzedCompanion, phase: Phase,
+                    fuzzer: DatagramFuzzer, mode: Mode, what: str, phases: list[Phase],
+                    check: Callable[[bool, str], bool]) -> bool:
+    """After an armed phase's datagrams: a heartbeat at least, the companion's status, the
+    watch's checks and that it is still armed in ``mode``; whether the process lives."""
+    peers.wait(peers.seen_heartbeat, 1.5)
+    phase.status = companion.status(peers.wait)
+    phase.counts = dict(fuzzer.counts)
+    beat = peers.heartbeat
+    still = (beat is not None and bool(beat.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED)
+             and beat.custom_mode == mode)
+    phase.watch = peers.new_watch()
+    phases.append(phase)
+    phase_checks(check, phase, companion)
+    check(still, f"still armed in {mode.name} after {what}")
+    return companion.alive()
 
 
 def phase_checks(check: Callable[[bool, str], bool], phase: Phase,
@@ -472,12 +525,17 @@ def main(argv: list[str] | None = None) -> int:
                         help="fuzzed datagrams on the ground-station link (default 1,000,000)")
     parser.add_argument("--fc-count", type=int, default=200_000,
                         help="fuzzed datagrams on the flight-controller link (default 200,000)")
+    parser.add_argument("--lane-count", type=int, default=50_000,
+                        help="datagrams at the stick lane while the pilot drives, one in ten "
+                             "the pilot's own (default 50,000)")
     args = parser.parse_args(argv)
     print(f"tools/fuzz.py: seed {args.seed}, {args.gcs_count:,} datagrams on the ground-station "
-          f"link (disarmed), {args.fc_count:,} on the flight-controller link (armed, HOLD); "
-          f"{os.cpu_count()} CPUs, Python {sys.version.split()[0]}", flush=True)
+          f"link (disarmed), {args.fc_count:,} on the flight-controller link (armed, HOLD), "
+          f"{args.lane_count:,} at the stick lane (armed, MANUAL); {os.cpu_count()} CPUs, "
+          f"Python {sys.version.split()[0]}", flush=True)
     with tempfile.TemporaryDirectory(prefix="mecanum-fuzz-") as tmp:
-        phases, checks = run(args.seed, args.gcs_count, args.fc_count, Path(tmp))
+        phases, checks = run(args.seed, args.gcs_count, args.fc_count, args.lane_count,
+                             Path(tmp))
     report(phases, checks)
     return 0 if checks and all(ok for ok, _ in checks) else 1
 

@@ -24,6 +24,16 @@ datagrams for the same seed. Ground-station link:
 - ``signed_garbage``: MAVLink 2 frames flagged as signed with 13 random signature bytes;
 - ``several``: two to six frames (sometimes with garbage between them) in one datagram.
 
+The stick lane while the pilot drives (:meth:`DatagramFuzzer.lane_datagram`): datagrams shaped
+like the pilot's MANUAL_CONTROL that must move nothing, whatever their axes:
+
+- ``stranger_stick``: MANUAL_CONTROL with any axes, from a system that is not the pilot;
+- ``stick_elsewhere``: the pilot's, for another vehicle (neither the rover nor broadcast);
+- ``stick_out_of_range``: the pilot's, with x, y or r outside +-1000 (0x7FFF says "unused");
+- ``stick_corrupted``: the pilot's valid stick with a payload or CRC byte changed;
+- ``stick_truncated``: the pilot's valid stick cut short;
+- ``random_bytes``.
+
 Flight-controller link (sent as the flight controller, system ``FC_SYSID``):
 
 - ``fc_sensors``: WHEEL_DISTANCE and ATTITUDE with hostile values in every float and double,
@@ -56,8 +66,8 @@ from mecanum_mav.control.pwm import PwmMap
 from mecanum_mav.protocol.dialect import mavlink
 from mecanum_mav.protocol.rcoverride import override_fields, release_fields
 
-__all__ = ["FC_CATEGORIES", "GCS_CATEGORIES", "HOSTILE_FLOATS", "MAX_HEARTBEAT_GAP_S",
-           "MESSAGE_IDS", "DatagramFuzzer", "SafetyWatch"]
+__all__ = ["FC_CATEGORIES", "GCS_CATEGORIES", "HOSTILE_FLOATS", "LANE_CATEGORIES",
+           "MAX_HEARTBEAT_GAP_S", "MESSAGE_IDS", "DatagramFuzzer", "SafetyWatch"]
 
 MAX_HEARTBEAT_GAP_S = 1.5
 """The longest the ground station may go without the rover's HEARTBEAT (s)."""
@@ -178,6 +188,7 @@ class DatagramFuzzer:
         """Datagrams made per category."""
         self._gcs = self._weighted(GCS_CATEGORIES)
         self._fc = self._weighted(FC_CATEGORIES)
+        self._lane = self._weighted(LANE_CATEGORIES)
 
     def _weighted(self, table: Sequence[tuple[str, int]]) -> list[Callable[[], bytes]]:
         return [getattr(self, name) for name, weight in table for _ in range(weight)]
@@ -191,6 +202,11 @@ class DatagramFuzzer:
     def fc_datagram(self) -> bytes:
         """One datagram for the flight-controller link, of a category drawn by weight."""
         return self._draw(self._fc)
+
+    def lane_datagram(self) -> bytes:
+        """One datagram for the stick lane while the pilot (``gcs_sysid``) drives: shaped
+        like the pilot's stick, never one that may move a wheel."""
+        return self._draw(self._lane)
 
     def _draw(self, table: list[Callable[[], bytes]]) -> bytes:
         make = table[self.rng.randrange(len(table))]
@@ -371,6 +387,57 @@ class DatagramFuzzer:
                 parts.append(rng.randbytes(rng.randint(1, 20)))
         return b"".join(parts)
 
+    # ------------------------------------------------------------------ the stick lane
+
+    def _pilot(self) -> tuple[int, int]:
+        return self.gcs_sysid, mavlink.MAV_COMP_ID_MISSIONPLANNER
+
+    def _valid_axes(self) -> dict[str, Any]:
+        rng = self.rng
+        return {axis: rng.choice((-1000, -500, 0, 500, 1000, rng.randint(-1000, 1000)))
+                for axis in ("x", "y", "z", "r")}
+
+    def stranger_stick(self) -> bytes:
+        """MANUAL_CONTROL with any axes (valid ones too) from a system not the pilot."""
+        rng = self.rng
+        sysid = rng.choice([i for i in range(256) if i not in (self.gcs_sysid,
+                                                                 self.rover_sysid)])
+        axes = self._valid_axes() if rng.random() < 0.5 else {}
+        return self._build("MANUAL_CONTROL", (sysid, rng.randrange(256)), **axes)
+
+    def stick_elsewhere(self) -> bytes:
+        """The pilot's valid stick for another vehicle (not the rover, not broadcast)."""
+        target = self.rng.choice([i for i in range(1, 256) if i != self.rover_sysid])
+        return self._build("MANUAL_CONTROL", self._pilot(), target=target, **self._valid_axes())
+
+    def stick_out_of_range(self) -> bytes:
+        """The pilot's stick with x, y or r outside +-1000 (not 0x7FFF: "axis unused"), the
+        other axes valid."""
+        rng = self.rng
+        axes = self._valid_axes()
+        axes[rng.choice(("x", "y", "r"))] = rng.choice(
+            (-32768, 32766, -32767, -1001, 1001, rng.randint(1001, 32766),
+             rng.randint(-32768, -1001)))
+        return self._build("MANUAL_CONTROL", self._pilot(), target=self.rover_sysid, **axes)
+
+    def _pilot_stick(self) -> bytes:
+        return self._build("MANUAL_CONTROL", self._pilot(), target=self.rover_sysid,
+                           **self._valid_axes())
+
+    def stick_corrupted(self) -> bytes:
+        """The pilot's valid stick with one payload or CRC byte changed (a CRC-16 finds
+        every such change; the header's length and message id are left alone)."""
+        rng = self.rng
+        frame = bytearray(self._pilot_stick())
+        at = rng.randrange(_HEADER_V2.size, len(frame))
+        frame[at] ^= rng.randint(1, 255)
+        return bytes(frame)
+
+    def stick_truncated(self) -> bytes:
+        """The pilot's valid stick cut short."""
+        frame = self._pilot_stick()
+        return frame[:self.rng.randint(1, len(frame) - 1)]
+
     # ------------------------------------------------------------------ flight-controller link
 
     def fc_sensors(self) -> bytes:
@@ -405,6 +472,10 @@ GCS_CATEGORIES: tuple[tuple[str, int], ...] = (
 FC_CATEGORIES: tuple[tuple[str, int], ...] = (
     ("fc_sensors", 5), ("fc_foreign_heartbeat", 1), ("fc_random_frame", 2), ("random_bytes", 2))
 """Flight-controller link: (category, weight)."""
+LANE_CATEGORIES: tuple[tuple[str, int], ...] = (
+    ("stranger_stick", 2), ("stick_elsewhere", 1), ("stick_out_of_range", 2),
+    ("stick_corrupted", 2), ("stick_truncated", 1), ("random_bytes", 1))
+"""The stick lane while the pilot drives: (category, weight)."""
 
 
 # --------------------------------------------------------------------------- the checks
