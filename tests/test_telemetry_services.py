@@ -14,6 +14,8 @@ from typing import Any
 import pytest
 from conftest import lockstep
 
+from mecanum_mav.config.params import Params
+from mecanum_mav.control.core import RoverCore
 from mecanum_mav.io.links import mavlink
 from mecanum_mav.sim.lockstep import Lockstep
 
@@ -276,3 +278,24 @@ def test_a_message_interval_too_long_for_int32_microseconds_is_denied_and_get_st
     since = h.gcs.mark()
     assert h.gcs.command(CMD.MAV_CMD_GET_MESSAGE_INTERVAL, odometry).result == ACCEPTED
     assert [m.interval_us for m in h.gcs.received("MESSAGE_INTERVAL", since)] == [2_000_000_000]
+
+
+def test_an_idle_rover_wakes_only_for_the_refresh_and_its_streams_keep_their_rates() -> None:
+    # The companion's loop in virtual time: wake at next_due_s, a little late as a real wake
+    # is (epoll counts whole milliseconds), then tick and housekeeping.
+    core = RoverCore(Params(), now_s=0.0)
+    late_s, now, wakes = 0.0007, 0.0, 0
+    sent: dict[str, list[float]] = {}
+    while now < 10.0:
+        now = max(now, core.next_due_s()) + late_s
+        wakes += 1
+        for out in (core.tick(now), core.housekeeping(now)):
+            if out.override is not None:
+                sent.setdefault("override", []).append(now)
+            for msg in out.gcs:
+                sent.setdefault(msg.get_type(), []).append(now)
+    assert wakes == len(sent["override"]) == 199  # each wake the refresh's (20 Hz, late)
+    assert [len(sent[k]) for k in ("ODOMETRY", "SYS_STATUS", "HEARTBEAT")] == [101, 21, 11]
+    ride_s = 0.5 / float(core.params["OUT_RATE"]) + late_s  # each within half a refresh
+    assert all(abs(t - k * 0.1) <= ride_s for k, t in enumerate(sent["ODOMETRY"]))
+    assert all(abs(t - k * 1.0) <= ride_s for k, t in enumerate(sent["HEARTBEAT"]))
