@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import math
 import socket
+import threading
 import time
 from collections.abc import Callable
 from itertools import pairwise
@@ -31,7 +32,7 @@ from conftest import lockstep
 from mecanum_mav.app.companion import Companion
 from mecanum_mav.config.params import Params
 from mecanum_mav.control.refusals import REFUSAL_REPEAT_S, Refusal
-from mecanum_mav.io.links import mavlink
+from mecanum_mav.io.links import mavlink, open_link
 from mecanum_mav.protocol.modes import Mode
 from mecanum_mav.protocol.rcoverride import override_fields, release_fields
 from mecanum_mav.protocol.statustext import Severity
@@ -870,3 +871,37 @@ def test_sticks_keep_their_lane_while_telemetry_and_heartbeats_fall_due(monkeypa
     assert h.gcs.received("HEARTBEAT", since)
     # Not one stick that came alone waited for the telemetry's turn.
     assert [t for t in long_way if t not in others] == []
+
+
+def test_close_waits_for_a_loop_run_in_the_callers_own_thread_which_ends_released():
+    """``run()`` in a thread of the caller's (not :meth:`Companion.start`), ``close()`` from
+    another: close waits for the loop's end, so its last overrides go out on an open link
+    and the loop never reads a closed wake pipe."""
+    fc = open_link("udpin:127.0.0.1:0", source_system=1, source_component=1, name="test-fc")
+    companion = Companion(Params(), "udpin:127.0.0.1:0", f"udpout:127.0.0.1:{fc.local_port}")
+    crashed: list[BaseException | None] = []
+    loop = threading.Thread(target=companion.run)
+    previous, threading.excepthook = threading.excepthook, lambda a: crashed.append(a.exc_value)
+    overrides: list[list[int]] = []
+
+    def read_overrides(seconds: float) -> None:
+        deadline = time.monotonic() + seconds
+        while time.monotonic() < deadline:
+            overrides.extend([getattr(m, f"chan{i}_raw") for i in range(1, 19)]
+                             for m in fc.read() if m.get_type() == "RC_CHANNELS_OVERRIDE")
+            time.sleep(0.005)
+
+    try:
+        loop.start()
+        read_overrides(0.2)  # the loop runs: the refresh comes
+        assert overrides
+        companion.close()
+        assert not loop.is_alive()  # close() waited for the loop
+        read_overrides(0.2)
+        assert overrides[-1] == release_fields(companion.core.pwm.channels)
+        assert crashed == []
+    finally:
+        threading.excepthook = previous
+        companion.close()
+        loop.join(5.0)
+        fc.close()

@@ -121,10 +121,15 @@ class Companion:
         self._stopping = False  # (a plain flag: the loop reads it every pass)
         self._wake_r, self._wake_w = os.pipe()
         self._thread: threading.Thread | None = None
+        self._loop_ident: int | None = None  # the thread running run(), while it runs
+        self._ended = threading.Event()  # run() has sent its last overrides
+        self._ended.set()
 
     def run(self) -> None:
         """Run until :meth:`stop`; always ends with neutral wheels and released channels."""
         core = self.core
+        self._ended.clear()
+        self._loop_ident = threading.get_ident()
         selector = Poller()
         selector.register(self._wake_r, selectors.EVENT_READ, None)
         gcs, fc = self.gcs, self.fc
@@ -161,6 +166,8 @@ class Companion:
             self.fc.mav.srcSystem = core.identity.fc_gcs_sysid
             for override in core.shutdown():  # all of them, in order (close() lingers)
                 self.fc.send_rc_override(*override, replace=False)
+            self._loop_ident = None
+            self._ended.set()
 
     def _drain(self, link: Link) -> None:
         """Read what waits on ``link`` and answer it: on a datagram link from the ground
@@ -236,10 +243,14 @@ class Companion:
         self._thread.start()
 
     def stop(self, timeout_s: float = 5.0) -> None:
-        """Ask the loop to end (neutral, then release) and wait for it; idempotent."""
+        """Ask the loop to end (neutral, then release) and wait for it, in whichever thread
+        it runs (:meth:`start`'s or the caller's own), unless called from that thread (a
+        signal handler): then it ends when the handler returns. Idempotent."""
         self._stopping = True
         with contextlib.suppress(OSError):
             os.write(self._wake_w, b"x")
+        if self._loop_ident is not None and self._loop_ident != threading.get_ident():
+            self._ended.wait(timeout_s)
         if self._thread is not None:
             self._thread.join(timeout_s)
             self._thread = None
