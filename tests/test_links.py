@@ -185,3 +185,22 @@ def test_send_all_on_a_datagram_link_packs_whole_packets_into_few_datagrams():
     finally:
         link.close()
         sink.close()
+
+
+def test_a_failing_send_to_one_udpin_peer_is_counted_and_the_others_still_get_it():
+    link = open_link("udpin:127.0.0.1:0", source_system=1, source_component=1, name="gcs")
+    peer = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    peer.bind(("127.0.0.1", 0))
+    peer.settimeout(2.0)
+    try:
+        beat = link.mav.heartbeat_encode(10, 8, 0, 0, 4)
+        stick = link.mav.manual_control_encode(1, 0, 0, 500, 0, 0).pack(link.mav)
+        link.answered(stick, peer.getsockname())  # a ground station, heard
+        link.answered(stick, ("255.255.255.255", 9))  # a peer the kernel refuses (EACCES)
+        assert link.send(beat) is False  # one peer failed: counted
+        assert link.send_errors == 1
+        data, _ = peer.recvfrom(1024)  # the other peer got it all the same
+        assert data == bytes(beat.get_msgbuf())
+    finally:
+        peer.close()
+        link.close()

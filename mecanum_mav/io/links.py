@@ -552,12 +552,22 @@ class Link:
             self._write_datagram(b"".join(batch[start:]))
 
     def _put_datagram(self, data: bytes) -> None:
-        """Hand one datagram to the kernel; raises what the socket raises. To a fixed
-        destination (``udpout:``) it goes straight to the socket, so a failed send is seen
-        (pymavlink's ``write`` drops socket errors); else through pymavlink (a ``udpin:``
-        link's peers, a broadcast link's first reply)."""
+        """Hand one datagram to the kernel; raises what the socket raises (after trying
+        every peer), so a failed send is seen: pymavlink's ``write`` drops socket errors. To
+        a fixed destination (``udpout:``) or to each peer of a ``udpin:`` link (see
+        :meth:`_heard`) it goes straight to the socket; a broadcast link's goes through
+        pymavlink (which turns to the first address that answers)."""
         if self._destination is not None:
             self._sendto(data, self._destination)
+        elif self._udp_server:
+            failed = None
+            for address in self.conn.clients:
+                try:
+                    self._sendto(data, address)
+                except OSError as exc:
+                    failed = exc
+            if failed is not None:
+                raise failed
         else:
             self.conn.write(data)
 
