@@ -175,14 +175,16 @@ def desaturate_prioritized(
 
     Returns:
         ``[..., 4]`` wheel commands with ``max|w| <= limit``. Rows with a non-finite value give
-        zeros. Works for any wheel pattern (an off-centre centre of rotation included).
+        zeros (in PROPORTIONAL, also a sum that overflows, as the scalar version). Works for
+        any wheel pattern (an off-centre centre of rotation included).
     """
     limit = _check_limit(limit)
     t = np.asarray(translation, dtype=np.float64)
     r = np.asarray(rotation, dtype=np.float64)
     priority = Desaturation(priority)
     if priority is Desaturation.PROPORTIONAL:
-        return desaturate(t + r, limit)
+        with np.errstate(over="ignore"):  # a sum that overflows is not finite: zeros
+            return desaturate(t + r, limit)
     kept, other = (r, t) if priority is Desaturation.ROTATION_PRIORITY else (t, r)
     kept, other = np.broadcast_arrays(kept, other)
     finite = np.isfinite(kept).all(axis=-1, keepdims=True) & np.isfinite(other).all(
