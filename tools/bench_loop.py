@@ -29,13 +29,13 @@ from __future__ import annotations
 
 import argparse
 import multiprocessing as mp
-import select
 import sys
 import time
 from multiprocessing.connection import Connection
 from typing import Any
 
 import numpy as np
+from bench_latency import bare_wake_cpu_us
 
 from mecanum_mav.config.params import Params
 from mecanum_mav.io.links import mavlink
@@ -102,30 +102,6 @@ def companion_main(gcs_url: str, fc_url: str, ctl: Connection) -> None:
             companion.close()
             ctl.send("stopped")
             return
-
-
-def _bare_wakes(rate_hz: float, seconds: float, out: Connection) -> None:
-    """Child: an empty epoll loop waking at ``rate_hz``; sends its CPU per wake (us)."""
-    epoll = select.epoll()
-    period, due = 1.0 / rate_hz, time.monotonic()
-    count, cpu0, end = 0, time.process_time(), time.monotonic() + seconds
-    while time.monotonic() < end:
-        epoll.poll(max(0.0, due - time.monotonic()))
-        due += period
-        count += 1
-    out.send(1e6 * (time.process_time() - cpu0) / max(1, count))
-
-
-def bare_wake_cpu_us(rate_hz: float, seconds: float) -> float:
-    """What one wake of an otherwise empty Python epoll loop at ``rate_hz`` costs in CPU
-    (us, process time, own process): the part of a tick's cost that is the machine's."""
-    parent, child = mp.get_context("spawn").Pipe()
-    proc = mp.get_context("spawn").Process(target=_bare_wakes, args=(rate_hz, seconds, child))
-    proc.start()
-    try:
-        return float(parent.recv()) if parent.poll(seconds + 30.0) else float("nan")
-    finally:
-        proc.join(5.0)
 
 
 def idle(gcs: ScriptedGroundStation, seconds: float) -> None:
