@@ -62,7 +62,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import partial
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 from mecanum_mav.config.params import Params
 from mecanum_mav.control.pwm import PwmMap
@@ -83,6 +83,7 @@ BATCH = 32
 """Datagrams sent between two looks at the companion's receive queue."""
 ROVER = (1, 1)
 STATUS_PREFIX = "mecanum-mav: received "
+T = TypeVar("T")
 
 
 # ---------------------------------------------------------------------------- the process
@@ -224,41 +225,39 @@ class Peers:
 
     def command(self, command: int, *params: float, timeout_s: float = 3.0) -> int | None:
         """COMMAND_LONG from the genuine ground station, retried; the ACK's result or None."""
-        deadline = time.monotonic() + timeout_s
         values = [*params, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0][:7]
-        while time.monotonic() < deadline:
-            mark = len(self.gcs_messages)
-            self.gcs.mav.command_long_send(*ROVER, command, 0, *values)
-            if self.wait(partial(self._acked, command, mark),
-                         min(0.5, max(0.0, deadline - time.monotonic()))):
-                return self._ack(command, mark)
-        return None
+        return self._request(lambda: self.gcs.mav.command_long_send(*ROVER, command, 0, *values),
+                             partial(self._ack, command), timeout_s)
 
     def set_param(self, name: str, value: float, timeout_s: float = 3.0) -> float | None:
         """PARAM_SET from the genuine ground station, retried; the value its PARAM_VALUE
         reports, or None."""
+        return self._request(lambda: self.gcs.mav.param_set_send(
+            *ROVER, name.encode(), value, mavlink.MAV_PARAM_TYPE_REAL32),
+            partial(self._param_value, name), timeout_s)
+
+    def _request(self, send: Callable[[], None], answer: Callable[[int], T | None],
+                 timeout_s: float) -> T | None:
+        """``send()`` every half second until ``answer(since)`` finds the reply among the
+        messages from index ``since`` on, or ``timeout_s`` has passed (None)."""
         deadline = time.monotonic() + timeout_s
         while time.monotonic() < deadline:
             mark = len(self.gcs_messages)
-            self.gcs.mav.param_set_send(*ROVER, name.encode(), value,
-                                        mavlink.MAV_PARAM_TYPE_REAL32)
-            if self.wait(lambda since=mark: self._param_value(name, since) is not None,
+            send()
+            if self.wait(lambda since=mark: answer(since) is not None,
                          min(0.5, max(0.0, deadline - time.monotonic()))):
-                return self._param_value(name, mark)
+                return answer(mark)
         return None
-
-    def _param_value(self, name: str, since: int) -> float | None:
-        """The value of the first PARAM_VALUE for ``name`` from index ``since`` on."""
-        return next((float(m.param_value) for m in self.gcs_messages[since:]
-                     if m.get_type() == "PARAM_VALUE" and m.param_id == name), None)
-
-    def _acked(self, command: int, since: int) -> bool:
-        return self._ack(command, since) is not None
 
     def _ack(self, command: int, since: int) -> int | None:
         """The result of the first COMMAND_ACK for ``command`` from index ``since`` on."""
         return next((int(m.result) for m in self.gcs_messages[since:]
                      if m.get_type() == "COMMAND_ACK" and m.command == command), None)
+
+    def _param_value(self, name: str, since: int) -> float | None:
+        """The value of the first PARAM_VALUE for ``name`` from index ``since`` on."""
+        return next((float(m.param_value) for m in self.gcs_messages[since:]
+                     if m.get_type() == "PARAM_VALUE" and m.param_id == name), None)
 
     def manual(self, x: int = 0) -> None:
         self.gcs.mav.manual_control_send(ROVER[0], x, 0, 500, 0, 0)

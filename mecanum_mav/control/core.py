@@ -104,6 +104,7 @@ from mecanum_mav.protocol.telemetry import (
     TelemetryState,
     build,
     ftp_nak,
+    next_on_grid,
 )
 
 log = logging.getLogger(__name__)
@@ -422,9 +423,8 @@ class RoverCore:
                                  failsafe=vehicle.failsafe)
             send_gcs_heartbeat(self.to_fc)
             self.mission.send_current()  # MISSION_CURRENT at 1 Hz, as ArduPilot
-            following = self._next_heartbeat_s + HEARTBEAT_PERIOD_S
-            self._next_heartbeat_s = (following if following > now_s
-                                      else now_s + HEARTBEAT_PERIOD_S - TIMER_SLACK_S)
+            self._next_heartbeat_s = next_on_grid(self._next_heartbeat_s, HEARTBEAT_PERIOD_S,
+                                                  now_s)
         self.mission.tick(now_s)
         if self.vehicle.events:
             for event in self.vehicle.take_events():

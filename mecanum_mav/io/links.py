@@ -280,9 +280,12 @@ class Link:
         self._record_packet(msg.get_msgbuf())
 
     def _record_packet(self, packet: bytes) -> None:
-        """Record ``packet`` in the tlog (callers check that there is one: hot paths)."""
-        with contextlib.suppress(OSError, ValueError, AttributeError):
-            self._tlog.write(tlog_record(int(time.time() * 1e6), packet))  # type: ignore[union-attr]
+        """Record ``packet`` in the tlog, if there is one (the hot paths look first, and skip
+        the call without one)."""
+        tlog = self._tlog
+        if tlog is not None:
+            with contextlib.suppress(OSError, ValueError):
+                tlog.write(tlog_record(int(time.time() * 1e6), packet))
 
     @property
     def mav(self) -> Any:

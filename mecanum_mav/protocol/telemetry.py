@@ -25,7 +25,8 @@ from mecanum_mav.mecanum.geometry import body_to_ned
 from mecanum_mav.protocol.dialect import mavlink
 from mecanum_mav.protocol.health import NO_SENSORS, UNKNOWN_BATTERY, Battery, SensorBits
 
-__all__ = ["STREAMS", "StreamSchedule", "TelemetryState", "build", "ftp_nak"]
+__all__ = ["STREAMS", "StreamSchedule", "TelemetryState", "build", "ftp_nak",
+           "next_on_grid"]
 
 STREAMS: dict[str, str] = {
     "ODOMETRY": "TLM_POS_RATE",
@@ -43,6 +44,13 @@ MAX_INTERVAL_US = 2**31 - 1
 one is refused, as is one that is not a number."""
 
 _NAME_BY_ID = {getattr(mavlink, f"MAVLINK_MSG_ID_{name}"): name for name in STREAMS}
+
+
+def next_on_grid(due_s: float, interval_s: float, now_s: float) -> float:
+    """The time after ``due_s`` on its grid of ``interval_s`` (s), for a periodic send done at
+    ``now_s`` (early or late): the rate stays exact; after a gap it starts again from now."""
+    following = due_s + interval_s
+    return following if following > now_s else now_s + interval_s
 
 
 class StreamSchedule:
@@ -95,8 +103,7 @@ class StreamSchedule:
                 self.next_s[name] = now_s + 1.0
                 continue
             out.append(name)
-            following = next_s + interval
-            self.next_s[name] = following if following > now_s else now_s + interval
+            self.next_s[name] = next_on_grid(next_s, interval, now_s)
         return out
 
     def next_due_s(self) -> float:

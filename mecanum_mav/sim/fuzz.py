@@ -221,7 +221,7 @@ class DatagramFuzzer:
     def _source(self) -> tuple[int, int]:
         """Mostly the ground station; sometimes any system (never the rover's own)."""
         if self.rng.random() < 0.8:
-            return self.gcs_sysid, mavlink.MAV_COMP_ID_MISSIONPLANNER
+            return self._pilot()
         sysid = self.rng.randrange(256)
         return (sysid if sysid != self.rover_sysid else 0), self.rng.randrange(256)
 
@@ -390,6 +390,7 @@ class DatagramFuzzer:
     # ------------------------------------------------------------------ the stick lane
 
     def _pilot(self) -> tuple[int, int]:
+        """The ground station's ids (``gcs_sysid``: the pilot's while it drives)."""
         return self.gcs_sysid, mavlink.MAV_COMP_ID_MISSIONPLANNER
 
     def _valid_axes(self) -> dict[str, Any]:
@@ -418,11 +419,10 @@ class DatagramFuzzer:
         axes[rng.choice(("x", "y", "r"))] = rng.choice(
             (-32768, 32766, -32767, -1001, 1001, rng.randint(1001, 32766),
              rng.randint(-32768, -1001)))
-        return self._build("MANUAL_CONTROL", self._pilot(), target=self.rover_sysid, **axes)
+        return self._build("MANUAL_CONTROL", self._pilot(), **axes)  # (targets the rover)
 
     def _pilot_stick(self) -> bytes:
-        return self._build("MANUAL_CONTROL", self._pilot(), target=self.rover_sysid,
-                           **self._valid_axes())
+        return self._build("MANUAL_CONTROL", self._pilot(), **self._valid_axes())
 
     def stick_corrupted(self) -> bytes:
         """The pilot's valid stick with one payload or CRC byte changed (a CRC-16 finds
