@@ -20,7 +20,6 @@ counters (:class:`~mecanum_mav.io.links.Link`), which the virtual wire does not 
 from __future__ import annotations
 
 import math
-import socket
 import threading
 import time
 from collections.abc import Callable
@@ -781,16 +780,17 @@ def test_the_companion_shell_counts_junk_datagrams_per_link_and_keeps_driving():
     sim.start()
     companion = Companion(Params(), port.url, f"udpout:127.0.0.1:{sim.local_port}")
     companion.start()
-    junk = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     try:
         assert gcs.wait("STATUSTEXT", lambda m: "Flight controller link up" in m.text, 5.0)
         good = gcs.mav.command_long_encode(1, 1, ARM, 0, 1, 0, 0, 0, 0, 0, 0)
         packet = bytes(good.pack(mavlink.MAVLink(None, 255, 190)))
         blobs = [bytes(range(256)), b"\xfd" * 300, packet[:7], packet[:-3], b"\xfd\x09\x00\x00",
                  packet[:10] + b"\x00" * 50] * JUNK_SETS
-        for link in (companion.gcs, companion.fc):
+        # From each peer's own socket: a udpout link's socket is connected to its peer, and
+        # the kernel drops a stranger's datagrams (tests/test_links.py).
+        for peer, link in ((port.link, companion.gcs), (sim._link, companion.fc)):
             for blob in blobs:
-                junk.sendto(blob, ("127.0.0.1", link.local_port))
+                peer.conn.port.sendto(blob, ("127.0.0.1", link.local_port))
         c = companion
         deadline = time.monotonic() + 5.0
         while (c.gcs.bad < len(blobs) or c.fc.bad < len(blobs)) and time.monotonic() < deadline:
@@ -811,7 +811,6 @@ def test_the_companion_shell_counts_junk_datagrams_per_link_and_keeps_driving():
                                    == FORWARD, 0.1)
         assert forward is not None
     finally:
-        junk.close()
         companion.close()
         sim.stop()
         port.close()

@@ -204,3 +204,60 @@ def test_a_failing_send_to_one_udpin_peer_is_counted_and_the_others_still_get_it
     finally:
         peer.close()
         link.close()
+
+
+def _peer_socket() -> socket.socket:
+    peer = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    peer.bind(("127.0.0.1", 0))
+    peer.settimeout(2.0)
+    return peer
+
+
+def test_a_udpout_link_reads_its_destination_and_never_a_strangers_datagram():
+    peer, stranger = _peer_socket(), _peer_socket()
+    link = open_link(f"udpout:127.0.0.1:{peer.getsockname()[1]}", source_system=1,
+                     source_component=1, name="gcs")
+    try:
+        assert link.send(link.mav.heartbeat_encode(10, 8, 0, 0, 4))
+        _, link_address = peer.recvfrom(1024)
+        sender = mavlink.MAVLink(None, srcSystem=255, srcComponent=190)
+        stick = sender.manual_control_encode(1, 0, 0, 500, 0, 0).pack(sender)
+        beat = sender.heartbeat_encode(6, 8, 0, 0, 4).pack(sender)
+        stranger.sendto(stick, link_address)  # first: the kernel drops it
+        peer.sendto(beat, link_address)
+        received: list = []
+        wait_until(lambda: received.extend(link.read()) or received, 2.0)
+        assert [m.get_type() for m in received] == ["HEARTBEAT"]
+        assert link.read() == [] and link.received == 1
+    finally:
+        for sock in (peer, stranger):
+            sock.close()
+        link.close()
+
+
+def test_a_udpout_link_with_no_one_listening_fails_no_send_and_loses_none_once_one_listens():
+    probe = _peer_socket()
+    address = probe.getsockname()
+    probe.close()  # no one listens there: each datagram comes back as ICMP port unreachable
+    link = open_link(f"udpout:{address[0]}:{address[1]}", source_system=1, source_component=1,
+                     name="gcs")
+    try:
+        for _ in range(5):
+            assert link.send(link.mav.heartbeat_encode(10, 8, 0, 0, 4))
+        assert link.send_errors == 0
+        errors = select.poll()
+        errors.register(link.conn.port.fileno(), select.POLLERR)
+        assert errors.poll(2000), "the kernel holds a refusal for the next send"
+        peer = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        peer.bind(address)
+        peer.settimeout(2.0)
+        try:
+            text = link.mav.statustext_encode(6, b"first one heard")
+            assert link.send(text)  # not swallowed by the refusal still held
+            assert mavlink.MAVLink(None).parse_buffer(peer.recv(1024))[0].text == (
+                "first one heard")
+            assert link.send_errors == 0
+        finally:
+            peer.close()
+    finally:
+        link.close()
