@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import contextlib
+import errno
 import logging
 import select
 import socket
 import threading
 import time
 
+import pytest
 from conftest import wait_until
 
 from mecanum_mav.config.params import Params
@@ -261,3 +263,46 @@ def test_a_udpout_link_with_no_one_listening_fails_no_send_and_loses_none_once_o
             peer.close()
     finally:
         link.close()
+
+
+def test_a_udpout_link_whose_send_fails_connects_again_on_its_port_at_most_twice_a_second(
+        monkeypatch):
+    clock = FakeClock()
+    monkeypatch.setattr(links.time, "monotonic", clock)
+    peer = _peer_socket()
+    link = open_link(f"udpout:127.0.0.1:{peer.getsockname()[1]}", source_system=1,
+                     source_component=1, name="gcs")
+
+    def unreachable(data: bytes) -> int:  # a connected socket whose route went away
+        raise OSError(errno.ENETUNREACH, "Network is unreachable")
+
+    try:
+        local = link.conn.port.getsockname()
+        beat = link.mav.heartbeat_encode(10, 8, 0, 0, 4)
+        link._send = unreachable
+        assert not link.send(beat)  # failed, counted; connected again
+        assert link.send(beat)
+        assert peer.recvfrom(1024)[1] == local  # from the same port
+        link._send = unreachable
+        assert not link.send(beat)  # within REOPEN_PERIOD_S of the last: not again yet
+        assert not link.send(beat) and link.send_errors == 3
+        clock.now += links.REOPEN_PERIOD_S
+        assert not link.send(beat)
+        assert link.send(beat) and link.send_errors == 4
+        assert peer.recvfrom(1024)[1] == local
+        assert link.conn.port.getpeername() == peer.getsockname()
+    finally:
+        peer.close()
+        link.close()
+
+
+def test_dissolving_a_connected_udp_socket_forgets_its_peer_and_its_local_address():
+    # What lets a udpout link choose its route and source address anew (a connected socket
+    # keeps the ones it chose, and connecting it again reuses them).
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+        sock.connect(("127.0.0.1", 9))
+        assert sock.getsockname()[0] == "127.0.0.1"
+        assert links._dissolve(sock)
+        assert sock.getsockname() == ("0.0.0.0", 0)
+        with pytest.raises(OSError):  # ENOTCONN
+            sock.getpeername()

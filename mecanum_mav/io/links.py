@@ -56,6 +56,7 @@ from __future__ import annotations
 
 import array
 import contextlib
+import ctypes
 import errno
 import fcntl
 import functools
@@ -159,6 +160,19 @@ def _kind(conn: Any) -> str:
     return _DATAGRAM
 
 
+_UNSPECIFIED = bytes(16)
+"""A ``struct sockaddr`` of family AF_UNSPEC (0): ``connect()`` to it undoes a UDP socket's."""
+
+
+def _dissolve(sock: socket.socket) -> bool:
+    """Undo a UDP socket's ``connect()``, which Python's socket module cannot express: the
+    kernel forgets the peer, the route and the local address it chose for them, and the port
+    it gave an unbound socket. True if it did."""
+    libc = ctypes.CDLL(None, use_errno=True)
+    libc.connect.argtypes = [ctypes.c_int, ctypes.c_char_p, ctypes.c_uint32]
+    return int(libc.connect(sock.fileno(), _UNSPECIFIED, len(_UNSPECIFIED))) == 0
+
+
 def _fixed_destination(conn: Any) -> tuple[str, int] | None:
     """Where every datagram of a ``udpout:`` connection goes (its host resolved once), or
     None: a ``udpin:`` link answers its peers, a broadcast link its first reply, and a host
@@ -227,6 +241,7 @@ class Link:
         self._destination = _fixed_destination(self.conn)
         self._recv: Any = None  # a udpout link's socket connected to its destination:
         self._send: Any = None  # its recv and send (see _connect)
+        self._next_reconnect_s = -math.inf
         if self._destination is not None:
             self._connect(self._destination)
         self._peers_s: dict[Any, float] = {}  # udpin peers -> when last heard (monotonic s)
@@ -346,6 +361,26 @@ class Link:
             log.debug("%s: udpout socket left unconnected: %s", self.name, exc)
             return
         self._recv, self._send = port.recv, port.send
+
+    def _reconnect(self) -> None:
+        """A connected ``udpout:`` socket's send failed (not a refusal): the route, or this
+        machine's own address (a new DHCP lease, another network), may have changed, and a
+        connected socket keeps the ones it chose. Its connection is undone and made again, so
+        the kernel chooses them anew, on the same local port; at most once every
+        :data:`REOPEN_PERIOD_S`. If it cannot be made again (no route yet), the link goes on
+        unconnected (``sendto``, ``recvfrom``), as pymavlink's own."""
+        now = time.monotonic()
+        if now < self._next_reconnect_s or self._destination is None:
+            return
+        self._next_reconnect_s = now + REOPEN_PERIOD_S
+        port = self.conn.port
+        local_port = port.getsockname()[1]
+        self._recv = self._send = None
+        if not _dissolve(port):
+            return  # (still connected: sendto to the same destination works on it)
+        with contextlib.suppress(OSError):  # the same port again: the peer answers there
+            port.bind(("", local_port))
+        self._connect(self._destination)
 
     def _follow_clock(self, check: SignatureCheck) -> None:
         """The signing timestamps follow the wall clock (10 us ticks) and the newest verified
@@ -587,6 +622,11 @@ class Link:
                 self._send(data)
             except ConnectionRefusedError:  # an earlier datagram found no one listening;
                 self._send(data)  # the kernel said so instead of sending this one: again
+            except _AGAIN:
+                raise
+            except OSError:
+                self._reconnect()  # (then counted as failed, as every failed send)
+                raise
         elif self._destination is not None:
             self._sendto(data, self._destination)
         elif self._udp_server:
