@@ -191,9 +191,7 @@ def test_send_all_on_a_datagram_link_packs_whole_packets_into_few_datagrams():
 
 def test_a_failing_send_to_one_udpin_peer_is_counted_and_the_others_still_get_it():
     link = open_link("udpin:127.0.0.1:0", source_system=1, source_component=1, name="gcs")
-    peer = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    peer.bind(("127.0.0.1", 0))
-    peer.settimeout(2.0)
+    peer = _peer_socket()
     try:
         beat = link.mav.heartbeat_encode(10, 8, 0, 0, 4)
         stick = link.mav.manual_control_encode(1, 0, 0, 500, 0, 0).pack(link.mav)
@@ -208,9 +206,10 @@ def test_a_failing_send_to_one_udpin_peer_is_counted_and_the_others_still_get_it
         link.close()
 
 
-def _peer_socket() -> socket.socket:
+def _peer_socket(address: tuple[str, int] = ("127.0.0.1", 0)) -> socket.socket:
+    """A UDP socket bound to ``address``, reads waiting up to 2 s."""
     peer = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    peer.bind(("127.0.0.1", 0))
+    peer.bind(address)
     peer.settimeout(2.0)
     return peer
 
@@ -250,9 +249,7 @@ def test_a_udpout_link_with_no_one_listening_fails_no_send_and_loses_none_once_o
         errors = select.poll()
         errors.register(link.conn.port.fileno(), select.POLLERR)
         assert errors.poll(2000), "the kernel holds a refusal for the next send"
-        peer = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        peer.bind(address)
-        peer.settimeout(2.0)
+        peer = _peer_socket(address)
         try:
             text = link.mav.statustext_encode(6, b"first one heard")
             assert link.send(text)  # not swallowed by the refusal still held

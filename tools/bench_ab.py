@@ -20,11 +20,11 @@ Method
       ``--head`` when given.
 
     Each companion is ``python -m mecanum_mav run --gcs udpout:... --fc udpout:...`` on the
-    default parameters, started in its tree's folder (so that tree's package is the one
-    imported), armed over COMMAND_LONG. Its CPU is read from the kernel's precise clock of
-    the process (``clock_gettime`` on the process's CPU clock id), before and after each
-    round. Rounds alternate the order of the three (forward, then reversed) so drift lands on
-    all alike; each round sends ``--per-round`` sticks at ``--rate``.
+    default parameters (:class:`mecanum_mav.sim.process.CompanionProcess`, its tree's package
+    imported), armed over COMMAND_LONG. Its CPU is read from the kernel's clock of the
+    process (:func:`mecanum_mav.sim.process.process_cpu_s`), before and after each round.
+    Rounds alternate the order of the three (forward, then reversed) so drift lands on all
+    alike; each round sends ``--per-round`` sticks at ``--rate``.
 
 Report
     Per system: CPU per message (us), p50 and p99 of the stick-to-override delay (as
@@ -47,16 +47,16 @@ import subprocess
 import sys
 import tarfile
 import tempfile
-import time
 from pathlib import Path
 
 import bench_latency as bl
 
 from mecanum_mav.config.params import Params
+from mecanum_mav.sim.process import CompanionProcess
 
 ROOT = Path(__file__).resolve().parent.parent
 FLOOR, BASE, HEAD = "floor", "base", "head"
-_CPUCLOCK_SCHED = 2  # Linux: a process's CPU clock id is (~pid << 3) | CPUCLOCK_SCHED
+SYSTEMS = (FLOOR, BASE, HEAD)
 
 
 def export_tree(revision: str, into: Path) -> Path:
@@ -72,32 +72,6 @@ def export_tree(revision: str, into: Path) -> Path:
     if archive.wait() != 0:
         raise SystemExit(f"bench_ab: git archive {revision} failed")
     return into
-
-
-class CompanionProcess:
-    """``python -m mecanum_mav run`` from ``tree``; its CPU from the kernel's process clock."""
-
-    def __init__(self, tree: Path, gcs_url: str, fc_url: str) -> None:
-        self.process = subprocess.Popen(
-            [sys.executable, "-m", "mecanum_mav", "run", "--gcs", gcs_url, "--fc", fc_url],
-            cwd=tree, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
-            stderr=subprocess.DEVNULL)
-        self._clock = (~self.process.pid << 3) | _CPUCLOCK_SCHED
-
-    def cpu_s(self) -> float:
-        """CPU seconds (user + system, all threads) the process has used so far."""
-        if self.process.poll() is not None:
-            raise bl.SutError(f"companion exited with status {self.process.returncode}")
-        return time.clock_gettime(self._clock)
-
-    def kill(self) -> None:
-        if self.process.poll() is None:
-            self.process.terminate()
-            try:
-                self.process.wait(5.0)
-            except subprocess.TimeoutExpired:
-                self.process.kill()
-                self.process.wait(2.0)
 
 
 def main() -> int:
@@ -120,13 +94,14 @@ def main() -> int:
         trees = {BASE: export_tree(args.base, Path(tmp) / "base"),
                  HEAD: ROOT if args.head is None else export_tree(args.head, Path(tmp) / "head")}
         try:
-            for kind in (FLOOR, BASE, HEAD):
+            for kind in SYSTEMS:
                 relay = kind == FLOOR
                 harness = harnesses[kind] = bl.Harness(1 if relay else channel,
                                                        bl.relay_pulse if relay else encode,
                                                        cycle)
                 suts[kind] = (bl.SutProcess(kind, *harness.urls, profile=False) if relay
-                              else CompanionProcess(trees[kind], *harness.urls))
+                              else CompanionProcess(*harness.urls, Path(tmp) / f"run-{kind}",
+                                                    package_root=trees[kind]))
                 harness.connect()
                 if not relay:
                     harness.arm()
@@ -145,49 +120,48 @@ def main() -> int:
     return 0
 
 
-Round = dict[str, tuple[float, list[float]]]
-"""One round: per system, (CPU per message in us, the matched delays in us)."""
+Round = dict[str, bl.PhaseResult]
+"""One round: each system's sticks, delays and CPU."""
 
 
 def measure(harnesses: dict[str, bl.Harness],
             suts: dict[str, bl.SutProcess | CompanionProcess],
             rounds: int, per_round: int, rate: float) -> list[Round]:
     """``rounds`` rounds of ``per_round`` sticks at ``rate`` to each system in turn."""
-    order = [FLOOR, BASE, HEAD]
     out: list[Round] = []
     for index in range(rounds):
         this: Round = {}
-        for kind in (order if index % 2 == 0 else order[::-1]):
-            cpu0 = suts[kind].cpu_s()
-            delays, _ = harnesses[kind].run_input(rate, per_round, drain_s=0.05)
-            cpu_us = 1e6 * (suts[kind].cpu_s() - cpu0) / per_round
-            this[kind] = (cpu_us, [d for d in delays if d is not None])
+        for kind in (SYSTEMS if index % 2 == 0 else SYSTEMS[::-1]):
+            sut = suts[kind]
+            if isinstance(sut, CompanionProcess) and not sut.alive():
+                raise SystemExit(f"bench_ab: the {kind} companion exited:\n{sut.log()}")
+            cpu0 = sut.cpu_s()
+            delays, overrides = harnesses[kind].run_input(rate, per_round, drain_s=0.05)
+            this[kind] = bl.PhaseResult(rate, per_round, delays, sut.cpu_s() - cpu0, overrides)
         out.append(this)
     return out
 
 
-def _pct(values: list[float], q: float) -> float:
-    ordered = sorted(values)
-    return ordered[min(len(ordered) - 1, int(q / 100.0 * len(ordered)))] if ordered else (
-        float("nan"))
-
-
 def report(rounds: list[Round]) -> None:
     """Totals per system, then head against base round by round."""
-    cpu = {k: statistics.fmean(r[k][0] for r in rounds) for k in (FLOOR, BASE, HEAD)}
+    pooled = {kind: bl.PhaseResult(rounds[0][kind].rate_hz,
+                                   sum(r[kind].sent for r in rounds),
+                                   [d for r in rounds for d in r[kind].delays_us],
+                                   sum(r[kind].cpu_s for r in rounds),
+                                   sum(r[kind].overrides for r in rounds))
+              for kind in SYSTEMS}
+    floor_cpu = pooled[FLOOR].cpu_per_msg_us
     print(f"{'system':<7} {'CPU/msg us':>10} {'p50 us':>7} {'p99 us':>7} {'x floor':>8}")
-    for kind in (FLOOR, BASE, HEAD):
-        delays = [d for r in rounds for d in r[kind][1]]
-        print(f"{kind:<7} {cpu[kind]:>10.1f} {_pct(delays, 50):>7.0f} {_pct(delays, 99):>7.0f} "
-              f"{cpu[kind] / cpu[FLOOR]:>8.2f}")
-    cpu_ratios = [r[HEAD][0] / r[BASE][0] for r in rounds]
-    p50_ratios = [_pct(r[HEAD][1], 50) / _pct(r[BASE][1], 50) for r in rounds]
-    cheaper = sum(ratio < 1.0 for ratio in cpu_ratios)
-    print(f"head/base CPU per message, median of {len(rounds)} rounds: "
-          f"{statistics.median(cpu_ratios):.3f} (head cheaper in {cheaper} of {len(rounds)})")
-    print(f"head/base p50 delay, median of {len(rounds)} rounds: "
-          f"{statistics.median(p50_ratios):.3f} "
-          f"(head faster in {sum(ratio < 1.0 for ratio in p50_ratios)} of {len(rounds)})")
+    for kind, result in pooled.items():
+        print(f"{kind:<7} {result.cpu_per_msg_us:>10.1f} {result.pct(50):>7.0f} "
+              f"{result.pct(99):>7.0f} {result.cpu_per_msg_us / floor_cpu:>8.2f}")
+    for what, better, ratios in (
+            ("CPU per message", "cheaper",
+             [r[HEAD].cpu_per_msg_us / r[BASE].cpu_per_msg_us for r in rounds]),
+            ("p50 delay", "faster", [r[HEAD].pct(50) / r[BASE].pct(50) for r in rounds])):
+        won = sum(ratio < 1.0 for ratio in ratios)
+        print(f"head/base {what}, median of {len(rounds)} rounds: "
+              f"{statistics.median(ratios):.3f} (head {better} in {won} of {len(rounds)})")
 
 
 if __name__ == "__main__":

@@ -36,7 +36,7 @@ Method
     over a phase, until the companion's queue is empty again; the kernel's drop count for the
     companion's socket is reported beside it (0 when the companion kept up), and so is the
     companion's own status line (messages received, malformed packets, refusals by kind;
-    SIGUSR1 after each phase). CPU: the companion's utime + stime from /proc/PID/stat, as %
+    SIGUSR1 after each phase). CPU: the companion's (the kernel's clock of its process), as %
     of one core over the phase and as microseconds per datagram, and as a ratio to the
     baseline's per datagram.
 

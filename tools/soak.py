@@ -20,7 +20,7 @@ Method
 
     Per reporting interval (``--interval``, default 60 s) it prints the companion's RSS
     (``VmRSS`` of /proc/PID/status at the interval's end), its CPU over the interval (% of one
-    core, utime + stime from /proc/PID/stat), the delay MANUAL_CONTROL sent -> matching override
+    core, the kernel's clock of its process), the delay MANUAL_CONTROL sent -> matching override
     received (kernel receive stamp minus the time just before ``sendto``) as p50 / p99 / max,
     the commands with no override of their own (superseded or late, see bench_latency.py), and
     the largest gap between consecutive overrides received, also as a multiple of the refresh

@@ -242,8 +242,7 @@ class Link:
         self._recv: Any = None  # a udpout link's socket connected to its destination:
         self._send: Any = None  # its recv and send (see _connect)
         self._next_reconnect_s = -math.inf
-        if self._destination is not None:
-            self._connect(self._destination)
+        self._connect()
         self._peers_s: dict[Any, float] = {}  # udpin peers -> when last heard (monotonic s)
         self.peer_timeout_s = PEER_TIMEOUT_S
         self._next_prune_s = -math.inf
@@ -327,7 +326,6 @@ class Link:
         """File descriptor to wait on (may change for ``tcpin`` after a client connects)."""
         return int(self.conn.fd)
 
-
     def wait_fd(self) -> int | None:
         """The descriptor to wait on, or None while there is none: a link that is down
         waits for :meth:`reopen` (its dead descriptor would be readable forever), except a
@@ -347,13 +345,16 @@ class Link:
         check = self.signature_check
         return {} if check is None or not check.new_rejections else check.take_rejections()
 
-    def _connect(self, destination: tuple[str, int]) -> None:
+    def _connect(self) -> None:
         """A ``udpout:`` link's socket connected to its one destination, as ArduPilot's UDP
         client connects its own: the kernel keeps the route and takes no address apart per
         datagram (tools/bench_ab.py: about a tenth of the CPU per stick at 1 kHz), and reads
         only what comes from the destination, so a stranger's datagrams never reach the link.
         If the kernel refuses (a broadcast address without SO_BROADCAST), the link stays
-        unconnected and its sends fail as they would have."""
+        unconnected and its sends fail as they would have. Other links: nothing to do."""
+        destination = self._destination
+        if destination is None:
+            return
         port = self.conn.port
         try:
             port.connect(destination)
@@ -370,7 +371,7 @@ class Link:
         :data:`REOPEN_PERIOD_S`. If it cannot be made again (no route yet), the link goes on
         unconnected (``sendto``, ``recvfrom``), as pymavlink's own."""
         now = time.monotonic()
-        if now < self._next_reconnect_s or self._destination is None:
+        if now < self._next_reconnect_s:
             return
         self._next_reconnect_s = now + REOPEN_PERIOD_S
         port = self.conn.port
@@ -380,7 +381,7 @@ class Link:
             return  # (still connected: sendto to the same destination works on it)
         with contextlib.suppress(OSError):  # the same port again: the peer answers there
             port.bind(("", local_port))
-        self._connect(self._destination)
+        self._connect()
 
     def _follow_clock(self, check: SignatureCheck) -> None:
         """The signing timestamps follow the wall clock (10 us ticks) and the newest verified

@@ -2,8 +2,9 @@
 
 :class:`CompanionProcess` runs ``python -m mecanum_mav run --gcs GCS --fc FC ...`` in a
 process group of its own (so that killing it takes everything it started), with its output
-in ``workdir/companion.log``, and reads what it costs from ``/proc`` (CPU, resident memory).
-The tests, ``tools/fuzz.py`` and ``tools/soak.py`` all start the companion this one way.
+in ``workdir/companion.log``, and reads what it costs (CPU from the kernel's clock of the
+process, resident memory from ``/proc``). The tests, ``tools/fuzz.py``, ``tools/soak.py`` and
+``tools/bench_ab.py`` all start the companion this one way.
 """
 
 from __future__ import annotations
@@ -32,30 +33,36 @@ _PACKAGE_ROOT = Path(__file__).resolve().parents[2]
 """Where the package being run lives: the child imports the same code (a checkout too)."""
 
 
+_CPUCLOCK_SCHED = 2
+"""Linux: the CPU clock id of process ``pid`` is ``(~pid << 3) | CPUCLOCK_SCHED``."""
+
+
 def process_cpu_s(pid: int) -> float:
-    """User + system CPU time (s) process ``pid`` has used so far, all threads
-    (``/proc/PID/stat``).
+    """User + system CPU time (s) process ``pid`` has used so far, all threads: the kernel's
+    CPU clock of the process, to the nanosecond (``/proc/PID/stat`` counts 10 ms ticks).
 
     Raises:
         OSError: the process is gone.
     """
-    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
-    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+    return time.clock_gettime((~pid << 3) | _CPUCLOCK_SCHED)
 
 
 class CompanionProcess:
-    """``python -m mecanum_mav run --gcs GCS --fc FC *extra`` in its own process group.
+    """``python -m mecanum_mav run --gcs GCS --fc FC *extra`` in its own process group, the
+    package imported from ``package_root`` (default: the one this module belongs to; another
+    checkout's tree to run another version).
 
     A context manager: on the way out the group is killed if it is still running.
     """
 
-    def __init__(self, gcs_url: str, fc_url: str, workdir: Path, *extra: str) -> None:
+    def __init__(self, gcs_url: str, fc_url: str, workdir: Path, *extra: str,
+                 package_root: Path = _PACKAGE_ROOT) -> None:
         self.command = [sys.executable, "-m", "mecanum_mav", "run", "--gcs", gcs_url,
                         "--fc", fc_url, *extra]
         workdir.mkdir(parents=True, exist_ok=True)
         self.log_path = workdir / "companion.log"
         env = dict(os.environ)
-        env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(_PACKAGE_ROOT),
+        env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(package_root),
                                                           env.get("PYTHONPATH")]))
         with self.log_path.open("wb") as log:
             self.proc = subprocess.Popen(self.command, cwd=workdir, env=env,
