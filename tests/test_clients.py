@@ -12,9 +12,10 @@ import subprocess
 import sys
 import threading
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import AsyncIterator, Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
+from typing import Any
 
 import pytest
 from conftest import wait_until
@@ -162,68 +163,77 @@ async def _until(condition: Callable[[], object], timeout_s: float) -> object:
     return None
 
 
-async def _mavsdk_scenario(port: int, grpc_port: int, sim: SimFlightController,
-                           params: Params) -> None:
+@contextlib.asynccontextmanager
+async def _mavsdk_connected(port: int, grpc_port: int) -> AsyncIterator[Any]:
+    """A MAVSDK ``System`` (its own mavsdk_server on ``grpc_port``) connected to the rover whose
+    ground-station link sends to ``port``; its server is killed and reaped afterwards."""
     from mavsdk import System
-    from mavsdk.offboard import PositionNedYaw, VelocityBodyYawspeed, VelocityNedYaw
 
     drone = System(port=grpc_port)
-    await drone.connect(system_address=f"udpin://127.0.0.1:{port}")
-    state = await _first(drone.core.connection_state())
-    while not state.is_connected:
+    try:
+        await drone.connect(system_address=f"udpin://127.0.0.1:{port}")
         state = await _first(drone.core.connection_state())
-    # Parameters (ArduPilot's float encoding).
-    assert await drone.param.get_param_float("INP_EXPO") == 0.0
-    await drone.param.set_param_float("INP_EXPO", 0.25)
-    assert params["INP_EXPO"] == 0.25
-    assert await drone.param.get_param_int("MIX_ALGO") == 0
-    # Arm, then drive by manual control input in MANUAL.
-    await drone.action.arm()
-    start = sim.snapshot().pose.x_m
-    async def forward() -> bool:
-        for _ in range(40):
-            await drone.manual_control.set_manual_control_input(0.6, 0.0, 0.5, 0.0)
-            await asyncio.sleep(0.05)
-            if sim.snapshot().pose.x_m > start + 0.3:
-                return True
-        return False
-    assert await forward()
-    # Offboard (GUIDED): body velocity right, then NED velocity north, then a position.
-    await drone.offboard.set_velocity_body(VelocityBodyYawspeed(0.0, 0.5, 0.0, 0.0))
-    await drone.offboard.start()
-    y0 = sim.snapshot().pose.y_m
-    assert await _until(lambda: sim.snapshot().pose.y_m > y0 + 0.3, 5.0)
-    await drone.offboard.set_velocity_ned(VelocityNedYaw(0.5, 0.0, 0.0, 0.0))
-    x0 = sim.snapshot().pose.x_m
-    assert await _until(lambda: sim.snapshot().pose.x_m > x0 + 0.3, 5.0)
-    goal = (sim.snapshot().pose.x_m + 0.5, sim.snapshot().pose.y_m - 0.5)
-    await drone.offboard.set_position_ned(PositionNedYaw(goal[0], goal[1], 0.0, 30.0))
-    reached = await _until(
-        lambda: abs(sim.snapshot().pose.x_m - goal[0]) < 0.05
-        and abs(sim.snapshot().pose.y_m - goal[1]) < 0.05
-        and abs(sim.snapshot().pose.yaw_rad - 0.5236) < 0.035, 8.0)
-    assert reached, sim.snapshot().pose
-    # Telemetry: odometry and local position agree with the true pose.
-    truth = sim.snapshot().pose
-    odometry = await _first(drone.telemetry.odometry())
-    assert abs(odometry.position_body.x_m - truth.x_m) < 0.05
-    assert abs(odometry.position_body.y_m - truth.y_m) < 0.05
-    pv = await _first(drone.telemetry.position_velocity_ned())
-    assert abs(pv.position.north_m - truth.x_m) < 0.05
-    assert abs(pv.position.east_m - truth.y_m) < 0.05
-    await drone.offboard.stop()
-    await drone.action.disarm()
+        while not state.is_connected:
+            state = await _first(drone.core.connection_state())
+        yield drone
+    finally:
+        server = drone._server_process
+        drone._stop_mavsdk_server()  # (kills it, does not wait for it)
+        if isinstance(server, subprocess.Popen):
+            server.wait(timeout=5.0)
+
+
+async def _mavsdk_scenario(port: int, grpc_port: int, sim: SimFlightController,
+                           params: Params) -> None:
+    from mavsdk.offboard import PositionNedYaw, VelocityBodyYawspeed, VelocityNedYaw
+
+    async with _mavsdk_connected(port, grpc_port) as drone:
+        # Parameters (ArduPilot's float encoding).
+        assert await drone.param.get_param_float("INP_EXPO") == 0.0
+        await drone.param.set_param_float("INP_EXPO", 0.25)
+        assert params["INP_EXPO"] == 0.25
+        assert await drone.param.get_param_int("MIX_ALGO") == 0
+        # Arm, then drive by manual control input in MANUAL.
+        await drone.action.arm()
+        start = sim.snapshot().pose.x_m
+        async def forward() -> bool:
+            for _ in range(40):
+                await drone.manual_control.set_manual_control_input(0.6, 0.0, 0.5, 0.0)
+                await asyncio.sleep(0.05)
+                if sim.snapshot().pose.x_m > start + 0.3:
+                    return True
+            return False
+        assert await forward()
+        # Offboard (GUIDED): body velocity right, then NED velocity north, then a position.
+        await drone.offboard.set_velocity_body(VelocityBodyYawspeed(0.0, 0.5, 0.0, 0.0))
+        await drone.offboard.start()
+        y0 = sim.snapshot().pose.y_m
+        assert await _until(lambda: sim.snapshot().pose.y_m > y0 + 0.3, 5.0)
+        await drone.offboard.set_velocity_ned(VelocityNedYaw(0.5, 0.0, 0.0, 0.0))
+        x0 = sim.snapshot().pose.x_m
+        assert await _until(lambda: sim.snapshot().pose.x_m > x0 + 0.3, 5.0)
+        goal = (sim.snapshot().pose.x_m + 0.5, sim.snapshot().pose.y_m - 0.5)
+        await drone.offboard.set_position_ned(PositionNedYaw(goal[0], goal[1], 0.0, 30.0))
+        reached = await _until(
+            lambda: abs(sim.snapshot().pose.x_m - goal[0]) < 0.05
+            and abs(sim.snapshot().pose.y_m - goal[1]) < 0.05
+            and abs(sim.snapshot().pose.yaw_rad - 0.5236) < 0.035, 8.0)
+        assert reached, sim.snapshot().pose
+        # Telemetry: odometry and local position agree with the true pose.
+        truth = sim.snapshot().pose
+        odometry = await _first(drone.telemetry.odometry())
+        assert abs(odometry.position_body.x_m - truth.x_m) < 0.05
+        assert abs(odometry.position_body.y_m - truth.y_m) < 0.05
+        pv = await _first(drone.telemetry.position_velocity_ned())
+        assert abs(pv.position.north_m - truth.x_m) < 0.05
+        assert abs(pv.position.east_m - truth.y_m) < 0.05
+        await drone.offboard.stop()
+        await drone.action.disarm()
 
 
 async def _mavsdk_arm(port: int, grpc_port: int) -> None:
-    from mavsdk import System
-
-    drone = System(port=grpc_port)
-    await drone.connect(system_address=f"udpin://127.0.0.1:{port}")
-    state = await _first(drone.core.connection_state())
-    while not state.is_connected:
-        state = await _first(drone.core.connection_state())
-    await drone.action.arm()
+    async with _mavsdk_connected(port, grpc_port) as drone:
+        await drone.action.arm()
 
 
 def test_mavsdk_behind_mavproxy_with_the_key_arms_the_signed_rover(tmp_path):
@@ -285,7 +295,6 @@ MAVSDK_LEGS_NE = [(0.8, 0.0), (0.8, 0.6), (0.2, 0.6)]  # metres north, east of t
 
 async def _mavsdk_mission_scenario(port: int, grpc_port: int, sim: SimFlightController,
                                    companion: Companion, origin: GlobalOrigin) -> None:
-    from mavsdk import System
     from mavsdk.mission import MissionPlan
     from mavsdk.telemetry import FlightMode
 
@@ -299,12 +308,7 @@ async def _mavsdk_mission_scenario(port: int, grpc_port: int, sim: SimFlightCont
     plan = MissionPlan([home, *(_mavsdk_waypoint(lat / 1e7, lon / 1e7, speed_m_s=0.5,
                                                  fly_through=False, radius_m=0.05)
                                 for lat, lon in points)])
-    drone = System(port=grpc_port)
-    try:
-        await drone.connect(system_address=f"udpin://127.0.0.1:{port}")
-        state = await _first(drone.core.connection_state())
-        while not state.is_connected:
-            state = await _first(drone.core.connection_state())
+    async with _mavsdk_connected(port, grpc_port) as drone:
         await drone.mission.upload_mission(plan)
         stored = companion.core.mission.items
         # seq 0 home, then each waypoint followed by its DO_CHANGE_SPEED.
@@ -352,8 +356,6 @@ async def _mavsdk_mission_scenario(port: int, grpc_port: int, sim: SimFlightCont
         truth = sim.snapshot().pose
         assert math.dist((truth.x_m, truth.y_m), MAVSDK_LEGS_NE[-1]) < 0.10, truth
         await drone.action.disarm()
-    finally:
-        drone._stop_mavsdk_server()
 
 
 def test_mavsdk_uploads_a_mission_downloads_it_and_runs_it_to_the_end():

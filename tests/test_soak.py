@@ -6,11 +6,16 @@ ATTITUDE and WHEEL_DISTANCE, default telemetry on. Three reporting intervals of 
 standing for the first minute: RSS grows under 2 MB after it, and no gap between overrides
 exceeds two refresh periods, as the issue's goals say.
 
-Latency creep is asserted more loosely here than the tool's goal (last/first median within
-1.2x, met in the 30-minute run quoted in docs/benchmarks.md): a minute is too short for a
-raw ratio of medians to be free of the machine's own drift (measured 1.20 and 1.43 on a
-machine where other work came and went), while the failure it guards against, a standing
-queue or a leak, grows the delay many times over. ``CI_CREEP_LIMIT`` catches that.
+The tool's third goal, the last interval's median delay within 1.2x the first's, is a speed
+figure for its 30-minute run (quoted in docs/benchmarks.md) and is printed here but not
+asserted: over one minute a ratio of two medians of ~60-300 us follows the machine, not the
+companion (measured 1.20, 1.43 and 2.24 on runs whose CPU, RSS and gaps were all flat). What
+this test asserts instead is the failure that goal exists to catch, in a form the machine's
+drift cannot fake or hide: no queue builds up. If the companion fell behind by even one stick,
+every later stick would wait a whole input period (20 ms) behind it, so each interval's median
+delay stays under half an input period: clear of both the healthy medians (tens to hundreds of
+microseconds) and a companion one stick behind (measured: medians 20,058-20,126 us, ratio 1.00,
+which the ratio of medians passes).
 """
 
 from __future__ import annotations
@@ -24,10 +29,10 @@ import soak
 
 DURATION_S = 60.0
 INTERVAL_S = 20.0
-CI_CREEP_LIMIT = 2.0
+NO_QUEUE_MEDIAN_US = 0.5e6 / soak.INPUT_RATE_HZ  # half an input period
 
 
-def test_a_minute_of_50_hz_sticks_keeps_memory_flat_latency_steady_and_overrides_flowing():
+def test_a_minute_of_50_hz_sticks_keeps_memory_flat_builds_no_queue_and_keeps_overrides_flowing():
     lines: list[str] = []
     result = soak.run_soak(DURATION_S, INTERVAL_S, lines.append)
     report = "\n".join(lines)
@@ -37,5 +42,4 @@ def test_a_minute_of_50_hz_sticks_keeps_memory_flat_latency_steady_and_overrides
     assert all(iv.sent == INTERVAL_S * soak.INPUT_RATE_HZ for iv in result.intervals), report
     rss, _creep, gaps = result.goals()  # creep: the tool's 1.2x, for the 30-minute run
     assert rss.met and gaps.met, report
-    first, last = result.intervals[0].pct(50), result.intervals[-1].pct(50)
-    assert last <= CI_CREEP_LIMIT * first, report
+    assert all(iv.pct(50) < NO_QUEUE_MEDIAN_US for iv in result.intervals), report
