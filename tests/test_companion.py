@@ -26,7 +26,7 @@ from collections.abc import Callable
 from itertools import pairwise
 
 import pytest
-from conftest import lockstep
+from conftest import lockstep, wait_until
 
 from mecanum_mav.app.companion import Companion
 from mecanum_mav.config.params import Params
@@ -883,21 +883,21 @@ def test_close_waits_for_a_loop_run_in_the_callers_own_thread_which_ends_release
     previous, threading.excepthook = threading.excepthook, lambda a: crashed.append(a.exc_value)
     overrides: list[list[int]] = []
 
-    def read_overrides(seconds: float) -> None:
-        deadline = time.monotonic() + seconds
-        while time.monotonic() < deadline:
-            overrides.extend([getattr(m, f"chan{i}_raw") for i in range(1, 19)]
-                             for m in fc.read() if m.get_type() == "RC_CHANNELS_OVERRIDE")
-            time.sleep(0.005)
+    released = release_fields(companion.core.pwm.channels)
+
+    def read_overrides() -> list[list[int]]:
+        overrides.extend([getattr(m, f"chan{i}_raw") for i in range(1, 19)]
+                         for m in fc.read() if m.get_type() == "RC_CHANNELS_OVERRIDE")
+        return overrides
 
     try:
         loop.start()
-        read_overrides(0.2)  # the loop runs: the refresh comes
+        wait_until(read_overrides, 2.0)  # the loop runs: the refresh comes
         assert overrides
         companion.close()
         assert not loop.is_alive()  # close() waited for the loop
-        read_overrides(0.2)
-        assert overrides[-1] == release_fields(companion.core.pwm.channels)
+        wait_until(lambda: read_overrides()[-1] == released, 2.0)
+        assert overrides[-1] == released
         assert crashed == []
     finally:
         threading.excepthook = previous

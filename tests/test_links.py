@@ -156,6 +156,14 @@ def test_a_signing_link_signs_no_earlier_than_the_newest_verified_packet_it_rece
         link.close()
 
 
+def _peer_socket(address: tuple[str, int] = ("127.0.0.1", 0)) -> socket.socket:
+    """A UDP socket bound to ``address``, reads waiting up to 2 s."""
+    peer = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    peer.bind(address)
+    peer.settimeout(2.0)
+    return peer
+
+
 def _datagrams(sock: socket.socket, timeout_s: float = 2.0) -> list[bytes]:
     """Every datagram that reaches ``sock`` within ``timeout_s`` of the first (none: [])."""
     out: list[bytes] = []
@@ -167,8 +175,7 @@ def _datagrams(sock: socket.socket, timeout_s: float = 2.0) -> list[bytes]:
 
 
 def test_send_all_on_a_datagram_link_packs_whole_packets_into_few_datagrams():
-    sink = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    sink.bind(("127.0.0.1", 0))
+    sink = _peer_socket()
     link = open_link(f"udpout:127.0.0.1:{sink.getsockname()[1]}", source_system=1,
                      source_component=191, name="gcs")
     try:
@@ -204,14 +211,6 @@ def test_a_failing_send_to_one_udpin_peer_is_counted_and_the_others_still_get_it
     finally:
         peer.close()
         link.close()
-
-
-def _peer_socket(address: tuple[str, int] = ("127.0.0.1", 0)) -> socket.socket:
-    """A UDP socket bound to ``address``, reads waiting up to 2 s."""
-    peer = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    peer.bind(address)
-    peer.settimeout(2.0)
-    return peer
 
 
 def test_a_udpout_link_reads_its_destination_and_never_a_strangers_datagram():
