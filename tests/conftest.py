@@ -10,17 +10,21 @@ from collections.abc import Callable
 import pytest
 
 from mecanum_mav.config.params import Params
+from mecanum_mav.control.fccheck import FcCheckState
 from mecanum_mav.sim.lockstep import Lockstep
 
 
 def lockstep(params: Params | dict | None = None, **options) -> Lockstep:
     """A :class:`Lockstep` harness (core + simulated board + scripted ground station) whose
-    flight-controller link is up (the board's first heartbeat has been heard)."""
+    flight-controller link is up (the board's first heartbeat has been heard) and whose
+    check of the board's setup has decided (as a pilot arms after "FC setup checked")."""
     if isinstance(params, dict) or params is None:
         values, params = params or {}, Params()
         params.update(values)
     h = Lockstep(params, **options)
     assert h.run_until(lambda: not h.core.vehicle.fc_lost, 3.0), "no flight-controller heartbeat"
+    assert h.run_until(lambda: h.core.fc_check.state is not FcCheckState.READING, 3.0), \
+        "the flight controller's setup was never read"
     return h
 
 

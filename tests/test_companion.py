@@ -469,7 +469,7 @@ def test_overrides_are_refreshed_at_out_rate_while_idle_so_the_fc_timeout_never_
         count = sum(1 for o in seen if start <= o.time_s < start + 1.0)
         assert count in (19, 20), (second, count)
     assert all(o.channels == full(NEUTRAL) for o in seen)
-    # the board's own override timeout (SIM_RC_TMO 3 s) never lapsed
+    # the board's own override timeout (SIM_RC_TMO 0.5 s) never lapsed
     assert h.truth().channel_pwm == dict.fromkeys(WHEELS, 1500)
 
 
@@ -567,6 +567,8 @@ def test_flight_controller_loss_disarms_reports_and_refuses_to_arm():
     assert any("flight controller link down" in t for t in texts(h, since))
     h.board.beating = True
     assert statustext(h, "Flight controller link up", since, 1.0 + 2 * h.dt_s)
+    # the board is read again (it may have rebooted with other settings): arm once it was
+    assert statustext(h, "FC setup checked: safe", since, 1.0)
     assert h.gcs.command(ARM, 1).result == ACCEPTED
 
 

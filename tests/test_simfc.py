@@ -262,7 +262,7 @@ def test_wheel_distance_reports_four_growing_encoder_distances(simulator):
 
 
 def test_attitude_yaw_follows_the_true_yaw_after_a_clockwise_spin(simulator):
-    sim, gcs = simulator()
+    sim, gcs = simulator(SIM_RC_TMO=60.0)  # one override holds through the spin
     gcs.override({1: 1700, 2: 1300, 3: 1700, 4: 1300})  # wheels +-0.4 m/s
     steady_rate = 0.4 / (0.15 + 0.15)  # rad/s clockwise, default half extents
     wait(sim, lambda s: s.pose.yaw_rad > 0.5 and s.yaw_rate > steady_rate * 0.9995)
@@ -278,7 +278,7 @@ def test_attitude_yaw_follows_the_true_yaw_after_a_clockwise_spin(simulator):
 
 
 def test_attitude_yaw_is_wrapped_to_minus_pi_to_pi(simulator):
-    sim, gcs = simulator()
+    sim, gcs = simulator(SIM_RC_TMO=60.0)  # one override holds through the spin
     gcs.override({1: 2000, 2: 1000, 3: 2000, 4: 1000})  # about 3.3 rad/s clockwise
     wait(sim, lambda s: s.pose.yaw_rad < -2.0)  # went past pi: now counted from -pi
     attitude = gcs.receive("ATTITUDE", lambda m: m.yaw < 0.0)

@@ -467,7 +467,7 @@ def serve_simfc(url: str, params: Params) -> int:
 def cmd_setup_fc(args: argparse.Namespace, params: Params) -> int:
     from mecanum_mav.app.setupfc import run_setup
 
-    return run_setup(args.fc, params, apply=args.apply)
+    return run_setup(args.fc, params, apply=args.apply, reboot=args.reboot)
 
 
 def cmd_simfc(args: argparse.Namespace, params: Params) -> int:
@@ -542,12 +542,17 @@ def build_parser() -> argparse.ArgumentParser:
         description="Connect to the flight controller as the companion would, read the "
         "settings the companion depends on and print each with what it needs and why: the "
         "ground-station id, pass-through of the wheel channels, the fall-back to trim when the "
-        "companion dies, the override timeout, matched ranges, rudder arming. Exit status 0 "
-        "only when the board is safe.")
+        "companion dies, the override timeout, matched ranges, rudder arming. Exit status: 0 "
+        "when the board is safe, 1 when a hazard remains or a setting was not answered, 2 when "
+        "the board cannot be reached, 3 when it will be safe once rebooted.")
     setup.add_argument("--fc", required=True, metavar="URL",
                        help="flight-controller link, as for 'run' (e.g. /dev/ttyACM0,115200)")
     setup.add_argument("--apply", action="store_true",
-                       help="write the safe settings, read them back and check again")
+                       help="write the safe settings (stored even where they equal the "
+                       "firmware's default), read them back and check again")
+    setup.add_argument("--reboot", action="store_true",
+                       help="then reboot the flight controller, wait for it and check again "
+                       "(with --apply: write again what the reboot changed)")
     setup.set_defaults(handler=cmd_setup_fc)
 
     simfc = sub.add_parser("simfc", parents=[common], help="the simulated flight controller",

@@ -1,12 +1,25 @@
 """``mecanum-mav setup-fc``: check (and with ``--apply`` fix) an ArduPilot flight controller's
 settings for the companion, over MAVLink, as the companion connects to it.
 
-It reads the parameters :mod:`mecanum_mav.protocol.fcsetup` needs (PARAM_REQUEST_READ by
-name, re-asked for up to three rounds; a parameter the firmware does not have stays unknown),
-prints one row per setting (value, what the companion needs, why, OK or HAZARD), and with
-``--apply`` writes the safe values (PARAM_SET, each confirmed by the PARAM_VALUE that echoes
-it), reads everything back and checks again. Exit status 0 only when the board is safe;
-1 when a hazard remains; 2 when the flight controller cannot be reached.
+It reads the parameters :mod:`mecanum_mav.protocol.fcsetup` needs (through
+:class:`~mecanum_mav.protocol.paramread.ParamReader`, as the companion's run-time check does:
+paced to what ArduPilot accepts, asked again until answered or a deadline) and prints one row
+per setting: its value, what the companion needs, why, and ``ok``, ``HAZARD`` (any value that
+differs from what the companion needs) or ``UNKNOWN`` (no answer).
+
+``--apply`` writes every setting the companion needs (PARAM_SET, each confirmed by the
+PARAM_VALUE that echoes it), so that ArduPilot stores it: a value the board already has is
+first written as a harmless neighbour (:func:`~mecanum_mav.protocol.fcsetup.store_nudge`),
+since ArduPilot does not store a value equal to its default and some defaults change at
+boot. It then reads everything back and checks again. A setting ArduPilot reads only at boot
+(``RCMAP_THROTTLE``) leaves a reboot pending: setup-fc says so and does not call the board
+safe; ``--reboot`` reboots it (MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN), waits until it is back
+(its SYSTEM_TIME's time since boot starts again), reads and checks again, and with ``--apply``
+writes again whatever the reboot changed.
+
+Exit status: 0 when the board is safe for the companion; 1 when a hazard remains or a setting
+was not answered; 2 when the flight controller cannot be reached (or Ctrl-C); 3 when it will
+be safe once rebooted (``--reboot``, or power-cycle it).
 """
 
 from __future__ import annotations
@@ -14,35 +27,54 @@ from __future__ import annotations
 import selectors
 import sys
 import time
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from typing import Any, TextIO
 
 from mecanum_mav.config.params import Params
 from mecanum_mav.control.core import FC_LINK_COMPID
 from mecanum_mav.io.links import Link, follow, open_link
 from mecanum_mav.protocol.dialect import mavlink
-from mecanum_mav.protocol.fcsetup import Finding, check, safe_settings, wanted_names
+from mecanum_mav.protocol.fcsetup import (
+    OPTIONAL_NAMES,
+    REBOOT_NAMES,
+    Finding,
+    check,
+    safe_settings,
+    store_nudge,
+    wanted_groups,
+)
 from mecanum_mav.protocol.heartbeat import send_gcs_heartbeat
+from mecanum_mav.protocol.paramread import REPEAT_S, WINDOW, ParamReader
 
-__all__ = ["REBOOT_NAMES", "FcSession", "run_setup"]
+__all__ = ["EXIT_REBOOT_PENDING", "FcSession", "Reading", "run_setup"]
 
 HEARTBEAT_TIMEOUT_S = 10.0
-ROUND_S = 1.0
-ROUNDS = 3
-REBOOT_NAMES = frozenset({"RCMAP_THROTTLE"})
-"""Settings ArduPilot reads at boot only (a change needs a reboot of the flight controller)."""
+WRITE_DEADLINE_S = 10.0
+REBOOT_TIMEOUT_S = 60.0
+"""How long a rebooting board may take to come back."""
+EXIT_REBOOT_PENDING = 3
+
+
+class Reading:
+    """What one read of the board gave: the values answered and the settings not answered."""
+
+    def __init__(self, values: dict[str, float], missing: Sequence[str]) -> None:
+        self.values = values
+        self.missing = list(missing)
 
 
 class FcSession:
     """A MAVLink session with a flight controller for reading and writing parameters."""
 
     def __init__(self, url: str, params: Params) -> None:
+        self.url = url
         self.target = (int(params["FC_SYSID"]), int(params["FC_COMPID"]))
         self.link: Link = open_link(url, source_system=int(params["FC_GCS_SYSID"]),
                                     source_component=FC_LINK_COMPID, name="fc")
         self._selector = selectors.DefaultSelector()
         self._fd = follow(self._selector, self.link, None)
         self.types: dict[str, int] = {}
+        self._next_beat_s = 0.0
 
     def close(self) -> None:
         """Close the link."""
@@ -50,62 +82,120 @@ class FcSession:
         self.link.close(linger_s=0.2)
 
     def _receive(self, timeout_s: float) -> list[Any]:
+        """What the flight controller sent within ``timeout_s`` (our HEARTBEAT goes out at
+        1 Hz meanwhile; a link that went down is reopened)."""
+        now = time.monotonic()
+        if now >= self._next_beat_s and self.link.up:
+            send_gcs_heartbeat(self.link.mav)
+            self._next_beat_s = now + 1.0
+        if not self.link.up:
+            self.link.reopen(now)
         self._fd = follow(self._selector, self.link, self._fd)  # (and hands over what waits)
-        wake_s = min(timeout_s, self.link.next_send_s - time.monotonic())  # paced writes
+        wake_s = min(timeout_s, self.link.next_send_s - now, self._next_beat_s - now)
+        if self._fd is None:  # down: wait for the reopen
+            time.sleep(max(0.0, min(wake_s, 0.1)))
+            return []
         if not self._selector.select(max(0.0, wake_s)):
             return []
-        return [m for m in self.link.read() if m.get_srcSystem() == self.target[0]]
+        try:
+            got = self.link.read()
+        except OSError:  # went down (the board rebooted): reopened on the next pass
+            return []
+        return [m for m in got if m.get_srcSystem() == self.target[0]]
 
     def wait_heartbeat(self, timeout_s: float = HEARTBEAT_TIMEOUT_S) -> bool:
         """Wait for the flight controller's HEARTBEAT (sending ours at 1 Hz meanwhile)."""
         deadline = time.monotonic() + timeout_s
-        next_beat = 0.0
         while (now := time.monotonic()) < deadline:
-            if now >= next_beat:
-                send_gcs_heartbeat(self.link.mav)
-                next_beat = now + 1.0
             if any(m.get_type() == "HEARTBEAT" for m in self._receive(min(0.2, deadline - now))):
                 return True
         return False
 
-    def read(self, names: Iterable[str]) -> dict[str, float]:
-        """The values of ``names`` the board has (PARAM_REQUEST_READ, up to three rounds)."""
-        missing, values = list(dict.fromkeys(names)), {}
-        for _ in range(ROUNDS):
-            for name in missing:
+    def read(self, groups: Iterable[Sequence[str]]) -> Reading:
+        """Read the settings ``groups`` (see :class:`ParamReader`)."""
+        reader = ParamReader(groups, time.monotonic(), optional=OPTIONAL_NAMES)
+        while not reader.over:
+            for name in reader.requests(time.monotonic()):
                 self.link.mav.param_request_read_send(*self.target, name.encode(), -1)
-            values.update(self._collect(set(missing), ROUND_S))
-            missing = [n for n in missing if n not in values]
-            if not missing:
-                break
-        return values
-
-    def _collect(self, names: set[str], window_s: float) -> dict[str, float]:
-        got: dict[str, float] = {}
-        deadline = time.monotonic() + window_s
-        while names - set(got) and (now := time.monotonic()) < deadline:
-            for msg in self._receive(deadline - now):
+            wait_s = reader.next_due_s() - time.monotonic()
+            for msg in self._receive(max(0.0, min(wait_s, 0.2))):
                 if msg.get_type() == "PARAM_VALUE":
-                    name = msg.param_id.rstrip("\x00")
-                    if name in names:
-                        got[name] = float(msg.param_value)
-                        self.types[name] = int(msg.param_type)
-        return got
+                    reader.on_value(msg.param_id.rstrip("\x00"), float(msg.param_value),
+                                    int(msg.param_type))
+        self.types.update(reader.types)
+        return Reading(dict(reader.values), reader.missing())
 
     def write(self, settings: dict[str, float]) -> dict[str, float]:
-        """PARAM_SET each setting; the values the board echoed back."""
+        """PARAM_SET each setting, at most :data:`WINDOW` unconfirmed at once, each sent
+        again until the board echoes the value or :data:`WRITE_DEADLINE_S` passes; the values
+        the board echoed back."""
         echoed: dict[str, float] = {}
-        pending = dict(settings)
-        for _ in range(ROUNDS):
-            for name, value in pending.items():
+        pending = list(settings)
+        sent: dict[str, float] = {}
+        deadline = time.monotonic() + WRITE_DEADLINE_S
+        while (pending or sent) and (now := time.monotonic()) < deadline:
+            for name, at in list(sent.items()):
+                if now - at >= REPEAT_S:
+                    del sent[name]
+                    pending.append(name)
+            while pending and len(sent) < WINDOW:
+                name = pending.pop(0)
                 kind = self.types.get(name, mavlink.MAV_PARAM_TYPE_REAL32)
-                self.link.mav.param_set_send(*self.target, name.encode(), float(value), kind)
-            got = self._collect(set(pending), ROUND_S)
-            echoed.update(got)
-            pending = {n: v for n, v in pending.items() if abs(got.get(n, 1e30) - v) > 1e-3}
-            if not pending:
-                break
+                self.link.mav.param_set_send(*self.target, name.encode(),
+                                             float(settings[name]), kind)
+                sent[name] = now
+            for msg in self._receive(0.1):
+                name = msg.param_id.rstrip("\x00") if msg.get_type() == "PARAM_VALUE" else ""
+                if name in sent:
+                    echoed[name] = float(msg.param_value)
+                    if abs(echoed[name] - settings[name]) <= 1e-3:
+                        del sent[name]
         return echoed
+
+    def boot_ms(self, timeout_s: float = 3.0) -> int | None:
+        """The board's time since boot (SYSTEM_TIME.time_boot_ms, asked for with
+        MAV_CMD_REQUEST_MESSAGE), or None if it does not answer."""
+        deadline = time.monotonic() + timeout_s
+        next_ask = 0.0
+        while (now := time.monotonic()) < deadline:
+            if now >= next_ask:
+                self.link.mav.command_long_send(
+                    *self.target, mavlink.MAV_CMD_REQUEST_MESSAGE, 0,
+                    mavlink.MAVLINK_MSG_ID_SYSTEM_TIME, 0, 0, 0, 0, 0, 0)
+                next_ask = now + 1.0
+            for msg in self._receive(min(0.2, deadline - now)):
+                if msg.get_type() == "SYSTEM_TIME":
+                    return int(msg.time_boot_ms)
+        return None
+
+    def reboot(self, timeout_s: float = REBOOT_TIMEOUT_S) -> str | None:
+        """Reboot the board and wait until it is back; None, or why it failed."""
+        before_ms, before_s = self.boot_ms(), time.monotonic()
+        ack = self._command(mavlink.MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN, 1.0)
+        if ack is None:
+            return "no answer to MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN"
+        if ack != mavlink.MAV_RESULT_ACCEPTED:
+            return f"MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN refused (result {ack}); disarm first"
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            now_ms = self.boot_ms(timeout_s=min(2.0, max(0.1, deadline - time.monotonic())))
+            if now_ms is None:
+                continue  # (rebooting)
+            if before_ms is None or now_ms < before_ms + (time.monotonic() - before_s) * 1000 - 500:
+                return None  # its clock started again
+        return f"the board was not back within {timeout_s:g} s"
+
+    def _command(self, command: int, *params: float) -> int | None:
+        """COMMAND_LONG ``command``, sent up to three times; the COMMAND_ACK's result."""
+        args = [*params, *[0.0] * (7 - len(params))]
+        for _ in range(3):
+            self.link.mav.command_long_send(*self.target, command, 0, *args)
+            deadline = time.monotonic() + 1.0
+            while (now := time.monotonic()) < deadline:
+                for msg in self._receive(deadline - now):
+                    if msg.get_type() == "COMMAND_ACK" and msg.command == command:
+                        return int(msg.result)
+        return None
 
 
 def _show(value: float | None) -> str:
@@ -114,52 +204,110 @@ def _show(value: float | None) -> str:
     return str(int(value)) if float(value).is_integer() else f"{value:g}"
 
 
+def _status(finding: Finding) -> str:
+    if finding.hazard:
+        return "HAZARD"
+    return "UNKNOWN" if finding.value is None and finding.name not in OPTIONAL_NAMES else "ok"
+
+
 def print_findings(findings: list[Finding], out: TextIO) -> None:
-    """The table: setting, value, what the companion needs, OK or HAZARD, and why."""
+    """The table: setting, value, what the companion needs, ok / HAZARD / UNKNOWN, and why."""
     width = max(len(f.name) for f in findings)
-    out.write(f"{'setting':<{width}}  {'value':>8}  {'needs':<22} {'':6}  why\n")
+    out.write(f"{'setting':<{width}}  {'value':>8}  {'needs':<22} {'':7}  why\n")
     for f in findings:
-        status = "HAZARD" if f.hazard else "ok"
-        out.write(f"{f.name:<{width}}  {_show(f.value):>8}  {f.want:<22} {status:<6}  {f.why}\n")
+        out.write(f"{f.name:<{width}}  {_show(f.value):>8}  {f.want:<22} {_status(f):<7}  "
+                  f"{f.why}\n")
+    out.flush()
 
 
-def run_setup(url: str, params: Params, *, apply: bool, out: TextIO = sys.stdout) -> int:
-    """``setup-fc``: check (and with ``apply`` fix) the board at ``url``; the exit status."""
+class _Setup:
+    """One setup-fc run: the session, the table printed after each read, the exit status."""
+
+    def __init__(self, session: FcSession, params: Params, out: TextIO) -> None:
+        self.session, self.params, self.out = session, params, out
+        self.groups = wanted_groups(params)
+
+    def check(self, title: str) -> tuple[Reading, list[Finding]]:
+        if title:
+            self.out.write(f"\n{title}:\n")
+        reading = self.session.read(self.groups)
+        findings = check(self.params, reading.values)
+        print_findings(findings, self.out)
+        return reading, [f for f in findings if f.hazard]
+
+    def apply(self, reading: Reading) -> set[str]:
+        """Write every setting the companion needs; the names whose value changed."""
+        wanted = safe_settings(self.params, reading.values)
+        have = reading.values
+        nudges = {n: v for n, value in wanted.items() if have.get(n) == value
+                  and (v := store_nudge(n, value)) is not None}
+        changed = {n for n, value in wanted.items() if have.get(n) != value}
+        if nudges:
+            self.session.write(nudges)
+        writes = {n: wanted[n] for n in wanted if n in changed or n in nudges}
+        echoed = self.session.write(writes)
+        refused = sorted(n for n, v in writes.items()
+                         if n not in echoed or abs(echoed[n] - v) > 1e-3)
+        self.out.write(f"\nwrote {len(writes) - len(refused)} of {len(writes)} settings "
+                       f"({len(changed)} changed, {len(nudges)} stored by writing a neighbour "
+                       "first)" + (f"; not accepted: {', '.join(refused)}" if refused else "")
+                       + "\n")
+        return changed
+
+    def verdict(self, reading: Reading, hazards: list[Finding], reboot_for: set[str]) -> int:
+        out = self.out
+        if hazards:
+            out.write(f"\n{len(hazards)} hazard(s): the rover may drive on after the companion "
+                      "stops, or ignore it; fix with --apply\n")
+            return 1
+        if reading.missing:
+            out.write(f"\nnot confirmed: no answer for {', '.join(reading.missing)} (is this "
+                      "ArduPilot Rover, and the link's FC_SYSID right?)\n")
+            return 1
+        if reboot_for:
+            names = ", ".join(sorted(reboot_for))
+            out.write(f"\nREBOOT PENDING: the flight controller reads {names} only at boot: "
+                      "run again with --reboot (or power-cycle it) before driving\n")
+            return EXIT_REBOOT_PENDING
+        out.write("\nthe flight controller is set up safely for the companion\n")
+        return 0
+
+
+def run_setup(url: str, params: Params, *, apply: bool, reboot: bool = False,
+              out: TextIO = sys.stdout) -> int:
+    """``setup-fc``: check (and with ``apply`` fix, with ``reboot`` reboot) the board at
+    ``url``; the exit status (see the module docstring)."""
     try:
         session = FcSession(url, params)
     except (OSError, ValueError) as exc:
         print(f"mecanum-mav setup-fc: {exc}", file=sys.stderr)
         return 2
     try:
+        out.write(f"mecanum-mav setup-fc: waiting for the flight controller's HEARTBEAT on "
+                  f"{url}\n")
+        out.flush()
         if not session.wait_heartbeat():
             print(f"mecanum-mav setup-fc: no HEARTBEAT from system {session.target[0]} on "
                   f"{url}", file=sys.stderr)
             return 2
-        values = session.read(wanted_names(params))
-        findings = check(params, values)
-        print_findings(findings, out)
-        hazards = [f for f in findings if f.hazard]
-        if apply and hazards:
-            wanted = safe_settings(params, values)
-            changes = {n: v for n, v in wanted.items() if values.get(n) != v}
-            echoed = session.write(changes)
-            refused = sorted(n for n, v in changes.items() if n not in echoed
-                             or abs(echoed[n] - v) > 1e-3)
-            out.write(f"\napplied {len(changes) - len(refused)} of {len(changes)} settings"
-                      + (f"; not accepted: {', '.join(refused)}" if refused else "") + "\n")
-            reboot = sorted(REBOOT_NAMES & set(changes))
-            out.write("reboot the flight controller for: " + ", ".join(reboot) + "\n"
-                      if reboot else "no reboot needed\n")
-            values = session.read(wanted_names(params))
-            findings = check(params, values)
-            out.write("\nafter --apply:\n")
-            print_findings(findings, out)
-            hazards = [f for f in findings if f.hazard]
-        if hazards:
-            out.write(f"\n{len(hazards)} hazard(s): the rover may drive on after the companion "
-                      "stops, or ignore it" + ("" if apply else "; fix with --apply") + "\n")
-            return 1
-        out.write("\nthe flight controller is set up safely for the companion\n")
-        return 0
+        setup = _Setup(session, params, out)
+        reading, hazards = setup.check("")
+        reboot_for: set[str] = set()
+        if apply:
+            reboot_for = set(REBOOT_NAMES & setup.apply(reading))
+            reading, hazards = setup.check("after --apply")
+        if reboot:
+            out.write("\nrebooting the flight controller ...\n")
+            out.flush()
+            problem = session.reboot()
+            if problem is not None:
+                print(f"mecanum-mav setup-fc: reboot: {problem}", file=sys.stderr)
+                return 2
+            reboot_for = set()
+            reading, hazards = setup.check("after the reboot")
+            if apply and hazards:
+                reboot_for = set(REBOOT_NAMES & setup.apply(reading))
+                reading, hazards = setup.check("after --apply again")
+        return setup.verdict(reading, hazards, reboot_for)
     finally:
         session.close()

@@ -623,10 +623,11 @@ SCHEMA: tuple[ParamSpec, ...] = (
         "fraction of its speed (0 = no slip).",
     ),
     ParamSpec(
-        "SIM_RC_TMO", float, default=3.0, minimum=0.1, maximum=60.0, units="s",
+        "SIM_RC_TMO", float, default=0.5, minimum=0.1, maximum=60.0, units="s",
         reboot_required=True,
         description="Simulator: override timeout after which an un-refreshed RC override "
-        "lapses to neutral (ArduPilot RC_OVERRIDE_TIME).",
+        "lapses to neutral (ArduPilot RC_OVERRIDE_TIME, as setup-fc --apply sets it; over "
+        "1 s the companion's check calls the board unsafe).",
     ),
     ParamSpec(
         "SIM_GCS_SYSID", int, default=255, minimum=1, maximum=255, units="",

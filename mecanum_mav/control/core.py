@@ -52,7 +52,7 @@ from mecanum_mav.config.views import (
 from mecanum_mav.control.autopilot import TIMER_SLACK_S, Autopilot
 from mecanum_mav.control.chain import Output, manual_output
 from mecanum_mav.control.estimator import WheelOdometryEstimator
-from mecanum_mav.control.fccheck import FcSetupCheck
+from mecanum_mav.control.fccheck import FcCheckState, FcSetupCheck
 from mecanum_mav.control.guided import SetpointError, decode_setpoint
 from mecanum_mav.control.lane import LaneAnswer, StickLane, compile_stick_lane
 from mecanum_mav.control.missions import MissionControl
@@ -124,6 +124,8 @@ FORCE_ARM_MAGIC = 21196.0
 """MAV_CMD_COMPONENT_ARM_DISARM param2 that forces arming past the pre-arm checks (ArduPilot)."""
 
 _NEUTRAL_WHEELS = (0.0, 0.0, 0.0, 0.0)
+_FC_CHECK_FINE = (FcCheckState.SAFE, FcCheckState.NOT_CHECKED)
+"""Verdicts said as a NOTICE; the others as a WARNING."""
 _SIGNATURE_REFUSED = {
     Check.UNSIGNED: "Unsigned packet refused: signing required",
     Check.BAD_SIGNATURE: "Bad signature: packet refused (wrong key?)",
@@ -406,8 +408,8 @@ class RoverCore:
             again, verdict = self.fc_check.tick(self.params, now_s)
             self._ask_fc_params(again)
             if verdict is not None:
-                self.say(Severity.WARNING if self.fc_check.hazards else Severity.NOTICE,
-                         verdict)
+                self.say(Severity.NOTICE if self.fc_check.state in _FC_CHECK_FINE
+                         else Severity.WARNING, verdict)
         # Telemetry and heartbeats ride the output refresh's wake-ups: each goes on the first
         # wake within half a refresh period of its time, early or late (see _ride), on its grid.
         ride_s = self.output.refresh_period_s / 2
@@ -775,7 +777,8 @@ class RoverCore:
             self._new_input = True
 
     def _on_fc_param_value(self, msg: FcParamValueMsg, now_s: float) -> None:
-        self.fc_check.on_value(msg.param_id.rstrip("\x00"), float(msg.param_value))
+        self._ask_fc_params(self.fc_check.on_value(msg.param_id.rstrip("\x00"),
+                                                   float(msg.param_value), now_s))
 
     def _ask_fc_params(self, names: Sequence[str]) -> None:
         target = self.identity.fc_sysid, self.identity.fc_compid
@@ -882,9 +885,10 @@ class RoverCore:
         must be safe, and a pilot's fresh stick (or ``stick``, the receiver's) must be
         centred (within the deadband), or arming would drive off at once."""
         problems = []
-        if self.fc_check.hazards:
-            problems.append(f"FC setup unsafe: {self.fc_check.hazards[0].name} "
-                            f"(mecanum-mav setup-fc)")
+        fc_problem, ask = self.fc_check.arm_problem(self._now_s)
+        self._ask_fc_params(ask)
+        if fc_problem is not None:
+            problems.append(fc_problem)
         if stick is None and not self.vehicle.input_stale:
             stick = self.stick
         if stick is not None:

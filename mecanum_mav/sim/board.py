@@ -35,6 +35,12 @@ sent only once asked for with MAV_CMD_SET_MESSAGE_INTERVAL (message 65): ``chanc
 channel the override in force or else the receiver's pulse (0 beyond N), RSSI 255 (unknown)
 unless set. The wheels stay on the overrides (a wheel channel without one outputs trim).
 
+It answers PARAM_REQUEST_READ (by name, addressed to it) for the ArduPilot settings the
+companion checks (:mod:`mecanum_mav.protocol.fcsetup`), with what this board does: the scaled
+pass-through the companion needs on its wheel channels, ``RC_OVERRIDE_TIME`` =
+``SIM_RC_TMO``, ``MAV_GCS_SYSID`` = ``SIM_GCS_SYSID`` (:func:`board_parameters`); other names
+are not answered, as ArduPilot does with names it does not have. It takes no PARAM_SET.
+
 Physics is stepped at ``SIM_RATE`` with a zero-order hold of the wheel commands; an override
 takes effect from the moment it arrives. The socket version is
 :class:`mecanum_mav.sim.simfc.SimFlightController`; :class:`mecanum_mav.sim.lockstep.Lockstep`
@@ -53,11 +59,12 @@ from mecanum_mav.control.pwm import PwmMap
 from mecanum_mav.mecanum.geo import GlobalOrigin
 from mecanum_mav.mecanum.geometry import Pose2d, body_to_ned
 from mecanum_mav.protocol.dialect import mavlink
+from mecanum_mav.protocol.fcsetup import safe_settings
 from mecanum_mav.protocol.modes import Mode
 from mecanum_mav.protocol.rcoverride import CHANNELS, LEAVE, RELEASE, field_action
 from mecanum_mav.sim.chassis import SimChassis
 
-__all__ = ["ORIGIN", "RcOverrides", "SimBoard", "SimState"]
+__all__ = ["ORIGIN", "RcOverrides", "SimBoard", "SimState", "board_parameters"]
 
 ORIGIN = Pose2d(0.0, 0.0, 0.0)
 """Where the chassis starts unless told otherwise: the local origin, facing north."""
@@ -65,6 +72,17 @@ SERVO_OUTPUTS = 16
 """Outputs SERVO_OUTPUT_RAW reports."""
 MAX_STEP_S = 0.1
 """Longest physics step: a stalled loop loses simulated time rather than jumping."""
+
+
+def board_parameters(params: Params) -> dict[str, float]:
+    """The ArduPilot parameters this simulated board answers with (what it does, in
+    ArduPilot's words): the settings ``setup-fc --apply`` would give a real board, with its
+    own override timeout and ground-station id."""
+    values = safe_settings(params, {"RCMAP_THROTTLE": 3.0})
+    values.update({"MAV_GCS_SYSID": int(params["SIM_GCS_SYSID"]),
+                   "RC_OVERRIDE_TIME": float(params["SIM_RC_TMO"]),
+                   "RCMAP_THROTTLE": values.get("RCMAP_THROTTLE", 3.0), "RC_PROTOCOLS": 0})
+    return values
 
 _HEARTBEAT_PERIOD_S = 1.0
 _ATTITUDE_PERIOD_S = 0.05
@@ -190,6 +208,8 @@ class SimBoard:
         """Whether the board sends its HEARTBEAT (clear it to test link loss)."""
         self.boot_s = now_s
         self.last_step_s = now_s
+        self.parameters = board_parameters(params)
+        self._param_answers: list[str] = []
         self._telemetry: list[tuple[_Every, Callable[[Any, float], None]]] = [
             (_Every(_HEARTBEAT_PERIOD_S, now_s), self._heartbeat),
             (_Every(_ATTITUDE_PERIOD_S, now_s), self._attitude),
@@ -205,6 +225,8 @@ class SimBoard:
     def next_due_s(self) -> float:
         """Time (s) of the next physics step or telemetry message."""
         physics = self.last_step_s + self.physics_period_s
+        if self._param_answers:
+            return self.last_step_s
         return min(physics, *(every.next_s for every, _ in self._telemetry))
 
     def on_time(self, now_s: float, mav: Any) -> bool:
@@ -217,6 +239,10 @@ class SimBoard:
         for every, send in self._telemetry:
             if every.due(now_s):
                 send(mav, now_s)
+        for name in self._param_answers:
+            mav.param_value_send(name.encode("ascii"), self.parameters[name],
+                                 mavlink.MAV_PARAM_TYPE_REAL32, len(self.parameters), 65535)
+        self._param_answers.clear()
         return stepped
 
     def receive(self, messages: Sequence[Any], now_s: float) -> bool:
@@ -229,6 +255,9 @@ class SimBoard:
                     and msg.target_system in (0, self.sysid)):
                 period_s = msg.param2 / 1e6 if msg.param2 > 0 else math.inf
                 self._rc_channels.period_s, self._rc_channels.next_s = period_s, now_s
+            elif (msg.get_type() == "PARAM_REQUEST_READ" and msg.target_system == self.sysid
+                    and msg.param_id.rstrip("\x00") in self.parameters):
+                self._param_answers.append(msg.param_id.rstrip("\x00"))
         overrides = [m for m in messages if m.get_type() == "RC_CHANNELS_OVERRIDE"]
         if not overrides:
             return False
