@@ -20,6 +20,7 @@ import signal
 import socket
 import struct
 import subprocess
+import sys
 import tempfile
 import threading
 import time
@@ -436,6 +437,29 @@ class Sitl:
 
     def alive(self) -> bool:
         return self.proc is not None and self.proc.poll() is None
+
+    def setup_fc(self, *args: str, timeout_s: float = 120.0) -> subprocess.CompletedProcess[str]:
+        """``mecanum-mav setup-fc --fc URL ARGS`` on this board, as a user runs it (its own
+        process, the companion not running); its exit status and output."""
+        return subprocess.run([sys.executable, "-m", "mecanum_mav", "setup-fc", "--fc",
+                               self.fc_url, *args], capture_output=True, text=True,
+                              timeout=timeout_s)
+
+    def set_up(self, *args: str) -> str:
+        """``setup-fc ARGS`` (by default ``--apply``), which must leave the board safe (exit
+        status 0): what a user does before the first drive; its output.
+
+        Raises:
+            AssertionError: setup-fc did not end with a safe board.
+        """
+        done = self.setup_fc(*(args or ("--apply",)))
+        assert done.returncode == 0, f"setup-fc {args}: {done.returncode}\n{done.stdout}" \
+            f"{done.stderr}\n{self.log()}"
+        assert "the flight controller is set up safely" in done.stdout, done.stdout
+        if "--reboot" in args:  # a rebooted board streams only what it is asked for again
+            assert self.monitor is not None
+            self.monitor.request_servo_output(self.boot_timeout_s)
+        return done.stdout
 
     def close(self) -> None:
         """Kill the process group, stop the threads, remove the directory; idempotent."""

@@ -9,8 +9,6 @@ $MECANUM_SITL).
 
 from __future__ import annotations
 
-import subprocess
-import sys
 import time
 from collections.abc import Iterator
 
@@ -39,6 +37,7 @@ def sitl(request) -> Iterator[Sitl]:
     """One firmware per transport, shared by the tests of that transport."""
     assert BINARY is not None
     with Sitl(BINARY, request.param, receiver=RECEIVER, boot_timeout_s=BOOT_S) as fc:
+        fc.set_up()  # the user's path: setup-fc --apply on the plain pass-through board
         yield fc
 
 
@@ -47,11 +46,9 @@ def rig(sitl, tmp_path) -> Iterator[Rig]:
     assert sitl.alive(), sitl.log()
     gcs, port = udp_ground_station()
     try:
-        # The fixture's board is the plain pass-through with a receiver, on purpose (what
-        # SIGTERM releases to): the companion's own setup check rightly calls it unsafe, so
-        # its pre-arm checks are off here.
-        with CompanionProcess(port.url, sitl.fc_url, tmp_path,
-                              "--set", "ARMING_CHECK=0") as companion:
+        # The default parameters and every pre-arm check, as a user runs it; the board has
+        # a receiver (what SIGTERM releases to) and was set up by setup-fc --apply.
+        with CompanionProcess(port.url, sitl.fc_url, tmp_path) as companion:
             yield Rig(sitl, gcs, companion)
     finally:
         port.close()
@@ -105,11 +102,6 @@ def test_sigterm_releases_the_channels_to_the_receiver(rig):
 # --------------------------------------------------------------------------- setup-fc
 
 
-def setup_fc(fc_url: str, *args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "mecanum_mav", "setup-fc", "--fc", fc_url,
-                           *args], capture_output=True, text=True, timeout=120)
-
-
 def test_setup_fc_finds_the_hazards_and_after_apply_a_killed_companion_stops_the_wheels(
         tmp_path):
     """A board with no receiver, set up as the README used to recommend (plain RCIN
@@ -118,7 +110,7 @@ def test_setup_fc_finds_the_hazards_and_after_apply_a_killed_companion_stops_the
     0.6 s, and a 1600 us command comes out as 1600 +/- 2."""
     assert BINARY is not None
     with Sitl(BINARY, "udp", receiver=None, boot_timeout_s=BOOT_S) as fc:
-        before = setup_fc(fc.fc_url)
+        before = fc.setup_fc()
         print(before.stdout)
         assert before.returncode == 1, before.stdout + before.stderr
         assert "SERVO_RC_FS_MSK bit 0" in before.stdout and "HAZARD" in before.stdout
@@ -135,7 +127,7 @@ def test_setup_fc_finds_the_hazards_and_after_apply_a_killed_companion_stops_the
                                 REACT_S, 0)
         finally:
             port.close()
-        applied = setup_fc(fc.fc_url, "--apply")
+        applied = fc.setup_fc("--apply")
         print(applied.stdout)
         assert applied.returncode == 0, applied.stdout + applied.stderr
         assert "the flight controller is set up safely" in applied.stdout

@@ -49,6 +49,7 @@ def board() -> Iterator[Sitl]:
     """Firmware with its companion port on SERIAL1, no key yet (:func:`set_key`)."""
     assert BINARY is not None
     with Sitl(BINARY, "udp", receiver=RECEIVER, boot_timeout_s=BOOT_S, fc_serial=1) as fc:
+        fc.set_up()  # the user's path: the board set up by setup-fc --apply, then signing
         yield fc
 
 
@@ -88,10 +89,7 @@ class Companion(Rig):
 def run_companion(fc: Sitl, workdir: Path, *extra: str) -> Iterator[Companion]:
     gcs, port = udp_ground_station()
     try:
-        # the plain pass-through board with a receiver: the companion's own setup check
-        # rightly calls it unsafe (see test_sitl.py), so its pre-arm checks are off here
-        with CompanionProcess(port.url, fc.fc_url, workdir, "--set", "ARMING_CHECK=0",
-                              *extra) as process:
+        with CompanionProcess(port.url, fc.fc_url, workdir, *extra) as process:
             yield Companion(fc, gcs, process)
     finally:
         port.close()
@@ -116,6 +114,10 @@ def test_a_board_that_requires_signing_obeys_the_companion_only_with_fc_signing_
                        for m in companion.gcs.messages)
         companion.stop()
     set_key(board)
+    # setup-fc on that port reads the board only with the key too
+    unsigned, signed = board.setup_fc(), board.setup_fc("--fc-signing-key", key)
+    assert unsigned.returncode == 1 and "not confirmed: no answer for" in unsigned.stdout
+    assert signed.returncode == 0, signed.stdout + signed.stderr
     with run_companion(board, tmp_path / "unsigned") as companion:
         companion.arm()
         since = monitor.mark()
@@ -131,7 +133,7 @@ def test_a_board_that_requires_signing_obeys_the_companion_only_with_fc_signing_
         forward_s = companion.drive(1000, 0, 0, FORWARD)
         strafe_s = companion.drive(0, 1000, 0, STRAFE_RIGHT)
         # the parameter protocol works signed: the companion read the board's setup
-        assert companion.said("FC setup unsafe (")
+        assert companion.said("FC setup checked: safe for the companion")
         since = monitor.mark()
         sent = companion.stop()
         released = monitor.wait_servos(lambda s: s == RECEIVER, REACT_S, since=since)

@@ -467,7 +467,8 @@ def serve_simfc(url: str, params: Params) -> int:
 def cmd_setup_fc(args: argparse.Namespace, params: Params) -> int:
     from mecanum_mav.app.setupfc import run_setup
 
-    return run_setup(args.fc, params, apply=args.apply, reboot=args.reboot)
+    return run_setup(args.fc, params, apply=args.apply, reboot=args.reboot,
+                     signing_key=args.keys[1])
 
 
 def cmd_simfc(args: argparse.Namespace, params: Params) -> int:
@@ -553,6 +554,7 @@ def build_parser() -> argparse.ArgumentParser:
     setup.add_argument("--reboot", action="store_true",
                        help="then reboot the flight controller, wait for it and check again "
                        "(with --apply: write again what the reboot changed)")
+    setup.add_argument("--fc-signing-key", type=Path, metavar="FILE", help=FC_SIGNING_KEY_HELP)
     setup.set_defaults(handler=cmd_setup_fc)
 
     simfc = sub.add_parser("simfc", parents=[common], help="the simulated flight controller",

@@ -66,11 +66,12 @@ class Reading:
 class FcSession:
     """A MAVLink session with a flight controller for reading and writing parameters."""
 
-    def __init__(self, url: str, params: Params) -> None:
+    def __init__(self, url: str, params: Params, signing_key: bytes | None = None) -> None:
         self.url = url
         self.target = (int(params["FC_SYSID"]), int(params["FC_COMPID"]))
         self.link: Link = open_link(url, source_system=int(params["FC_GCS_SYSID"]),
-                                    source_component=FC_LINK_COMPID, name="fc")
+                                    source_component=FC_LINK_COMPID, name="fc",
+                                    signing_key=signing_key)
         self._selector = selectors.DefaultSelector()
         self._fd = follow(self._selector, self.link, None)
         self.types: dict[str, int] = {}
@@ -274,11 +275,12 @@ class _Setup:
 
 
 def run_setup(url: str, params: Params, *, apply: bool, reboot: bool = False,
-              out: TextIO = sys.stdout) -> int:
+              signing_key: bytes | None = None, out: TextIO = sys.stdout) -> int:
     """``setup-fc``: check (and with ``apply`` fix, with ``reboot`` reboot) the board at
-    ``url``; the exit status (see the module docstring)."""
+    ``url`` (signing with ``signing_key``, a board that requires it); the exit status (see
+    the module docstring)."""
     try:
-        session = FcSession(url, params)
+        session = FcSession(url, params, signing_key)
     except (OSError, ValueError) as exc:
         print(f"mecanum-mav setup-fc: {exc}", file=sys.stderr)
         return 2
