@@ -13,7 +13,7 @@ from mecanum_mav.protocol.fcsetup import (
     wanted_groups,
     wanted_names,
 )
-from mecanum_mav.protocol.paramread import DEADLINE_S, REPEAT_S, WINDOW, ParamReader
+from mecanum_mav.protocol.paramread import DEADLINE_S, REPEAT_S, SILENT_S, WINDOW, ParamReader
 
 PLAIN_PASSTHROUGH = {  # what the README recommended before: RCIN1..4, receiver-less board
     "MAV_GCS_SYSID": 255, "SERVO_RC_FS_MSK": 0, "RC_OVERRIDE_TIME": 3.0, "ARMING_RUDDER": 2,
@@ -248,6 +248,7 @@ def test_a_board_that_answers_no_parameter_is_not_checked_and_blocks_nothing():
     verdicts = run_check(board, check_, Params())
     assert [v for _, v in verdicts] == [
         "FC setup not checked: no parameters from the flight controller"]
+    assert SILENT_S <= verdicts[0][0] < SILENT_S + 0.1  # not the whole deadline
     assert not check_.checked and check_.hazards == [] and check_.arm_problem(20.0) == (None, [])
 
 

@@ -18,7 +18,9 @@ measured with ArduPilot Rover SITL of July 2025):
 So the reader keeps at most :data:`WINDOW` requests unanswered at once (a ground station
 reading parameters through the board at the same time still finds room), asks again for a
 name not answered within :data:`REPEAT_S`, and ends at :data:`DEADLINE_S`: the names never
-answered by then are :meth:`ParamReader.missing`, which is not the same as a wrong value.
+answered by then are :meth:`ParamReader.missing`, which is not the same as a wrong value. A
+board that has answered nothing by :data:`SILENT_S` answers no parameters at all: the read ends
+then.
 Measured on the SITL over UDP with this pacing: the 42 names of the default setup check, all
 answered, in 0.1-0.3 s.
 
@@ -32,7 +34,7 @@ import math
 from collections import deque
 from collections.abc import Iterable, Sequence
 
-__all__ = ["DEADLINE_S", "REPEAT_S", "WINDOW", "ParamReader"]
+__all__ = ["DEADLINE_S", "REPEAT_S", "SILENT_S", "WINDOW", "ParamReader"]
 
 WINDOW = 8
 """Requests unanswered at once: well inside ArduPilot's shared queue of 20."""
@@ -41,6 +43,9 @@ REPEAT_S = 0.5
 kept within tens of milliseconds; one it dropped is never answered)."""
 DEADLINE_S = 10.0
 """The read ends this long after it started, answered or not."""
+SILENT_S = 3.0
+"""A board that answered nothing at all by then answers no parameters (a firmware without
+them, a signing board the link cannot talk to): the read ends, with nothing answered."""
 
 
 class ParamReader:
@@ -104,7 +109,8 @@ class ParamReader:
         """The names to send a PARAM_REQUEST_READ for now (possibly none)."""
         if self.over:
             return []
-        if now_s >= self.deadline_s:
+        if now_s >= self.deadline_s or (not self._answered
+                                         and now_s >= self.started_s + SILENT_S):
             self.over = True
             self._asked.clear()
             return []
@@ -130,7 +136,8 @@ class ParamReader:
         if self.over:
             return math.inf
         oldest = next(iter(self._asked.values()), math.inf)
-        return min(oldest + REPEAT_S, self.deadline_s)
+        end_s = self.deadline_s if self._answered else self.started_s + SILENT_S
+        return min(oldest + REPEAT_S, end_s)
 
     def missing(self) -> list[str]:
         """Each required setting not answered (its first name), in the order given."""
