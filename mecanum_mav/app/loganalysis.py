@@ -553,6 +553,8 @@ def _mode_spans(beats: list[tuple[float, str, bool]], causes: Sequence[float],
             at = causes[k] if k >= 0 and causes[k] > previous_t and starts else t
             starts.append((at, mode, armed))
         previous_t = t
+    if not starts:  # no heartbeat of the vehicle
+        return []
     ends = [t for t, _, _ in starts[1:]] + [end_s]
     return [ModeSpan(t, max(t_end, t), mode, armed)
             for (t, mode, armed), t_end in zip(starts, ends, strict=True)]
