@@ -428,7 +428,8 @@ def test_statustext_chunks_are_joined_per_sender_and_id_into_one_message():
     notice = "Mission saved to storage: 12 items, the last a return to launch at the origin"
     first = statustext_messages(Severity.CRITICAL, lost, chunk_id=7)
     second = statustext_messages(Severity.NOTICE, notice, chunk_id=7)  # the same id
-    exact = "x" * 100  # two full chunks, no shorter one to end it: ended by the log's end
+    exact = "x" * 100  # two full chunks, no shorter one to end it: ended by its id's next
+    # text (its chunk_seq 0 again) or the log's end
     assert len(first) == len(second) == 2
     for k in range(2):
         companion.send(first[k])
@@ -436,12 +437,22 @@ def test_statustext_chunks_are_joined_per_sender_and_id_into_one_message():
         board.send(second[k])
         rec.now_s += 0.01
     companion.statustext_send(Severity.INFO, b"Mode HOLD")
-    for msg in statustext_messages(Severity.INFO, exact, chunk_id=8):
-        companion.send(msg)
+    for _ in range(2):
+        for msg in statustext_messages(Severity.INFO, exact, chunk_id=8):
+            companion.send(msg)
+        rec.now_s += 0.01
+    shuffled = "a" * 50 + "b" * 50 + "c" * 20
+    chunks = statustext_messages(Severity.WARNING, shuffled, chunk_id=9)
+    for k in (1, 0, 2):  # chunk_seq order, not arrival order; the short last ends it
+        companion.send(chunks[k])
+    rec.now_s += 0.01
+    tail = "d" * 150 + "f" * 10
+    companion.send(statustext_messages(Severity.WARNING, tail, chunk_id=9)[3])  # 0-2 lost
     read = parse_tlog(bytes(rec.buf), "chunks.tlog")
     a = analyse(read.entries)
     assert [(round(e.time_s, 2), e.text) for e in a.events] == [
-        (0.0, lost), (0.01, notice), (0.04, "Mode HOLD"), (0.04, exact)]
+        (0.0, lost), (0.01, notice), (0.04, "Mode HOLD"), (0.04, exact), (0.05, exact),
+        (0.06, shuffled), (0.07, "f" * 10)]
     assert [e.text for e in a.failsafes] == [lost]
     assert f"CRITICAL  {lost}\n" in summary(read, a) + "\n"
 
