@@ -13,13 +13,13 @@ import io
 import itertools
 import math
 import struct
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import pytest
 
 from mecanum_mav.app.cli import main
-from mecanum_mav.app.loganalysis import INPUT_TIMEOUT_S, analyse
+from mecanum_mav.app.loganalysis import INPUT_TIMEOUT_S, OVERRIDE_TIMEOUT_S, analyse
 from mecanum_mav.app.logview import log_figure, run_log, summary
 from mecanum_mav.control.pathfollow import Leg
 from mecanum_mav.io.tlog import parse_tlog, read_tlog
@@ -374,13 +374,14 @@ def test_the_pilots_rc_override_is_drawn_as_sticks_labelled_by_its_source():
             if 1.0 <= t < 2.0] == pytest.approx([1.0] * 10)
 
 
-def manual_control_bursts_tlog(bursts: Sequence[tuple[float, float]]) -> bytes:
-    """MANUAL_CONTROL (x 500) from a ground station (255/190) at 20 Hz during each (start s,
-    end s) of ``bursts``, silence between them; a vehicle HEARTBEAT (1/1) every second to
-    the last burst's end + 2 s."""
+def bursts_tlog(bursts: Sequence[tuple[float, float]],
+                send: Callable[[Any, float], None]) -> bytes:
+    """``send(mav, t)`` from system 255 component 190 at 20 Hz during each (start s, end s)
+    of ``bursts``, silence between them; a vehicle HEARTBEAT (1/1) every second to the last
+    burst's end + 2 s."""
     rec = _Recorder()
     vehicle = mavlink.MAVLink(rec, srcSystem=1, srcComponent=1)
-    gcs = mavlink.MAVLink(rec, srcSystem=255, srcComponent=190)
+    mav = mavlink.MAVLink(rec, srcSystem=255, srcComponent=190)
     start = rec.now_s
     end = bursts[-1][1] + 2.0
     for step in range(round(end * 20)):
@@ -392,7 +393,7 @@ def manual_control_bursts_tlog(bursts: Sequence[tuple[float, float]]) -> bytes:
                                    mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, Mode.MANUAL,
                                    mavlink.MAV_STATE_ACTIVE)
         if any(t0 <= t < t1 for t0, t1 in bursts):
-            gcs.manual_control_send(1, 500, 0, 500, 0, 0)
+            send(mav, t)
     return bytes(rec.buf)
 
 
@@ -403,7 +404,9 @@ def drawn_spans(line: Any) -> list[tuple[float, float]]:
 
 
 def test_a_stick_series_breaks_where_its_samples_stop_for_longer_than_the_input_timeout():
-    a = analyse(parse_tlog(manual_control_bursts_tlog([(0.0, 1.0), (4.0, 5.0)])).entries)
+    data = bursts_tlog([(0.0, 1.0), (4.0, 5.0)],
+                       lambda mav, _t: mav.manual_control_send(1, 500, 0, 500, 0, 0))
+    a = analyse(parse_tlog(data).entries)
     ax_stick = log_figure(a, "sticks").axes[1]
     x = next(line for line in ax_stick.lines if line.get_label() == "x forward (MANUAL_CONTROL)")
     spans = drawn_spans(x)
@@ -415,6 +418,22 @@ def test_a_stick_series_breaks_where_its_samples_stop_for_longer_than_the_input_
     a = analyse(parse_tlog(rc_pilot_tlog(230)).entries)
     for line in log_figure(a, "rc").axes[1].lines:
         assert max(end for _, end in drawn_spans(line)) == pytest.approx(2.9 + INPUT_TIMEOUT_S)
+
+
+def test_the_companions_pwm_breaks_where_its_overrides_stop_for_the_override_timeout():
+    """A flight controller holds an override OVERRIDE_TIMEOUT_S (ArduPilot RC_OVERRIDE_TIME,
+    3 s): a companion silent for 5 s (restarted) is drawn for that long, then not."""
+    def wheels(mav: Any, t: float) -> None:
+        mav.rc_channels_override_send(1, 1, *([1500 + round(100 * t)] * 4), *LEAVE_REST)
+
+    a = analyse(parse_tlog(bursts_tlog([(0.0, 1.0), (6.0, 7.0)], wheels)).entries)
+    lines = log_figure(a, "pwm").axes[2].lines
+    assert len(lines) == 4
+    for line in lines:
+        spans = drawn_spans(line)
+        assert not any(begin < 5.0 and end > 4.0 for begin, end in spans)
+        assert max(end for begin, end in spans if begin < 4.0) == pytest.approx(
+            0.95 + OVERRIDE_TIMEOUT_S)
 
 
 # ---------------------------------------------------------------------- STATUSTEXT
