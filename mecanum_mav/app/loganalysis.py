@@ -154,7 +154,9 @@ def override_from_pilot(msg: Any, channels: Sequence[int],
     1. sent to another system than ``vehicle``'s (target not 0): the companion's, to its
        flight controller (whose FC_SYSID is not the companion's SYSID_THISMAV);
     2. sent from another component than 190: the pilot's (MAVProxy sends as component 0
-       or 230, and the companion's flight-controller link is always 190);
+       or 230, and the companion's flight-controller link is always 190; the system id
+       does not tell, ground stations send as 255 too and FC_GCS_SYSID may be set to
+       another);
     3. else (sender and target alike, as a Mission Planner-like 255/190 pilot and the
        companion by default): the companion's if it sets or releases exactly the default
        wheel channels (MOT_x_CH: 1-4) and leaves every other, the pilot's otherwise
