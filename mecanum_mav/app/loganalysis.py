@@ -19,12 +19,18 @@ ODOMETRY or MISSION_CURRENT, else of the most vehicle HEARTBEATs):
   positions are within a degree of it (a simulator without an origin); else the first one.
 - planned mission: the last MISSION_COUNT's MISSION_ITEM_INT / MISSION_ITEM (uploads and
   downloads alike); items with a position from seq 1 on (item 0 is home).
-- sticks: MANUAL_CONTROL x, y, r (-1000..1000 -> -1..1). PWM: RC_CHANNELS_OVERRIDE, by sender,
+- sticks: MANUAL_CONTROL x, y, r (-1000..1000 -> -1..1), and the pilot's RC_CHANNELS_OVERRIDE
+  (MAVProxy's ``rc``) read as the rover reads it with its default parameters
+  (:data:`RC_STICKS`; :class:`~mecanum_mav.control.sticks.RcStickState`), by sender.
+- PWM: the companion's RC_CHANNELS_OVERRIDE to its flight controller, by sender and target,
   and SERVO_OUTPUT_RAW. Normalized wheel commands are not on the wire and are not shown.
+  Which override is whose: :func:`override_from_pilot`.
 - modes: the vehicle's HEARTBEAT (``custom_mode`` and the armed flag); a change is placed at
   the accepted mode or arming command (COMMAND_ACK), failsafe or reached item that caused it
-  since the heartbeat before, else at the heartbeat that first shows it. Failsafes:
-  STATUSTEXT of severity CRITICAL or worse, or whose text says "failsafe" or "lost".
+  since the heartbeat before, else at the heartbeat that first shows it.
+- events: STATUSTEXT, a long text's chunks (MAVLink 2 ``id`` != 0, ``chunk_seq`` 0, 1, ...)
+  joined into one text per sender and ``id``, at its first chunk's time. Failsafes:
+  :func:`is_failsafe`.
 - progress: MISSION_CURRENT and MISSION_ITEM_REACHED (a reached item makes the next one
   current at once). A leg is the line from the previous mission position (or, for the first,
   from where the vehicle was when it became current) to an item; its cross-track is the
@@ -37,8 +43,7 @@ station both 255/190, and a tlog has no link tag. Such senders are told apart by
 sequence numbers (each sender counts its own packets): a packet continues the sender whose
 last sequence number is closest below its own. A sender that sends ODOMETRY is the companion,
 one that sends MANUAL_CONTROL, COMMAND_LONG, SET_MODE or mission uploads a ground station; the
-vehicle's modes come from the companion's HEARTBEATs only, and ground-station RC overrides
-count as stick input, not as PWM.
+vehicle's modes come from the companion's HEARTBEATs only.
 """
 
 from __future__ import annotations
@@ -52,14 +57,22 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
+from mecanum_mav.config.params import Params
+from mecanum_mav.config.views import RcInputConfig
+from mecanum_mav.control.core import FC_LINK_COMPID
 from mecanum_mav.control.pathfollow import Leg
+from mecanum_mav.control.pwm import PwmMap
+from mecanum_mav.control.sticks import InputError, RcStickState
 from mecanum_mav.io.tlog import TlogEntry
 from mecanum_mav.mecanum.geo import GlobalOrigin
 from mecanum_mav.protocol.dialect import mavlink, mavutil
 from mecanum_mav.protocol.mission import MissionItem, item_from_fields, position_ned
 from mecanum_mav.protocol.modes import Mode
+from mecanum_mav.protocol.rcoverride import LEAVE, field_action
+from mecanum_mav.protocol.statustext import STATUSTEXT_LEN
 
-__all__ = ["LegStat", "LogAnalysis", "ModeSpan", "StatusEvent", "analyse"]
+__all__ = ["INPUT_TIMEOUT_S", "OVERRIDE_TIMEOUT_S", "RC_STICKS", "LegStat", "LogAnalysis",
+           "ModeSpan", "StatusEvent", "analyse", "is_failsafe", "override_from_pilot"]
 
 Vec = tuple[float, float]
 PathPoint = tuple[float, float, float]
@@ -77,7 +90,23 @@ _GCS_ANCHORS = frozenset({"MANUAL_CONTROL", "COMMAND_LONG", "COMMAND_INT", "SET_
 _NOT_VEHICLES = frozenset({mavlink.MAV_TYPE_GCS, mavlink.MAV_TYPE_ONBOARD_CONTROLLER,
                            mavlink.MAV_TYPE_GIMBAL, mavlink.MAV_TYPE_ADSB,
                            mavlink.MAV_TYPE_CAMERA})
+_DEFAULTS = Params()
+RC_STICKS: RcInputConfig = RcInputConfig.from_params(_DEFAULTS)
+"""How a pilot's RC override is read as sticks: the rover's defaults (RCMAP_THROTTLE 3 forward,
+RCMAP_LATERAL 4 right, RCMAP_STEER 1 clockwise; RCIN_MIN/TRIM/MAX 1000/1500/2000 us)."""
+INPUT_TIMEOUT_S = float(_DEFAULTS["FS_INPUT_TMO"])
+"""Stick input older than this no longer drives the rover (FS_INPUT_TMO's default, s)."""
+OVERRIDE_TIMEOUT_S = float(_DEFAULTS["SIM_RC_TMO"])
+"""A flight controller lets an override lapse after this long without one (ArduPilot's
+RC_OVERRIDE_TIME default, which the simulator's SIM_RC_TMO defaults to; s)."""
+_WHEEL_CHANNELS = frozenset(PwmMap.from_params(_DEFAULTS).channels)
+"""The channels the companion's overrides set by default (MOT_FL_CH ... MOT_RR_CH)."""
 _FAILSAFE_TEXT = re.compile(r"fail\s*-?safe|\blost\b", re.IGNORECASE)
+_REFUSAL_TEXT = re.compile(r"^\s*(?:pre\s*-?arm|arm)\s*:", re.IGNORECASE)
+_CLEARED_TEXT = re.compile(
+    r"\b(?:cleared|restored|regained|resumed|recovered|reconnected|link\s+up|ok)\b",
+    re.IGNORECASE)
+_ACTION_TEXT = re.compile(r"^\s*disarmed\b", re.IGNORECASE)
 _NAV_COMMANDS = frozenset({
     mavlink.MAV_CMD_NAV_WAYPOINT, mavlink.MAV_CMD_NAV_LOITER_UNLIM,
     mavlink.MAV_CMD_NAV_LOITER_TURNS, mavlink.MAV_CMD_NAV_LOITER_TIME,
@@ -87,6 +116,97 @@ _RTL = mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH
 _MODE_COMMANDS = frozenset({mavlink.MAV_CMD_DO_SET_MODE, mavlink.MAV_CMD_COMPONENT_ARM_DISARM,
                             mavlink.MAV_CMD_MISSION_START, 11})  # 11: SET_MODE's acknowledgement
 _NEAR_NULL_ISLAND_E7 = 10_000_000
+
+
+def is_failsafe(severity: int, text: str) -> bool:
+    """Whether a STATUSTEXT (``severity`` MAV_SEVERITY, whole ``text``) starts a failsafe.
+
+    A failsafe is an event that starts one: a text that says "failsafe" or "lost", or any
+    text of severity CRITICAL or worse, unless it is one of these, which are not:
+
+    - a pre-arm or arming refusal: the text begins "PreArm:" or "Arm:" (ArduPilot sends
+      them at CRITICAL, e.g. "PreArm: Radio failsafe on"; the companion words its refusals
+      the same way, e.g. "PreArm: radio failsafe (receiver)");
+    - a clearance: the text says "cleared", "restored", "regained", "resumed",
+      "recovered", "reconnected", "link up" or "OK" (ArduPilot's "Radio Failsafe Cleared",
+      "GCS Failsafe Cleared"; the companion's "GCS link regained, mode HOLD", "Manual input
+      resumed", "Flight controller link up", "Radio receiver OK, mode MANUAL", "... link
+      reconnected");
+    - a failsafe's action, not its start: the text begins "Disarmed" (the companion's
+      "Disarmed: GCS failsafe" follows its "GCS link lost: failsafe").
+
+    So ArduPilot's "Radio Failsafe" and "GCS Failsafe", and the companion's "GCS link lost:
+    failsafe" (CRITICAL), "Flight controller link lost" (CRITICAL), "Radio failsafe: ..."
+    (CRITICAL) and "Manual input lost: wheels neutral" (WARNING) are failsafes.
+    """
+    if _REFUSAL_TEXT.match(text) or _CLEARED_TEXT.search(text) or _ACTION_TEXT.match(text):
+        return False
+    return severity <= mavlink.MAV_SEVERITY_CRITICAL or bool(_FAILSAFE_TEXT.search(text))
+
+
+def override_from_pilot(msg: Any, channels: Sequence[int],
+                        vehicle: tuple[int, int] | None) -> bool:
+    """Whether an RC_CHANNELS_OVERRIDE (``channels``: its 18 ``chanN_raw``) is the pilot's
+    stick input (a ground station's, e.g. MAVProxy's ``rc 3 1700``, sent to the vehicle)
+    rather than the companion's PWM output (sent from its flight-controller link, system
+    FC_GCS_SYSID (255) component 190, to the flight controller). In order:
+
+    1. sent to another system than ``vehicle``'s (target not 0): the companion's, to its
+       flight controller (whose FC_SYSID is not the companion's SYSID_THISMAV);
+    2. sent from another component than 190: the pilot's (MAVProxy sends as component 0
+       or 230, and the companion's flight-controller link is always 190; the system id
+       does not tell, ground stations send as 255 too and FC_GCS_SYSID may be set to
+       another);
+    3. else (sender and target alike, as a Mission Planner-like 255/190 pilot and the
+       companion by default): the companion's if it sets or releases exactly the default
+       wheel channels (MOT_x_CH: 1-4) and leaves every other, the pilot's otherwise
+       (MAVProxy's ``rc`` sets its channels and releases the rest of 1-8).
+    """
+    target = msg.target_system
+    if vehicle is not None and target not in (0, vehicle[0]):
+        return False
+    if msg.get_srcComponent() != FC_LINK_COMPID:
+        return True
+    touched = {n for n, raw in enumerate(channels, start=1) if field_action(n, raw) != LEAVE}
+    return touched != _WHEEL_CHANNELS
+
+
+class _StatusChunks:
+    """Joins the chunks of long STATUSTEXTs (see the module docstring).
+
+    A chunk (``id`` != 0) opens or continues the text of its sender and ``id``; a chunk whose
+    text is shorter than :data:`STATUSTEXT_LEN` bytes (NUL-terminated) ends it, and so does a
+    chunk_seq already held (the ``id`` reused for a new text). Texts still open at the log's
+    end are given as they are.
+    """
+
+    def __init__(self) -> None:
+        self._open: dict[tuple[int, int, int], tuple[float, int, dict[int, str]]] = {}
+
+    def add(self, t: float, msg: Any) -> list[tuple[float, int, str]]:
+        """The (time, severity, text) completed by one STATUSTEXT at ``t``."""
+        text = str(msg.text).split("\x00", 1)[0]
+        ident = getattr(msg, "id", 0) or 0
+        if not ident:
+            return [(t, msg.severity, text)]
+        key = (msg.get_srcSystem(), msg.get_srcComponent(), ident)
+        seq = getattr(msg, "chunk_seq", 0) or 0
+        done = []
+        if key in self._open and seq in self._open[key][2]:
+            done.append(self._close(key))
+        chunks = self._open.setdefault(key, (t, msg.severity, {}))[2]
+        chunks[seq] = text
+        if len(text.encode("utf-8", "replace")) < STATUSTEXT_LEN:
+            done.append(self._close(key))
+        return done
+
+    def flush(self) -> list[tuple[float, int, str]]:
+        """The texts still open (their last chunk not in the log)."""
+        return [self._close(key) for key in list(self._open)]
+
+    def _close(self, key: tuple[int, int, int]) -> tuple[float, int, str]:
+        t, severity, chunks = self._open.pop(key)
+        return t, severity, "".join(chunks[seq] for seq in sorted(chunks))
 
 
 def _length(path: Sequence[PathPoint]) -> float:
@@ -144,11 +264,17 @@ class LogAnalysis:
         true_path: the simulator's true position over time (empty for a real vehicle).
         planned: the mission's positions by item (seq, north m, east m), seq 1 on.
         sticks: (time, x, y, r) of every MANUAL_CONTROL, normalized (NaN: axis invalid).
-        gcs_overrides: (time, 18 channels) of ground-station RC_CHANNELS_OVERRIDE (sticks).
-        overrides: sender label -> (time, 18 channels) of the other RC_CHANNELS_OVERRIDE.
+        pilot_overrides: sender ("255/230") -> (time, 18 channels) of the pilot's
+            RC_CHANNELS_OVERRIDE (:func:`override_from_pilot`).
+        pilot_sticks: sender -> (time, x, y, r), the pilot's overrides that set or release a
+            stick channel read as sticks (:data:`RC_STICKS`), x forward, y right,
+            r clockwise, -1..1.
+        overrides: sender and target ("255/190 -> 1/1") -> (time, 18 channels) of the
+            companion's RC_CHANNELS_OVERRIDE (PWM to the flight controller).
         servo: (time, 16 pulses) of SERVO_OUTPUT_RAW (port 0 outputs 1-16).
         modes: the vehicle's modes, in order, without gaps.
-        events: every STATUSTEXT (``failsafe`` marks the failsafes).
+        events: every STATUSTEXT, chunks joined, in time order (``failsafe`` marks the
+            failsafes, :func:`is_failsafe`).
         mission_current: (time, seq) whenever the current item changed.
         reached: (time, seq) of every MISSION_ITEM_REACHED.
         legs: the mission legs driven in AUTO, in order.
@@ -164,7 +290,9 @@ class LogAnalysis:
     true_path: list[PathPoint] = field(default_factory=list)
     planned: list[tuple[int, float, float]] = field(default_factory=list)
     sticks: list[tuple[float, float, float, float]] = field(default_factory=list)
-    gcs_overrides: list[tuple[float, list[int]]] = field(default_factory=list)
+    pilot_overrides: dict[str, list[tuple[float, list[int]]]] = field(default_factory=dict)
+    pilot_sticks: dict[str, list[tuple[float, float, float, float]]] = field(
+        default_factory=dict)
     overrides: dict[str, list[tuple[float, list[int]]]] = field(default_factory=dict)
     servo: list[tuple[float, list[int]]] = field(default_factory=list)
     modes: list[ModeSpan] = field(default_factory=list)
@@ -427,6 +555,8 @@ def _mode_spans(beats: list[tuple[float, str, bool]], causes: Sequence[float],
             at = causes[k] if k >= 0 and causes[k] > previous_t and starts else t
             starts.append((at, mode, armed))
         previous_t = t
+    if not starts:  # no heartbeat of the vehicle
+        return []
     ends = [t for t, _, _ in starts[1:]] + [end_s]
     return [ModeSpan(t, max(t_end, t), mode, armed)
             for (t, mode, armed), t_end in zip(starts, ends, strict=True)]
@@ -476,6 +606,21 @@ def _legs(result: LogAnalysis) -> list[LegStat]:
             for seq, s in sorted(stats.items(), key=lambda kv: kv[1]["order"])]
 
 
+def _pilot_stick(result: LogAnalysis, states: dict[str, RcStickState], sender: str, t: float,
+                 channels: list[int]) -> None:
+    """Add the sticks a pilot's override gives (as the rover reads it; a channel left alone
+    keeps its pulse) to ``result.pilot_sticks``; an override the rover would reject (a pulse
+    outside 800..2200 us) or that touches no stick channel gives none."""
+    state = states.setdefault(sender, RcStickState())
+    try:
+        state.apply(channels)
+    except InputError:
+        return
+    if state.touches_sticks(channels, RC_STICKS):
+        x, y, r = state.stick(RC_STICKS)
+        result.pilot_sticks.setdefault(sender, []).append((t, x, y, r))
+
+
 def analyse(entries: Sequence[TlogEntry]) -> LogAnalysis:
     """Analyse a tlog's messages (see the module docstring); never raises on odd contents."""
     result = LogAnalysis(messages=len(entries))
@@ -494,6 +639,9 @@ def analyse(entries: Sequence[TlogEntry]) -> LogAnalysis:
     beats: list[tuple[float, str, bool]] = []
     causes: list[float] = []
     last_current: int | None = None
+    pilot_states: dict[str, RcStickState] = {}
+    status = _StatusChunks()
+    texts: list[tuple[float, int, str]] = []
     for index, e in enumerate(entries):
         msg, kind, t = e.msg, e.msg.get_type(), e.time_s - t0
         try:
@@ -518,19 +666,18 @@ def analyse(entries: Sequence[TlogEntry]) -> LogAnalysis:
                 result.sticks.append((t, axes[0], axes[1], axes[2]))
             elif kind == "RC_CHANNELS_OVERRIDE":
                 channels = [getattr(msg, f"chan{i}_raw", 0) for i in range(1, 19)]
-                if senders.role(index) == "gcs":
-                    result.gcs_overrides.append((t, channels))
+                sender = f"{msg.get_srcSystem()}/{msg.get_srcComponent()}"
+                if override_from_pilot(msg, channels, vehicle):
+                    result.pilot_overrides.setdefault(sender, []).append((t, channels))
+                    _pilot_stick(result, pilot_states, sender, t, channels)
                 else:
-                    label = f"{msg.get_srcSystem()}/{msg.get_srcComponent()}"
+                    label = f"{sender} -> {msg.target_system}/{msg.target_component}"
                     result.overrides.setdefault(label, []).append((t, channels))
             elif kind == "SERVO_OUTPUT_RAW" and msg.port == 0:
                 pulses = [getattr(msg, f"servo{i}_raw", 0) for i in range(1, 17)]
                 result.servo.append((t, pulses))
             elif kind == "STATUSTEXT":
-                text = str(msg.text).rstrip("\x00")
-                failsafe = msg.severity <= mavlink.MAV_SEVERITY_CRITICAL or bool(
-                    _FAILSAFE_TEXT.search(text))
-                result.events.append(StatusEvent(t, msg.severity, text, failsafe))
+                texts += status.add(t, msg)
             elif kind == "MISSION_CURRENT" and _from(msg, vehicle):
                 if msg.seq != last_current:
                     result.mission_current.append((t, msg.seq))
@@ -542,6 +689,9 @@ def analyse(entries: Sequence[TlogEntry]) -> LogAnalysis:
                 result.reached.append((t, msg.seq))
         except (AttributeError, TypeError, ValueError):
             continue
+    texts += status.flush()
+    result.events = [StatusEvent(t, severity, text, is_failsafe(severity, text))
+                     for t, severity, text in sorted(texts, key=lambda x: x[0])]
     for source in ("ODOMETRY", "LOCAL_POSITION_NED", "GLOBAL_POSITION_INT"):
         if paths.get(source):
             result.path, result.path_source = paths[source], source

@@ -4,11 +4,17 @@ Reads a tlog (:mod:`mecanum_mav.io.tlog`: recorded with ``--tlog``, by MAVProxy 
 Planner, of this companion or of any flight controller), analyses it
 (:mod:`mecanum_mav.app.loganalysis`), prints a short summary (distance, time per mode, the
 failsafes, the worst cross-track per mission leg) and draws a PNG: the path (odometry, the
-simulator's true pose where the log has it, the planned mission), and on one time axis the
-stick input, the PWM (RC_CHANNELS_OVERRIDE and SERVO_OUTPUT_RAW; the normalized wheel commands
-are not on the wire, so PWM is shown) and the mission progress, with the modes as shaded bands
-and the failsafes as red lines. Needs matplotlib for the PNG (the ``plot`` extra); the summary
-does not.
+simulator's true pose where the log has it, the planned mission; east m on x, north m on y),
+and on one time axis the stick input (MANUAL_CONTROL and the pilot's RC overrides, each
+labelled by its source), the PWM (the companion's RC_CHANNELS_OVERRIDE and SERVO_OUTPUT_RAW;
+the normalized wheel commands are not on the wire, so PWM is shown) and the mission progress,
+with the modes as shaded bands and the failsafes as red lines. Positions are (north, east)
+metres in the printed tables, and say so. A stick series breaks where its samples stop for
+longer than the input timeout (:data:`~mecanum_mav.app.loganalysis.INPUT_TIMEOUT_S`): each
+sample is drawn until the next one or for that long, whichever is first, as the rover holds
+it; a PWM series likewise with the flight controller's override timeout
+(:data:`~mecanum_mav.app.loganalysis.OVERRIDE_TIMEOUT_S`). Needs matplotlib for the PNG (the
+``plot`` extra); the summary does not.
 
 Damaged parts of the file are reported on stderr, each with its byte range, and the rest is
 read: exit status 0 when any message was read, 2 when none (unreadable, empty, or not a tlog).
@@ -16,16 +22,24 @@ read: exit status 0 when any message was read, 2 when none (unreadable, empty, o
 
 from __future__ import annotations
 
+import math
 import sys
 import time
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, TextIO
 
-from mecanum_mav.app.loganalysis import LogAnalysis, ModeSpan, analyse
+from mecanum_mav.app.loganalysis import (
+    INPUT_TIMEOUT_S,
+    OVERRIDE_TIMEOUT_S,
+    LogAnalysis,
+    ModeSpan,
+    analyse,
+)
 from mecanum_mav.io.tlog import TlogRead, read_tlog
 from mecanum_mav.protocol.dialect import mavlink
 
-__all__ = ["default_png", "plot_log", "run_log", "summary"]
+__all__ = ["default_png", "gapped", "log_figure", "plot_log", "run_log", "summary"]
 
 MODE_COLOURS = {"MANUAL": "tab:green", "HOLD": "tab:gray", "AUTO": "tab:blue",
                 "GUIDED": "tab:purple"}
@@ -35,6 +49,9 @@ NO_OVERRIDE = (0, 65535, 65534)
 """RC_CHANNELS_OVERRIDE values that carry no pulse (leave alone / release)."""
 MAX_CHANNELS = 8
 """PWM channels drawn at most per source."""
+STICK_AXES = ("x forward", "y right", "r clockwise")
+"""The stick panel's axes, in the order of a stick sample's values."""
+_SOURCE_STYLES = ("-", "--", "-.", ":")
 
 
 def default_png(tlog: Path) -> Path:
@@ -75,13 +92,32 @@ def summary(read: TlogRead, a: LogAnalysis) -> str:
         reached = ", ".join(str(seq) for _, seq in a.reached) or "none"
         lines.append(f"mission: {len(a.planned)} positions; reached items: {reached}")
     if a.legs:
-        lines.append(f"{'leg':<4}{'item':>5}  {'from':>13} -> {'to':<13}{'time s':>8}"
-                     f"{'worst cross-track cm':>22}")
+        lines.append(f"{'leg':<4}{'item':>5}  {'from (N, E) m':>16} -> {'to (N, E) m':<16}"
+                     f"{'time s':>8}{'worst cross-track cm':>22}")
         for k, leg in enumerate(a.legs, start=1):
-            lines.append(f"{k:<4}{leg.seq:>5}  ({leg.start[0]:5.2f},{leg.start[1]:5.2f}) -> "
-                         f"({leg.goal[0]:5.2f},{leg.goal[1]:5.2f}){leg.time_s:8.2f}"
-                         f"{leg.max_cross_track_m * 100:22.2f}")
+            lines.append(f"{k:<4}{leg.seq:>5}  {_ne(leg.start):>16} -> {_ne(leg.goal):<16}"
+                         f"{leg.time_s:8.2f}{leg.max_cross_track_m * 100:22.2f}")
     return "\n".join(lines)
+
+
+def _ne(position: tuple[float, float]) -> str:
+    """A (north, east) position in metres as the tables print it."""
+    return f"({position[0]:.2f}, {position[1]:.2f})"
+
+
+def gapped(samples: Sequence[Sequence[float]], timeout_s: float) -> list[tuple[float, ...]]:
+    """``samples`` ((time s, value, ...), in time order) ready for a step plot (``where=
+    "post"``) that breaks where they stop: after a sample followed by none within
+    ``timeout_s`` (or by none at all), a row at its time + ``timeout_s`` whose values are NaN.
+    So each sample is drawn until the next or for ``timeout_s``, whichever is first, and
+    nothing is drawn across the gap."""
+    out: list[tuple[float, ...]] = []
+    for k, row in enumerate(samples):
+        out.append(tuple(row))
+        t = row[0]
+        if k + 1 == len(samples) or samples[k + 1][0] - t > timeout_s:
+            out.append((t + timeout_s, *([math.nan] * (len(row) - 1))))
+    return out
 
 
 def _mode_colour(mode: str, seen: dict[str, str]) -> str:
@@ -114,13 +150,22 @@ def _steps(ax: Any, series: list[tuple[float, list[int]]], style: str, prefix: s
     for ch in _varying(series):
         points = [(t, row[ch]) for t, row in series if row[ch] not in NO_OVERRIDE]
         if points:
-            t, v = zip(*points, strict=True)
+            t, v = zip(*gapped(points, OVERRIDE_TIMEOUT_S), strict=True)
             ax.step(t, v, style, where="post", lw=1.0, color=f"C{ch % 10}",
                     label=f"{prefix} ch{ch + 1}")
 
 
-def plot_log(a: LogAnalysis, path: Path, title: str) -> Path:
-    """Draw the analysis to ``path`` (PNG); see the module docstring for what is drawn."""
+def _stick_sources(a: LogAnalysis) -> dict[str, list[tuple[float, float, float, float]]]:
+    """Source label -> (time, x, y, r) of every stick input in the log."""
+    sources = {"MANUAL_CONTROL": a.sticks} if a.sticks else {}
+    for sender, sticks in a.pilot_sticks.items():
+        sources[f"RC override {sender}"] = sticks
+    return sources
+
+
+def log_figure(a: LogAnalysis, title: str) -> Any:
+    """The matplotlib figure of the analysis (see the module docstring for what is drawn); its
+    axes are the path, the sticks, the PWM and the mission progress, in that order."""
     from mecanum_mav.app.plots import _pyplot
 
     plt = _pyplot()
@@ -145,8 +190,8 @@ def plot_log(a: LogAnalysis, path: Path, title: str) -> Path:
         _, on, oe = zip(*a.path, strict=True)
         ax_path.plot(oe, on, "-", color="tab:orange", lw=1.0, label=a.path_source.lower())
         ax_path.plot(oe[0], on[0], "k^", label="start")
-    ax_path.set_xlabel("east (m)")
-    ax_path.set_ylabel("north (m)")
+    ax_path.set_xlabel("east m")
+    ax_path.set_ylabel("north m")
     ax_path.set_aspect("equal", adjustable="datalim")
     ax_path.grid(True, alpha=0.3)
     if a.planned or a.path or a.true_path:
@@ -163,18 +208,19 @@ def plot_log(a: LogAnalysis, path: Path, title: str) -> Path:
         ax_stick.annotate(event.text, (event.time_s, 1.0), xycoords=("data", "axes fraction"),
                           rotation=90, va="top", ha="right", fontsize=7, color="tab:red")
 
-    if a.sticks:
-        t, x, y, r = zip(*a.sticks, strict=True)
-        ax_stick.step(t, x, where="post", label="x forward")
-        ax_stick.step(t, y, where="post", label="y right")
-        ax_stick.step(t, r, where="post", label="r clockwise")
+    sources = _stick_sources(a)
+    for k, (source, sticks) in enumerate(sources.items()):
+        t, *axes = zip(*gapped(sticks, INPUT_TIMEOUT_S), strict=True)
+        for n, (name, values) in enumerate(zip(STICK_AXES, axes, strict=True)):
+            ax_stick.step(t, values, _SOURCE_STYLES[k % len(_SOURCE_STYLES)], where="post",
+                          color=f"C{n}", label=f"{name} ({source})")
+    if sources:
         ax_stick.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7)
     ax_stick.set_ylim(-1.1, 1.1)
-    ax_stick.set_ylabel("stick (MANUAL_CONTROL)")
+    ax_stick.set_ylabel("stick input")
 
     for label, series in a.overrides.items():
-        _steps(ax_pwm, series, "-", f"override {label}")
-    _steps(ax_pwm, a.gcs_overrides, "--", "GCS RC override")
+        _steps(ax_pwm, series, "-", f"companion override {label}")
     _steps(ax_pwm, a.servo, ":", "SERVO_OUTPUT_RAW")
     ax_pwm.set_ylabel("PWM (us)")
     if ax_pwm.lines:
@@ -197,6 +243,15 @@ def plot_log(a: LogAnalysis, path: Path, title: str) -> Path:
 
     fig.suptitle(title)
     fig.tight_layout()
+    return fig
+
+
+def plot_log(a: LogAnalysis, path: Path, title: str) -> Path:
+    """Draw the analysis (:func:`log_figure`) to ``path`` (PNG)."""
+    from mecanum_mav.app.plots import _pyplot
+
+    plt = _pyplot()
+    fig = log_figure(a, title)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=80)
     plt.close(fig)
