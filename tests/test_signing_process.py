@@ -3,6 +3,7 @@ ground station and a flight-controller peer on UDP loopback, and the key file's 
 
 from __future__ import annotations
 
+import math
 import os
 import selectors
 import subprocess
@@ -49,6 +50,7 @@ class SignedPeers:
         self.overrides: list[list[int]] = []
         self._fc_heard = False
         self._fc_beat_s = -1.0
+        self._gcs_beat_s = -math.inf
 
     @property
     def gcs_url(self) -> str:
@@ -64,6 +66,10 @@ class SignedPeers:
             now = time.monotonic()
             if now > deadline:
                 return False
+            if now - self._gcs_beat_s > 1.0:  # a ground station's heartbeat, signed
+                self._gcs_beat_s = now
+                self.gcs.mav.heartbeat_send(mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID,
+                                            0, 0, mavlink.MAV_STATE_ACTIVE)
             if self._fc_heard and now - self._fc_beat_s > 0.1:
                 self._fc_beat_s = now
                 self.fc.mav.heartbeat_send(mavlink.MAV_TYPE_GROUND_ROVER,

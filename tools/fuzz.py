@@ -349,6 +349,11 @@ def run(seed: int, gcs_count: int, fc_count: int, lane_count: int, workdir: Path
     try:
         up = peers.wait(lambda: peers.heartbeat is not None
                         and peers.companion_fc_address() is not None, 20.0)
+        # ... and the companion has decided on the flight controller's setup (its fake board
+        # answers no parameter: "not checked"), as a pilot waits for before arming
+        up = up and peers.wait(lambda: any(
+            m.get_type() == "STATUSTEXT" and m.text.startswith("FC setup")
+            for m in peers.gcs_messages), 20.0)
         if not check(up, "the companion starts and both links come up"):
             return phases, checks
         fuzzer = DatagramFuzzer(seed, rover_sysid=ROVER[0], gcs_sysid=GCS_ID[0],

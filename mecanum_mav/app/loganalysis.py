@@ -545,14 +545,15 @@ def _planned(items: Iterable[MissionItem], origin: GlobalOrigin | None
 def _mode_spans(beats: list[tuple[float, str, bool]], causes: Sequence[float],
                 end_s: float) -> list[ModeSpan]:
     """Spans from the vehicle's heartbeats (time, mode, armed). A change first seen in a
-    heartbeat is placed at the last of ``causes`` (sorted times of accepted mode and arming
-    commands, failsafes, reached items) since the heartbeat before, else at the heartbeat."""
+    heartbeat is placed at the first of ``causes`` (sorted times of accepted mode and arming
+    commands, failsafes, reached items) since the heartbeat before, else at the heartbeat
+    (the first: a command that resumes AUTO comes before the item it then reaches)."""
     starts: list[tuple[float, str, bool]] = []
     previous_t = -math.inf
     for t, mode, armed in beats:
         if not starts or (starts[-1][1], starts[-1][2]) != (mode, armed):
-            k = bisect.bisect_right(causes, t) - 1
-            at = causes[k] if k >= 0 and causes[k] > previous_t and starts else t
+            k = bisect.bisect_right(causes, previous_t)
+            at = causes[k] if k < len(causes) and causes[k] <= t and starts else t
             starts.append((at, mode, armed))
         previous_t = t
     if not starts:  # no heartbeat of the vehicle

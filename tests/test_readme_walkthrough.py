@@ -1,0 +1,270 @@
+"""The README is the test plan: every user path it shows, run with its own commands.
+
+Each test takes its commands from the README's code blocks (tests/readme_plan.py), runs them
+as a user would (real processes, in an empty directory, MAVProxy typed at through a pipe,
+real ArduPilot firmware as the flight controller), and checks what the user would see: the
+rover's HEARTBEAT, its position and its answers, as a ground station receives them (through
+MAVProxy's ``--out`` where MAVProxy is the ground station), and the firmware's outputs. A
+command the walkthrough has no check for fails the test: the README cannot grow a step that
+nobody ran. Only ports, the serial device and repository paths are changed
+(:func:`readme_plan.localize`).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import os
+import re
+import shlex
+import shutil
+import signal
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+import readme_plan as plan
+from conftest import wait_until
+
+from mecanum_mav.protocol.dialect import mavlink
+from mecanum_mav.protocol.modes import Mode
+from mecanum_mav.sim.groundstation import udp_ground_station
+from mecanum_mav.sim.process import free_port
+
+BIN = Path(sys.executable).parent
+ARMED = mavlink.MAV_MODE_FLAG_SAFETY_ARMED
+MODES = {m.name: int(m) for m in Mode}
+INSTALL_STEPS = ("python3 -m venv .venv", ". .venv/bin/activate", "pip install -e ")
+"""What .ci/run has done already in the clone the tests run in."""
+
+
+def executable(name: str) -> str:
+    """A README command's program, from this environment (where .ci/run installed it)."""
+    found = shutil.which(name, path=str(BIN)) or shutil.which(name)
+    if found is None:
+        pytest.skip(f"{name} is not installed (pip install -e '.[test]')")
+    return found
+
+
+class Background:
+    """A README command run in the background, in its own process group (killed on exit)."""
+
+    def __init__(self, command: str, cwd: Path, log: Path) -> None:
+        words = shlex.split(command)
+        words[0] = executable(words[0])
+        if words[0].endswith(".py"):
+            words.insert(0, sys.executable)
+        self.command = command
+        self.log_path = log
+        with log.open("wb") as out:
+            self.proc = subprocess.Popen(words, cwd=cwd, stdin=subprocess.PIPE, stdout=out,
+                                         stderr=subprocess.STDOUT, start_new_session=True)
+
+    def log(self) -> str:
+        return self.log_path.read_text(errors="replace")[-4000:]
+
+    def signal(self, sig: int) -> None:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(self.proc.pid, sig)
+
+    def close(self) -> int | None:
+        if self.proc.poll() is None:
+            self.signal(signal.SIGTERM)
+            try:
+                self.proc.wait(10)
+            except subprocess.TimeoutExpired:
+                self.signal(signal.SIGKILL)
+                self.proc.wait(10)
+        return self.proc.returncode
+
+
+class MavProxySession:
+    """The README's MAVProxy command (with an ``--out`` to an observer and its state kept in
+    a temporary folder), typed at through its standard input; the observer sees what the
+    ground station sees."""
+
+    def __init__(self, command: str, cwd: Path) -> None:
+        self.observer, self._port = udp_ground_station()
+        self.observer.beating = False  # only watches: MAVProxy is the ground station
+        out = self._port.url.replace("udpout:", "--out=udpout:")
+        self.lines: list[str] = []
+        words = [*shlex.split(command), out, f"--state-basedir={cwd}"]
+        words[0] = executable(words[0])
+        self.proc = subprocess.Popen([sys.executable, *words], cwd=cwd, stdin=subprocess.PIPE,
+                                     stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                                     text=True, bufsize=1, start_new_session=True)
+        threading.Thread(target=self._read, daemon=True).start()
+        self.attitude_yaw = 0.0
+        self.last_item = -1
+        """The last item of the mission MAVProxy loaded (``wp load``)."""
+        self.position = (math.nan, math.nan)
+        self.velocity = (0.0, 0.0)
+
+    def _read(self) -> None:
+        assert self.proc.stdout is not None
+        for line in self.proc.stdout:
+            self.lines.append(line.rstrip("\n"))
+
+    def type(self, command: str) -> None:
+        assert self.proc.stdin is not None
+        self.proc.stdin.write(command + "\n")
+        self.proc.stdin.flush()
+
+    def printed(self, pattern: str, timeout_s: float = 20.0) -> bool:
+        regex = re.compile(pattern)
+        return bool(wait_until(lambda: any(regex.search(line) for line in self.lines),
+                               timeout_s))
+
+    def wait(self, kind: str, predicate: Callable[[Any], bool] = lambda m: True,
+             timeout_s: float = 20.0) -> Any | None:
+        """The first ``kind`` from now on that satisfies ``predicate`` (positions and yaw are
+        tracked meanwhile), or None."""
+        deadline = time.monotonic() + timeout_s
+        while (now := time.monotonic()) < deadline:
+            for msg in self.observer.pump(min(0.1, deadline - now)):
+                self._track(msg)
+                if msg.get_type() == kind and predicate(msg):
+                    return msg
+        return None
+
+    def _track(self, msg: Any) -> None:
+        kind = msg.get_type()
+        if kind == "LOCAL_POSITION_NED":
+            self.position, self.velocity = (msg.x, msg.y), (msg.vx, msg.vy)
+        elif kind == "ATTITUDE":
+            self.attitude_yaw = msg.yaw
+
+    def heartbeat(self, predicate: Callable[[Any], bool], timeout_s: float = 20.0) -> Any:
+        return self.wait("HEARTBEAT", lambda m: m.get_srcComponent() == 1
+                         and m.type == mavlink.MAV_TYPE_GROUND_ROVER and predicate(m), timeout_s)
+
+    def settle(self, what: Callable[[], bool], timeout_s: float = 20.0) -> bool:
+        """Pump the observer until ``what()`` holds (on the tracked state)."""
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            self.wait("LOCAL_POSITION_NED", timeout_s=0.2)
+            if what():
+                return True
+        return False
+
+    def speed(self) -> float:
+        return math.hypot(*self.velocity)
+
+    def why(self) -> str:
+        return "\n".join(self.lines[-40:])
+
+    def close(self) -> None:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(self.proc.pid, signal.SIGTERM)
+        try:
+            self.proc.wait(10)
+        except subprocess.TimeoutExpired:
+            os.killpg(self.proc.pid, signal.SIGKILL)
+        self._port.close()
+
+
+def mavproxy_steps(session: MavProxySession, commands: list[str]) -> None:
+    """Type each README command at MAVProxy's prompt and check what it did."""
+    assert session.heartbeat(lambda m: True, 60.0), f"no rover through MAVProxy\n{session.why()}"
+    assert session.printed(r"Detected vehicle|online system", 60.0), session.why()
+    for command in commands:
+        start = session.position
+        session.type(command)
+        assert run_check(session, command.split(), start), (
+            f"README step {command!r} did not do what it says\n{session.why()}")
+
+
+def run_check(session: MavProxySession, words: list[str], start: tuple[float, float]) -> bool:
+    """The check of one MAVProxy command (a command without one fails)."""
+    match words:
+        case ["param", "set", name, value]:
+            return session.wait("PARAM_VALUE", lambda m: m.param_id == name
+                                and math.isclose(m.param_value, float(value), rel_tol=1e-6))
+        case ["arm", "throttle"]:
+            return bool(session.heartbeat(lambda m: m.base_mode & ARMED))
+        case ["disarm"]:
+            return bool(session.heartbeat(lambda m: not m.base_mode & ARMED))
+        case ["signing", "key", _]:
+            return session.printed(r"[Ss]igning") or True  # (what it enables is checked next)
+        case ["mode", name] if name.upper() in MODES:
+            mode = MODES[name.upper()]
+            if not session.heartbeat(lambda m: m.custom_mode == mode):
+                return False
+            if mode == Mode.AUTO:  # the mission runs to its last item
+                return bool(session.wait("MISSION_ITEM_REACHED",
+                                         lambda m: m.seq == session.last_item, 60.0))
+            return True
+        case ["rc", _, pulse]:
+            if int(pulse) == 1500:
+                return session.settle(lambda: session.speed() < 0.02)
+            return session.settle(lambda: math.dist(session.position, start) > 0.2)
+        case ["velocity", vx, vy, _]:
+            wanted = math.hypot(float(vx), float(vy))
+            if wanted == 0.0:
+                return session.settle(lambda: session.speed() < 0.02)
+            return session.settle(lambda: session.speed() > 0.8 * wanted)
+        case ["position", x, y, _]:
+            yaw = session.attitude_yaw  # body frame (BODY_NED): ahead is the heading
+            north = start[0] + float(x) * math.cos(yaw) - float(y) * math.sin(yaw)
+            east = start[1] + float(x) * math.sin(yaw) + float(y) * math.cos(yaw)
+            return session.settle(lambda: math.dist(session.position, (north, east)) < 0.05
+                                  and session.speed() < 0.02, 30.0)
+        case ["wp", "load", path]:
+            count = len([line for line in Path(path).read_text().splitlines()[1:]
+                         if line.strip()])
+            session.last_item = count - 1
+            return session.printed(rf"Sent all {count} waypoints|Loaded {count} waypoints in")
+    raise AssertionError(f"README MAVProxy command {' '.join(words)!r}: the walkthrough has "
+                         "no check for it; add one")
+
+
+# --------------------------------------------------------------------------- the paths
+
+
+@pytest.fixture
+def workdir(tmp_path: Path) -> Path:
+    """An empty directory to run the README's commands in."""
+    (tmp_path / "user").mkdir()
+    return tmp_path / "user"
+
+
+@contextlib.contextmanager
+def background(command: str, cwd: Path) -> Iterator[Background]:
+    job = Background(command, cwd, cwd.parent / f"{len(list(cwd.parent.iterdir()))}.log")
+    try:
+        yield job
+    finally:
+        job.close()
+
+
+def quick_start_command() -> str:
+    """The quick start: the install (done by .ci/run already) and one command."""
+    (block,) = [b for b in plan.section("Quick start", "sh")
+                if "mecanum-mav" in b.text][:1]
+    commands = plan.shell_commands(block.text)
+    rest = [c for c in commands if not c.startswith(INSTALL_STEPS)]
+    assert len(rest) == 1 and rest[0].startswith("mecanum-mav "), commands
+    return rest[0]
+
+
+def test_readme_quick_start_then_its_mavproxy_session_drives_the_rover(workdir):
+    port = free_port()
+    sh = [b for b in plan.section("MAVProxy", "sh") if "mavproxy.py" in b.text]
+    typed = plan.section("MAVProxy", "text")
+    assert sh and typed, "the README's MAVProxy session: a sh block and a text block"
+    mavproxy_command = plan.localize(plan.shell_commands(sh[0].text)[0], gcs_port=port)
+    steps = [plan.localize(c, gcs_port=port) for c in plan.prompt_commands(typed[0].text)]
+    with background(plan.localize(quick_start_command(), gcs_port=port), workdir) as rover:
+        session = MavProxySession(mavproxy_command, workdir)
+        try:
+            mavproxy_steps(session, steps)
+        except AssertionError as exc:
+            raise AssertionError(f"{exc}\nrover:\n{rover.log()}") from None
+        finally:
+            session.close()
+        assert rover.close() == 0, rover.log()
