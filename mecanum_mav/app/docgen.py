@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import textwrap
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -202,7 +203,7 @@ def _section(title: str, description: str | None, prog: str,
              actions: Sequence[argparse.Action], tail: str = "") -> list[str]:
     lines = [f"## {title}", ""]
     if description:
-        lines += [description, ""]
+        lines += [textwrap.fill(" ".join(description.split()), USAGE_WIDTH), ""]
     visible = [a for a in actions if not isinstance(a, argparse._SubParsersAction)]
     lines += ["```text", _usage(prog, visible, tail), "```", ""]
     lines += [*_options_table(visible, prog), ""]
@@ -228,7 +229,7 @@ def cli_page() -> str:
     subcommands = _subcommands(parser)
     lines = [_banner("the argparse parsers (mecanum_mav/app/cli.py)"), CLI_INTRO]
     if parser.description:
-        lines += [parser.description, ""]
+        lines += [textwrap.fill(" ".join(parser.description.split()), USAGE_WIDTH), ""]
     lines += ["| command | what it does |", "| --- | --- |"]
     for name, summary, _sub in subcommands:
         anchor = f"{prog}-{name}".lower()
