@@ -199,11 +199,18 @@ def _subcommands(parser: argparse.ArgumentParser,
     return found
 
 
+def _paragraph(text: str) -> str:
+    """``text`` as one Markdown paragraph wrapped at :data:`USAGE_WIDTH` (never inside a word,
+    so no line starts with a list or heading marker that was not there)."""
+    return textwrap.fill(" ".join(text.split()), USAGE_WIDTH, break_long_words=False,
+                         break_on_hyphens=False)
+
+
 def _section(title: str, description: str | None, prog: str,
              actions: Sequence[argparse.Action], tail: str = "") -> list[str]:
     lines = [f"## {title}", ""]
     if description:
-        lines += [textwrap.fill(" ".join(description.split()), USAGE_WIDTH), ""]
+        lines += [_paragraph(description), ""]
     visible = [a for a in actions if not isinstance(a, argparse._SubParsersAction)]
     lines += ["```text", _usage(prog, visible, tail), "```", ""]
     lines += [*_options_table(visible, prog), ""]
@@ -229,7 +236,7 @@ def cli_page() -> str:
     subcommands = _subcommands(parser)
     lines = [_banner("the argparse parsers (mecanum_mav/app/cli.py)"), CLI_INTRO]
     if parser.description:
-        lines += [textwrap.fill(" ".join(parser.description.split()), USAGE_WIDTH), ""]
+        lines += [_paragraph(parser.description), ""]
     lines += ["| command | what it does |", "| --- | --- |"]
     for name, summary, _sub in subcommands:
         anchor = f"{prog}-{name}".lower()
