@@ -200,8 +200,8 @@ def _subcommands(parser: argparse.ArgumentParser,
 
 
 def _paragraph(text: str) -> str:
-    """``text`` as one Markdown paragraph wrapped at :data:`USAGE_WIDTH` (never inside a word,
-    so no line starts with a list or heading marker that was not there)."""
+    """``text`` as one Markdown paragraph, wrapped at :data:`USAGE_WIDTH` between words (never
+    at a hyphen inside an option name such as ``--params-reset``)."""
     return textwrap.fill(" ".join(text.split()), USAGE_WIDTH, break_long_words=False,
                          break_on_hyphens=False)
 
