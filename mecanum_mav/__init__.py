@@ -1,6 +1,6 @@
 """mecanum-mav: drive a mecanum-wheeled rover over MAVLink.
 
-Conventions (see README): body frame FRD (x forward, y right, z down), local frame NED,
+Conventions (see docs/index.md): body frame FRD (x forward, y right, z down), local frame NED,
 positive rotation clockwise seen from above, wheel order FL, FR, RL, RR, SI units inside.
 """
 

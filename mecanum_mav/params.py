@@ -4,7 +4,7 @@ The schema and the validated store live in :mod:`mecanum_mav.config.params`, the
 in :mod:`mecanum_mav.io.paramfile` (see docs/architecture.md); this module re-exports both, so
 ``from mecanum_mav.params import Params, load, save`` keeps working.
 
-``python -m mecanum_mav.params --table`` prints the README table and
+``python -m mecanum_mav.params --table`` prints the parameter reference table and
 ``python -m mecanum_mav.params --write-defaults params/default.parm`` regenerates the
 defaults file from the schema.
 """

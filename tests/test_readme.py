@@ -1,4 +1,4 @@
-"""The README stays true: its parameter table, its test command, its links and paths."""
+"""The README and docs/ stay true: the parameter table, the test command, links and paths."""
 
 from __future__ import annotations
 
@@ -6,16 +6,20 @@ import importlib
 import re
 from pathlib import Path
 
-from mecanum_mav.config.params import markdown_table
+from mecanum_mav.config.params import SCHEMA, markdown_table
 
 ROOT = Path(__file__).resolve().parent.parent
 
 
-def test_readme_parameter_table_is_the_schema():
-    text = (ROOT / "README.md").read_text()
+def test_the_parameter_reference_table_is_the_schema():
+    """The table between the markers of docs/reference/parameters.md (the README links it)."""
+    text = (ROOT / "docs" / "reference" / "parameters.md").read_text()
     table = text.split("<!-- params:begin -->\n", 1)[1].split("<!-- params:end -->", 1)[0]
     assert table.strip() == markdown_table().strip(), (
-        "README parameter table is stale: replace it with `mecanum-mav params --markdown`")
+        "parameter reference table is stale: run `python -m mecanum_mav.app.docgen`")
+    names = [row.split("`")[1] for row in table.splitlines() if row.startswith("| `")]
+    assert names == [spec.name for spec in SCHEMA]
+    assert "docs/reference/parameters.md" in (ROOT / "README.md").read_text()
 
 
 def test_ci_runs_exactly_the_readme_test_command():
@@ -28,7 +32,7 @@ def test_ci_runs_exactly_the_readme_test_command():
 
 # --------------------------------------------------------------------------- links and paths
 
-DOCS = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+DOCS = [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md"))]
 PACKAGE = ROOT / "mecanum_mav"  # `control/guided.py` may name a file from the package root
 FENCE = re.compile(r"^(```|~~~).*?^\1[ \t]*$", re.MULTILINE | re.DOTALL)
 LINK = re.compile(r"!?\[[^\]]*\]\(\s*<?([^)\s>]+)>?(?:\s+\"[^\"]*\")?\s*\)")
@@ -105,7 +109,7 @@ def _problems(doc: Path) -> list[str]:
 
 
 def test_documentation_points_only_at_files_in_the_repository():
-    """Every relative link and every `path/like.py` in README.md and docs/*.md exists here.
+    """Every relative link and every `path/like.py` in README.md and docs/**/*.md exists here.
 
     Links are relative to the Markdown file; code-span paths to the repository root (or to
     the package, `mecanum_mav/`). Nothing may point outside the repository: a reader of the

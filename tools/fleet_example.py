@@ -1,5 +1,5 @@
 """Three rovers behind MAVProxy as a router, driven by system id from one ground station: the
-README's picture of the fleet.
+docs/fleet.png.
 
     python tools/fleet_example.py [--count 3] [--png docs/fleet.png]
 

@@ -1,4 +1,4 @@
-"""Record the sample drive to a tlog and draw it with ``mecanum-mav log``: the README's picture.
+"""Record the sample drive to a tlog and draw it with ``mecanum-mav log``: docs/log.png.
 
     python tools/log_example.py [--tlog sample.tlog] [--png docs/log.png]
 

@@ -399,7 +399,7 @@ def cmd_sim(args: argparse.Namespace, params: Params) -> int:
     else:
         print(f"mecanum-mav sim: instance {args.instance}, system id "
               f"{params['SYSID_THISMAV']}, sending to UDP {host_port}: one --master="
-              f"udpin:{host_port} of the router (see the README, 'A fleet behind a router')",
+              f"udpin:{host_port} of the router (see docs/fleet.md)",
               flush=True)
     return serve(params, gcs, "sim", args.params, args.tlog, args.keys)
 

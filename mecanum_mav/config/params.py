@@ -5,7 +5,7 @@ One schema
     sentence, enumeration labels), as ArduPilot's ``AP_Param`` tables or ros2_controllers'
     ``generate_parameter_library`` do. Everything else reads it: :class:`Params` validation,
     parameter files (:func:`load`, :func:`save`), the command line's ``--set NAME=VALUE``
-    (:func:`parse_assignment`), the README table (:func:`markdown_table`) and the MAVLink
+    (:func:`parse_assignment`), the reference table (:func:`markdown_table`) and the MAVLink
     parameter protocol (index = position in :data:`SCHEMA`). Names follow ArduPilot: at most
     16 characters (the MAVLink ``param_id`` field), upper case, ``GROUP_NAME``; the schema is
     checked when this module is imported and a bad entry raises. An entry also says whether
@@ -930,7 +930,7 @@ def parse_assignment(text: str) -> tuple[str, Value]:
 
 
 def markdown_table() -> str:
-    """The README's parameter table, generated from :data:`SCHEMA`."""
+    """The parameter table of docs/reference/parameters.md, generated from :data:`SCHEMA`."""
     rows = [
         "| Name | Default | Range / values | Units | Description |",
         "| --- | --- | --- | --- | --- |",

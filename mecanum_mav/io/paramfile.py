@@ -10,7 +10,7 @@ is valid, and the order of lines does not matter. :func:`save` writes only full-
 and ``NAME VALUE`` lines, because MAVProxy rejects lines with a trailing comment, atomically
 (:func:`~mecanum_mav.io.atomicfile.write_atomic`).
 
-``python -m mecanum_mav.params --table`` prints the README table and
+``python -m mecanum_mav.params --table`` prints the parameter reference table and
 ``python -m mecanum_mav.params --write-defaults params/default.parm`` regenerates the
 defaults file from the schema.
 """
@@ -205,7 +205,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
         prog="python -m mecanum_mav.config.params", description="Generate files from the schema."
     )
-    parser.add_argument("--table", action="store_true", help="print the README table")
+    parser.add_argument("--table", action="store_true", help="print the parameter reference table")
     parser.add_argument("--write-defaults", metavar="PATH", help="write the defaults file")
     args = parser.parse_args(argv)
     if args.table:

@@ -1,6 +1,6 @@
 """Normalized mecanum mixing: chassis commands in [-1, 1] -> four wheel commands in [-1, 1].
 
-Frame and signs (see README, "Conventions"): x forward, y right, rotation positive clockwise
+Frame and signs (see docs/index.md, "Conventions"): x forward, y right, rotation positive clockwise
 seen from above; a polar ``direction_deg`` is degrees clockwise from the robot's nose (0 forward,
 90 right). Every mixing function takes floats or numpy arrays, broadcasts its arguments, and
 returns an ``ndarray`` whose last axis is the four wheels in the order FL, FR, RL, RR. A positive
