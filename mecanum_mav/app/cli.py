@@ -43,6 +43,8 @@ from mecanum_mav.mecanum.mixing import ALGORITHM_NAMES, Desaturation, mix_stick
 from mecanum_mav.mecanum.wheels import WHEEL_KEYS
 
 DESAT_NAMES = {d.name.lower(): d for d in Desaturation}
+LOG_LEVELS = ("DEBUG", "INFO", "WARNING", "ERROR")
+"""The values of ``--log-level``."""
 CSV_COLUMNS = ("x", "y", "rotation", "heading_deg", "magnitude", "direction_deg", "algo")
 POLAR_KEYS = ("magnitude", "direction_deg")
 OUTPUT_HEADER = [f"w_{k.lower()}" for k in WHEEL_KEYS] + [
@@ -345,16 +347,17 @@ def serve(params: Params, gcs_url: str, fc_url: str, param_path: Path | None,
 
     The status line (:meth:`~mecanum_mav.control.core.RoverCore.status_line`: messages
     received, malformed packets, failed sends, refusals per kind) goes to stderr on SIGUSR1
-    and at exit."""
+    and at exit. A SIGINT or SIGTERM while it starts abandons the start-up
+    (:class:`KeyboardInterrupt`); once it runs, the first one stops it in order and any
+    further one is ignored (:class:`~mecanum_mav.app.shutdown.Termination`)."""
     import signal
 
     from mecanum_mav.app.companion import Companion
-    from mecanum_mav.app.shutdown import on_signals, on_termination
+    from mecanum_mav.app.shutdown import on_signals, terminate_in_order
     from mecanum_mav.io.storage import claim_parameter_file
     from mecanum_mav.sim.simfc import SimFlightController
 
-    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s: %(message)s")
-    with contextlib.ExitStack() as stack:
+    with terminate_in_order() as termination, contextlib.ExitStack() as stack:
         try:
             if param_path is not None:  # one rover per file: a second one is refused
                 stack.enter_context(claim_parameter_file(param_path))
@@ -379,7 +382,10 @@ def serve(params: Params, gcs_url: str, fc_url: str, param_path: Path | None,
         def print_status() -> None:
             print(f"mecanum-mav: {companion.core.status_line()}", file=sys.stderr, flush=True)
 
-        with on_termination(companion.stop), on_signals((signal.SIGUSR1,), print_status):
+        # From here a SIGINT or SIGTERM, however many, ends the loop in order (neutral,
+        # release) and waits for the links to linger: none cuts the shutdown short.
+        termination.running(companion.stop)
+        with on_signals((signal.SIGUSR1,), print_status):
             companion.run()
         print_status()
     return 0
@@ -415,7 +421,6 @@ def sim_gcs_url(args: argparse.Namespace) -> str:
 def cmd_demo(args: argparse.Namespace, params: Params) -> int:
     from mecanum_mav.app.demo import plot_demo, run_demo
 
-    logging.basicConfig(level=logging.ERROR, format="%(name)s: %(message)s")
     print(f"mecanum-mav demo: simulator + companion + scripted ground station on loopback; "
           f"uploading a {args.side:g} m square with a diagonal, facing north, then AUTO ...",
           flush=True)
@@ -491,6 +496,9 @@ def build_parser() -> argparse.ArgumentParser:
                         help="parameter file (NAME VALUE per line, # comments)")
     common.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
                         help="override a parameter (repeatable)")
+    common.add_argument("--log-level", choices=LOG_LEVELS, type=str.upper, metavar="LEVEL",
+                        help=f"what the log shows: {', '.join(LOG_LEVELS)} (default INFO for "
+                        f"run and sim, ERROR for demo, WARNING for the others)")
 
     sim = sub.add_parser("sim", parents=[common],
                          help="companion + simulated flight controller (start here)",
@@ -508,7 +516,7 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--tlog", type=Path, metavar="FILE", help="record all traffic (tlog)")
     sim.add_argument("--params-reset", action="store_true", help=PARAMS_RESET_HELP)
     sim.add_argument("--signing-key", type=Path, metavar="FILE", help=SIGNING_KEY_HELP)
-    sim.set_defaults(handler=cmd_sim)
+    sim.set_defaults(handler=cmd_sim, default_log_level="INFO")
 
     demo = sub.add_parser("demo", parents=[common],
                           help="the whole product in one command: an AUTO mission in the "
@@ -521,7 +529,7 @@ def build_parser() -> argparse.ArgumentParser:
                       help="side of the square in metres (default 2)")
     demo.add_argument("--png", default="demo.png", metavar="FILE",
                       help="where to write the figure (default demo.png)")
-    demo.set_defaults(handler=cmd_demo)
+    demo.set_defaults(handler=cmd_demo, default_log_level="ERROR")  # (its companion's noise)
 
     run = sub.add_parser("run", parents=[common], help="the companion",
                          description="Run the companion: the rover a ground station sees, "
@@ -535,7 +543,7 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--params-reset", action="store_true", help=PARAMS_RESET_HELP)
     run.add_argument("--signing-key", type=Path, metavar="FILE", help=SIGNING_KEY_HELP)
     run.add_argument("--fc-signing-key", type=Path, metavar="FILE", help=FC_SIGNING_KEY_HELP)
-    run.set_defaults(handler=cmd_run)
+    run.set_defaults(handler=cmd_run, default_log_level="INFO")
 
     setup = sub.add_parser(
         "setup-fc", parents=[common], help="check (and fix) an ArduPilot flight controller",
@@ -603,9 +611,33 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+INTERRUPTED = 130
+"""Exit status of a command cut short by Ctrl-C (128 + SIGINT, as shells report it)."""
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of the ``mecanum-mav`` console script."""
+    """Entry point of the ``mecanum-mav`` console script: a Ctrl-C anywhere ends with one
+    line and status :data:`INTERRUPTED`, never a traceback (``run`` and ``sim`` stop in order
+    and exit 0)."""
+    try:
+        return _main(argv)
+    except KeyboardInterrupt:
+        with contextlib.suppress(KeyboardInterrupt):  # (a second Ctrl-C while saying so)
+            print("mecanum-mav: interrupted", file=sys.stderr, flush=True)
+        return INTERRUPTED
+
+
+def configure_logging(args: argparse.Namespace) -> None:
+    """The root logger's level from ``--log-level`` (else the sub-command's default: INFO for
+    ``run`` and ``sim``, WARNING for the others), and a handler on stderr if there is none."""
+    level = args.log_level or getattr(args, "default_log_level", "WARNING")
+    logging.basicConfig(format="%(asctime)s %(name)s: %(message)s")
+    logging.getLogger().setLevel(level)
+
+
+def _main(argv: Sequence[str] | None) -> int:
     args = build_parser().parse_args(argv)
+    configure_logging(args)
     if getattr(args, "params_reset", False) and args.params is not None:
         print(f"mecanum-mav: --params-reset: starting on the defaults; {args.params} is not "
               f"read and left untouched (changes made from the ground station are not saved)",
