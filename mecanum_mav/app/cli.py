@@ -354,6 +354,7 @@ def serve(params: Params, gcs_url: str, fc_url: str, param_path: Path | None,
 
     from mecanum_mav.app.companion import Companion
     from mecanum_mav.app.shutdown import on_signals, terminate_in_order
+    from mecanum_mav.io.claims import claim_ground_station
     from mecanum_mav.io.storage import claim_parameter_file
     from mecanum_mav.sim.simfc import SimFlightController
 
@@ -361,6 +362,8 @@ def serve(params: Params, gcs_url: str, fc_url: str, param_path: Path | None,
         try:
             if param_path is not None:  # one rover per file: a second one is refused
                 stack.enter_context(claim_parameter_file(param_path))
+            # one rover per system id and ground station (and per listening port)
+            stack.enter_context(claim_ground_station(int(params["SYSID_THISMAV"]), gcs_url))
             if fc_url == "sim":
                 sim = SimFlightController("udpin:127.0.0.1:0", params)
                 sim.start()
