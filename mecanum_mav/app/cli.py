@@ -496,7 +496,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     common = argparse.ArgumentParser(add_help=False)
     common.add_argument("--params", type=Path, metavar="FILE",
-                        help="parameter file (NAME VALUE per line, # comments)")
+                        help="parameter file (NAME VALUE per line, # comments); sim and run "
+                        "save the ground station's changes to it, and start from the defaults "
+                        "when it does not exist yet")
     common.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
                         help="override a parameter (repeatable)")
     common.add_argument("--log-level", choices=LOG_LEVELS, type=str.upper, metavar="LEVEL",
@@ -519,7 +521,7 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--tlog", type=Path, metavar="FILE", help="record all traffic (tlog)")
     sim.add_argument("--params-reset", action="store_true", help=PARAMS_RESET_HELP)
     sim.add_argument("--signing-key", type=Path, metavar="FILE", help=SIGNING_KEY_HELP)
-    sim.set_defaults(handler=cmd_sim, default_log_level="INFO")
+    sim.set_defaults(handler=cmd_sim, default_log_level="INFO", creates_params=True)
 
     demo = sub.add_parser("demo", parents=[common],
                           help="the whole product in one command: an AUTO mission in the "
@@ -546,7 +548,7 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--params-reset", action="store_true", help=PARAMS_RESET_HELP)
     run.add_argument("--signing-key", type=Path, metavar="FILE", help=SIGNING_KEY_HELP)
     run.add_argument("--fc-signing-key", type=Path, metavar="FILE", help=FC_SIGNING_KEY_HELP)
-    run.set_defaults(handler=cmd_run, default_log_level="INFO")
+    run.set_defaults(handler=cmd_run, default_log_level="INFO", creates_params=True)
 
     setup = sub.add_parser(
         "setup-fc", parents=[common], help="check (and fix) an ArduPilot flight controller",
@@ -646,8 +648,21 @@ def _main(argv: Sequence[str] | None) -> int:
               f"read and left untouched (changes made from the ground station are not saved)",
               file=sys.stderr)
         args.params = None  # neither read nor saved to
+    read_from = args.params
+    if read_from is not None and not read_from.exists():
+        if not getattr(args, "creates_params", False):
+            print(f"mecanum-mav: --params {read_from} does not exist (only sim and run start "
+                  f"without it, from the defaults, and create it)", file=sys.stderr)
+            return 2
+        if not read_from.parent.is_dir():
+            print(f"mecanum-mav: --params {read_from}: the folder {read_from.parent} does not "
+                  f"exist", file=sys.stderr)
+            return 2
+        print(f"mecanum-mav: {read_from} does not exist: starting from the defaults; changes "
+              f"will be saved there", file=sys.stderr)
+        read_from = None  # (still saved to)
     try:
-        params = load_params(args.params, args.set, getattr(args, "instance", None))
+        params = load_params(read_from, args.set, getattr(args, "instance", None))
         args.keys = signing_keys(args)
     except (ParamFileError, ParamError, KeyFileError) as exc:
         print(f"mecanum-mav: {exc}", file=sys.stderr)
