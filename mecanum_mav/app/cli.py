@@ -422,17 +422,22 @@ def sim_gcs_url(args: argparse.Namespace) -> str:
 
 
 def cmd_demo(args: argparse.Namespace, params: Params) -> int:
-    from mecanum_mav.app.demo import plot_demo, run_demo
+    from mecanum_mav.app.demo import TABLE_HEADER, LegReport, leg_row, plot_demo, run_demo
 
     print(f"mecanum-mav demo: simulator + companion + scripted ground station on loopback; "
           f"uploading a {args.side:g} m square with a diagonal, facing north, then AUTO ...",
           flush=True)
+    print(TABLE_HEADER, flush=True)
+
+    def print_leg(k: int, leg: LegReport) -> None:
+        print(leg_row(k, leg), flush=True)  # as the rover drives on
+
     try:
-        result = run_demo(params, side_m=args.side)
+        result = run_demo(params, side_m=args.side, on_leg=print_leg)
     except (RuntimeError, TimeoutError, OSError) as exc:
         print(f"mecanum-mav demo: {exc}", file=sys.stderr)
         return 1
-    print(result.table())
+    print(result.summary())
     try:
         print(f"wrote {plot_demo(result, Path(args.png))}")
     except RuntimeError as exc:  # no matplotlib
