@@ -141,7 +141,7 @@ def test_a_broken_parameter_file_stops_run_unless_params_reset_says_start_on_def
     bad = tmp_path / "rover.parm"
     bad.write_text("GEO_HALF_LEN 0.2\nMIX_ALOG 1\n")
     served = []
-    monkeypatch.setattr(cli, "serve", lambda params, gcs, fc, path, tlog, keys: served.append(
+    monkeypatch.setattr(cli, "serve", lambda params, gcs, fc, path, tlog, keys, **_: served.append(
         (params.as_dict(), path)) or 0)
     assert main(["run", "--fc", "udpin:127.0.0.1:0", "--params", str(bad)]) == 2
     assert "rover.parm:2: unknown parameter 'MIX_ALOG'; did you mean MIX_ALGO?" in (
@@ -191,7 +191,7 @@ def test_run_and_sim_start_from_the_defaults_on_a_params_file_that_does_not_exis
         capsys, tmp_path, monkeypatch):
     """The README's fleet loop from a fresh clone: ``sim --instance 0 --params rover0.parm``."""
     served = []
-    monkeypatch.setattr(cli, "serve", lambda params, gcs, fc, path, tlog, keys: served.append(
+    monkeypatch.setattr(cli, "serve", lambda params, gcs, fc, path, tlog, keys, **_: served.append(
         (params.as_dict(), path)) or 0)
     new = tmp_path / "rover0.parm"
     assert main(["sim", "--instance", "0", "--params", str(new), "--set", "INP_EXPO=0.2"]) == 0

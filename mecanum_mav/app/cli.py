@@ -316,6 +316,8 @@ def cmd_params(args: argparse.Namespace, params: Params) -> int:
 
 PARAMS_RESET_HELP = ("start on the parameter defaults (and --set) instead of the --params "
                      "file, which is left untouched: for a file that no longer loads")
+QUIET_HELP = ("no status line every 5 s (printed only when stdout is a terminal); what "
+              "happens and errors are still said")
 DEFAULT_GCS_URL = "udpout:127.0.0.1:14550"
 """Where QGroundControl and MAVProxy listen by default."""
 
@@ -342,17 +344,21 @@ def signing_keys(args: argparse.Namespace) -> tuple[bytes | None, bytes | None]:
 
 def serve(params: Params, gcs_url: str, fc_url: str, param_path: Path | None,
           tlog_path: Path | None,
-          keys: tuple[bytes | None, bytes | None] = (None, None)) -> int:
+          keys: tuple[bytes | None, bytes | None] = (None, None), *,
+          quiet: bool = False) -> int:
     """Run the companion in the foreground until SIGINT/SIGTERM; ``fc_url`` may be ``sim``.
 
     The status line (:meth:`~mecanum_mav.control.core.RoverCore.status_line`: messages
     received, malformed packets, failed sends, refusals per kind) goes to stderr on SIGUSR1
-    and at exit. A SIGINT or SIGTERM while it starts abandons the start-up
+    and at exit. On stdout it says what it does (:class:`~mecanum_mav.app.progress.Progress`:
+    waiting for the flight controller, found, lost; on a terminal and without ``quiet`` a
+    status line every 5 s). A SIGINT or SIGTERM while it starts abandons the start-up
     (:class:`KeyboardInterrupt`); once it runs, the first one stops it in order and any
     further one is ignored (:class:`~mecanum_mav.app.shutdown.Termination`)."""
     import signal
 
     from mecanum_mav.app.companion import Companion
+    from mecanum_mav.app.progress import Progress
     from mecanum_mav.app.shutdown import on_signals, terminate_in_order
     from mecanum_mav.io.claims import claim_ground_station
     from mecanum_mav.io.storage import claim_parameter_file
@@ -385,6 +391,11 @@ def serve(params: Params, gcs_url: str, fc_url: str, param_path: Path | None,
         def print_status() -> None:
             print(f"mecanum-mav: {companion.core.status_line()}", file=sys.stderr, flush=True)
 
+        progress = Progress(companion.core, fc_url, sys.stdout,
+                            periodic=not quiet and sys.stdout.isatty())
+        progress.started()
+        companion.set_timer(progress.tick)
+
         # From here a SIGINT or SIGTERM, however many, ends the loop in order (neutral,
         # release) and waits for the links to linger: none cuts the shutdown short.
         termination.running(companion.stop)
@@ -395,7 +406,8 @@ def serve(params: Params, gcs_url: str, fc_url: str, param_path: Path | None,
 
 
 def cmd_run(args: argparse.Namespace, params: Params) -> int:
-    return serve(params, args.gcs, args.fc, args.params, args.tlog, args.keys)
+    return serve(params, args.gcs, args.fc, args.params, args.tlog, args.keys,
+                 quiet=args.quiet)
 
 
 def cmd_sim(args: argparse.Namespace, params: Params) -> int:
@@ -410,7 +422,7 @@ def cmd_sim(args: argparse.Namespace, params: Params) -> int:
               f"{params['SYSID_THISMAV']}, sending to UDP {host_port}: one --master="
               f"udpin:{host_port} of the router (see the README, 'A fleet behind a router')",
               flush=True)
-    return serve(params, gcs, "sim", args.params, args.tlog, args.keys)
+    return serve(params, gcs, "sim", args.params, args.tlog, args.keys, quiet=args.quiet)
 
 
 def sim_gcs_url(args: argparse.Namespace) -> str:
@@ -526,6 +538,7 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--tlog", type=Path, metavar="FILE", help="record all traffic (tlog)")
     sim.add_argument("--params-reset", action="store_true", help=PARAMS_RESET_HELP)
     sim.add_argument("--signing-key", type=Path, metavar="FILE", help=SIGNING_KEY_HELP)
+    sim.add_argument("--quiet", action="store_true", help=QUIET_HELP)
     sim.set_defaults(handler=cmd_sim, default_log_level="INFO", creates_params=True)
 
     demo = sub.add_parser("demo", parents=[common],
@@ -553,6 +566,7 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--params-reset", action="store_true", help=PARAMS_RESET_HELP)
     run.add_argument("--signing-key", type=Path, metavar="FILE", help=SIGNING_KEY_HELP)
     run.add_argument("--fc-signing-key", type=Path, metavar="FILE", help=FC_SIGNING_KEY_HELP)
+    run.add_argument("--quiet", action="store_true", help=QUIET_HELP)
     run.set_defaults(handler=cmd_run, default_log_level="INFO", creates_params=True)
 
     setup = sub.add_parser(
