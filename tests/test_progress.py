@@ -21,7 +21,15 @@ from fakefc import FakeFlightController
 from sitl import CompanionProcess
 
 from mecanum_mav.app.cli import build_parser, main
-from mecanum_mav.app.progress import STATUS_PERIOD_S, Progress, fc_check_state, status_line
+from mecanum_mav.app.progress import (
+    FC_HINT_S,
+    STATUS_PERIOD_S,
+    Progress,
+    fc_check_state,
+    status_line,
+)
+from mecanum_mav.config.params import Params
+from mecanum_mav.control.core import RoverCore
 from mecanum_mav.control.fccheck import FcSetupCheck
 from mecanum_mav.protocol.fcsetup import Finding
 
@@ -77,6 +85,22 @@ def test_progress_says_found_and_lost_once_and_the_status_line_only_when_periodi
     progress.tick(t)
     assert out.getvalue().splitlines()[-1] == (
         "mecanum-mav: flight controller lost on udpout:FC: waiting for its HEARTBEAT")
+
+
+def test_a_flight_controller_not_found_in_10_s_gets_one_hint_of_what_to_check() -> None:
+    core = RoverCore(Params(), now_s=0.0)  # no board: its link never comes up
+    out = io.StringIO()
+    progress = Progress(core, "/dev/ttyACM0,115200", out, periodic=False)
+    t = 0.0
+    while t < FC_HINT_S - 0.5:
+        t = progress.tick(t)
+    assert "no HEARTBEAT" not in out.getvalue()
+    for _ in range(20):
+        t = progress.tick(t)
+    assert out.getvalue().splitlines() == [
+        "mecanum-mav: no HEARTBEAT from the flight controller (system 1) on "
+        "/dev/ttyACM0,115200 after 10 s: is it powered and connected (device, baud rate, "
+        "port), and is its system id FC_SYSID (1)?"]
 
 
 # ------------------------------------------------------------------ real processes

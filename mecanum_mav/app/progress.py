@@ -2,7 +2,8 @@
 
 - At start: ``waiting for the flight controller's HEARTBEAT (system S) on URL``; when it
   comes: ``flight controller found (system S) on URL``; when it goes: ``flight controller
-  lost on URL: waiting for its HEARTBEAT``.
+  lost on URL: waiting for its HEARTBEAT``. If none came :data:`FC_HINT_S` after the start,
+  once: what to check.
 - On a terminal, every :data:`STATUS_PERIOD_S` from the start: one status line
   (:func:`status_line`), e.g.
   ``MANUAL disarmed | fc up gcs up | FC setup safe | N 0.00 E 0.00 m | 0.00 m/s``.
@@ -20,12 +21,15 @@ from typing import TextIO
 from mecanum_mav.control.core import RoverCore
 from mecanum_mav.control.fccheck import FcSetupCheck
 
-__all__ = ["CHECK_PERIOD_S", "STATUS_PERIOD_S", "Progress", "fc_check_state", "status_line"]
+__all__ = ["CHECK_PERIOD_S", "FC_HINT_S", "STATUS_PERIOD_S", "Progress", "fc_check_state",
+           "status_line"]
 
 CHECK_PERIOD_S = 1.0
 """How often (s) :class:`Progress` looks at the core (the flight controller found or lost)."""
 STATUS_PERIOD_S = 5.0
 """How often (s) the status line is printed."""
+FC_HINT_S = 10.0
+"""A flight controller not found this long (s) after the start gets a hint of what to check."""
 GCS_HEARD_S = 3.0
 """A ground station whose HEARTBEAT came within this long (s) is "up"."""
 
@@ -80,6 +84,7 @@ class Progress:
         self.out = out
         self.periodic = periodic
         self._fc_up = False
+        self._hint_s = -math.inf  # when the hint is due (inf: said, or not needed)
         self._next_status_s = -math.inf
 
     def _say(self, text: str) -> None:
@@ -94,6 +99,16 @@ class Progress:
         """Look at the core at ``now_s``: print what changed and, when due, the status line;
         returns when to look again (monotonic s)."""
         up = not self.core.vehicle.fc_lost
+        if self._hint_s == -math.inf:  # the first look
+            self._hint_s = now_s + FC_HINT_S
+        if up:
+            self._hint_s = math.inf
+        elif now_s >= self._hint_s:
+            self._hint_s = math.inf
+            sysid = self.core.identity.fc_sysid
+            self._say(f"no HEARTBEAT from the flight controller (system {sysid}) on "
+                      f"{self.fc_url} after {FC_HINT_S:g} s: is it powered and connected "
+                      f"(device, baud rate, port), and is its system id FC_SYSID ({sysid})?")
         if up != self._fc_up:
             self._fc_up = up
             if up:

@@ -110,8 +110,8 @@ def ground_station_claim(sysid: int, gcs_url: str) -> tuple[str, str] | None:
     return (f"system{sysid}-{where}.lock",
             f"system id {sysid} on --gcs {gcs_url} is in use by another running rover"
             f"{{holder}}: a ground station would see the two as one vehicle (two answers to "
-            f"each command, both driving); give each rover its own --instance N (or --set "
-            f"SYSID_THISMAV=K) or its own --gcs")
+            f"each command, both driving); give each rover its own system id (sim --instance "
+            f"N, or --set SYSID_THISMAV=K) or its own --gcs")
 
 
 @contextlib.contextmanager
