@@ -10,8 +10,14 @@ Sub-commands:
     plot    the speed-envelope figures of seed 000 (and of our mixers) as PNGs
     params  validate a parameter file, print the parameters, or the schema as Markdown
 
-Exit status: 0 on success, 1 when a batch had bad lines (each reported), 2 for usage errors
-and parameter files that do not validate.
+Every sub-command takes ``--params FILE``, ``--set NAME=VALUE`` and ``--log-level LEVEL``.
+
+Exit status: 0 on success (``run`` and ``sim`` also when stopped by Ctrl-C or SIGTERM once
+running), 1 when a batch had bad lines (each reported), 2 for usage errors, parameter files
+that do not validate (or do not exist, except for ``run`` and ``sim``, which start from the
+defaults and create them) and a rover refused because another holds its parameter file or
+its system id and ground station; 130 when Ctrl-C cut a command short (one line, no
+traceback).
 """
 
 from __future__ import annotations
@@ -653,7 +659,8 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 def configure_logging(args: argparse.Namespace) -> None:
     """The root logger's level from ``--log-level`` (else the sub-command's default: INFO for
-    ``run`` and ``sim``, WARNING for the others), and a handler on stderr if there is none."""
+    ``run`` and ``sim``, ERROR for ``demo``, WARNING for the others), and a handler on stderr
+    if there is none."""
     level = args.log_level or getattr(args, "default_log_level", "WARNING")
     logging.basicConfig(format="%(asctime)s %(name)s: %(message)s")
     logging.getLogger().setLevel(level)
