@@ -1,4 +1,7 @@
-"""Signals for foreground processes: SIGINT (Ctrl-C) and SIGTERM stop, SIGUSR1 asks for status."""
+"""Signals for foreground processes: SIGINT (Ctrl-C) and SIGTERM stop, SIGUSR1 asks for status.
+
+:func:`terminate_in_order` is the companion's: however many SIGINT/SIGTERM come and however
+fast, the first one ends it in order and the rest are ignored (:class:`Termination`)."""
 
 from __future__ import annotations
 
@@ -36,7 +39,6 @@ def on_termination(stop: Callable[[], None]) -> contextlib.AbstractContextManage
     itself then shuts down in order.
     """
     return on_signals((signal.SIGINT, signal.SIGTERM), stop)
-
 
 
 class Termination:
