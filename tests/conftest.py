@@ -3,9 +3,10 @@ ground station in virtual time). Real-socket tests build their own links on port
 
 from __future__ import annotations
 
+import os
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 
 import pytest
 
@@ -44,3 +45,17 @@ def wait_until(condition: Callable[[], object], timeout_s: float) -> object:
             return result
         threading.Event().wait(0.01)
     return None
+
+
+@pytest.fixture(autouse=True, scope="session")
+def _private_rover_claims(tmp_path_factory: pytest.TempPathFactory) -> Iterator[None]:
+    """The rovers the tests start claim their system id and ground-station port
+    (:mod:`mecanum_mav.io.claims`) in a folder of this test session's own: not against rovers
+    running on the machine, nor another session's."""
+    old = os.environ.get("XDG_RUNTIME_DIR")
+    os.environ["XDG_RUNTIME_DIR"] = str(tmp_path_factory.mktemp("runtime"))
+    yield
+    if old is None:
+        del os.environ["XDG_RUNTIME_DIR"]
+    else:
+        os.environ["XDG_RUNTIME_DIR"] = old

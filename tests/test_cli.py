@@ -141,7 +141,7 @@ def test_a_broken_parameter_file_stops_run_unless_params_reset_says_start_on_def
     bad = tmp_path / "rover.parm"
     bad.write_text("GEO_HALF_LEN 0.2\nMIX_ALOG 1\n")
     served = []
-    monkeypatch.setattr(cli, "serve", lambda params, gcs, fc, path, tlog, keys: served.append(
+    monkeypatch.setattr(cli, "serve", lambda params, gcs, fc, path, tlog, keys, **_: served.append(
         (params.as_dict(), path)) or 0)
     assert main(["run", "--fc", "udpin:127.0.0.1:0", "--params", str(bad)]) == 2
     assert "rover.parm:2: unknown parameter 'MIX_ALOG'; did you mean MIX_ALGO?" in (
@@ -185,3 +185,32 @@ def test_run_prints_its_refusal_counts_on_sigusr1_and_at_exit(tmp_path):
     finally:
         port.close()
         fc.close()
+
+
+def test_run_and_sim_start_from_the_defaults_on_a_params_file_that_does_not_exist_yet(
+        capsys, tmp_path, monkeypatch):
+    """The README's fleet loop from a fresh clone: ``sim --instance 0 --params rover0.parm``."""
+    served = []
+    monkeypatch.setattr(cli, "serve", lambda params, gcs, fc, path, tlog, keys, **_: served.append(
+        (params.as_dict(), path)) or 0)
+    new = tmp_path / "rover0.parm"
+    assert main(["sim", "--instance", "0", "--params", str(new), "--set", "INP_EXPO=0.2"]) == 0
+    assert main(["run", "--fc", "sim", "--params", str(new)]) == 0
+    err = capsys.readouterr().err
+    assert err.count(f"{new} does not exist: starting from the defaults; changes will be saved "
+                     f"there") == 2
+    assert served == [({**Params().as_dict(), "INP_EXPO": 0.2}, new),  # saved to it
+                      (Params().as_dict(), new)]
+    assert not new.exists()  # written when the ground station changes something
+
+
+@pytest.mark.parametrize("command", [["params"], ["mix", "-x", "1"], ["setup-fc", "--fc", "sim"]])
+def test_other_commands_refuse_a_params_file_that_does_not_exist(command, capsys, tmp_path):
+    missing = tmp_path / "typo.parm"
+    assert main([*command, "--params", str(missing)]) == 2
+    assert f"--params {missing} does not exist" in capsys.readouterr().err
+
+
+def test_a_params_file_in_a_folder_that_does_not_exist_is_refused(capsys, tmp_path):
+    assert main(["run", "--fc", "sim", "--params", str(tmp_path / "no" / "rover.parm")]) == 2
+    assert f"the folder {tmp_path / 'no'} does not exist" in capsys.readouterr().err

@@ -67,3 +67,29 @@ def test_demo_runs_the_mission_prints_a_table_per_leg_and_writes_the_figure(
     heading = re.search(r"heading within ([0-9.]+) deg of north", out)
     assert heading is not None and float(heading.group(1)) < 0.1
     assert png.stat().st_size > 10_000 and png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_demo_prints_the_header_first_and_each_leg_as_soon_as_it_ends(capsys, monkeypatch):
+    """A mission that stops after two legs: the header and those two rows are out (flushed,
+    before the failure), not held back for a table at the end."""
+    seen_at_leg: list[str] = []
+
+    def two_legs_then_stop(params, side_m, on_leg=demo._ignore_leg, **options):
+        for k in (1, 2):
+            on_leg(k, demo.LegReport(k + 1, (0.0, 0.0), (side_m, 0.0), 1.5, 0.01, 0.02))
+            seen_at_leg.append(capsys.readouterr().out)
+        raise RuntimeError("the rover stopped after 2 legs")
+
+    monkeypatch.setattr(demo, "run_demo", two_legs_then_stop)
+    assert main(["demo", "--side", "0.6"]) == 1
+    first, second = seen_at_leg
+    lines = first.splitlines()
+    assert lines[-2] == demo.TABLE_HEADER and lines[-1].split()[:2] == ["1", "2"]
+    assert second.splitlines() == [second.splitlines()[0]] and second.split()[:2] == ["2", "3"]
+    assert "the rover stopped after 2 legs" in capsys.readouterr().err
+
+
+def test_run_demo_tells_each_leg_in_order_as_the_result_keeps_it():
+    told: list[tuple[int, demo.LegReport]] = []
+    result = demo.run_demo(side_m=0.6, virtual=True, on_leg=lambda k, leg: told.append((k, leg)))
+    assert told == list(enumerate(result.legs, start=1)) and len(told) == 5

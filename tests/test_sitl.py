@@ -9,6 +9,7 @@ $MECANUM_SITL).
 
 from __future__ import annotations
 
+import signal
 import time
 from collections.abc import Iterator
 
@@ -96,6 +97,29 @@ def test_sigterm_releases_the_channels_to_the_receiver(rig):
     delay = released.t - sent
     print(f"{rig.fc.transport}: SIGTERM -> receiver's pulse on SERVO1..4 {delay * 1000:.0f} ms")
     assert code == 0, rig.why()
+    assert delay < SHUTDOWN_LIMIT_S, rig.why()
+
+
+def test_two_ctrl_c_10_ms_apart_still_release_the_channels_to_the_receiver(rig):
+    """The second Ctrl-C must not cut the shutdown short (over TCP and serial the release
+    waits in the link's linger: cut, the board holds the last override until
+    RC_OVERRIDE_TIME)."""
+    rig.arm()
+    rig.drive(0, 1000, 0, STRAFE_RIGHT)
+    since = rig.monitor.mark()
+    sent = time.monotonic()
+    rig.companion.proc.send_signal(signal.SIGINT)
+    time.sleep(0.01)  # the second Ctrl-C, 10 ms after the first
+    rig.companion.proc.send_signal(signal.SIGINT)
+    released = rig.monitor.wait_servos(lambda s: s == RECEIVER, REACT_S, since=since,
+                                       tick=lambda: rig.gcs.sticks(0, 1000, 0))
+    code = rig.companion.wait(REACT_S)
+    assert released is not None, f"never back to the receiver's {RECEIVER}\n{rig.why()}"
+    delay = released.t - sent
+    print(f"{rig.fc.transport}: 2 x SIGINT -> receiver's pulse on SERVO1..4 "
+          f"{delay * 1000:.0f} ms")
+    assert code == 0, rig.why()
+    assert "Traceback" not in rig.companion.log(), rig.why()
     assert delay < SHUTDOWN_LIMIT_S, rig.why()
 
 

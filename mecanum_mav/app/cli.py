@@ -10,8 +10,14 @@ Sub-commands:
     plot    the speed-envelope figures of seed 000 (and of our mixers) as PNGs
     params  validate a parameter file, print the parameters, or the schema as Markdown
 
-Exit status: 0 on success, 1 when a batch had bad lines (each reported), 2 for usage errors
-and parameter files that do not validate.
+Every sub-command takes ``--params FILE``, ``--set NAME=VALUE`` and ``--log-level LEVEL``.
+
+Exit status: 0 on success (``run`` and ``sim`` also when stopped by Ctrl-C or SIGTERM once
+running), 1 when a batch had bad lines (each reported), 2 for usage errors, parameter files
+that do not validate (or do not exist, except for ``run`` and ``sim``, which start from the
+defaults and create them) and a rover refused because another holds its parameter file or
+its system id and ground station; 130 when Ctrl-C cut a command short (one line, no
+traceback).
 """
 
 from __future__ import annotations
@@ -43,6 +49,8 @@ from mecanum_mav.mecanum.mixing import ALGORITHM_NAMES, Desaturation, mix_stick
 from mecanum_mav.mecanum.wheels import WHEEL_KEYS
 
 DESAT_NAMES = {d.name.lower(): d for d in Desaturation}
+LOG_LEVELS = ("DEBUG", "INFO", "WARNING", "ERROR")
+"""The values of ``--log-level``."""
 CSV_COLUMNS = ("x", "y", "rotation", "heading_deg", "magnitude", "direction_deg", "algo")
 POLAR_KEYS = ("magnitude", "direction_deg")
 OUTPUT_HEADER = [f"w_{k.lower()}" for k in WHEEL_KEYS] + [
@@ -314,6 +322,8 @@ def cmd_params(args: argparse.Namespace, params: Params) -> int:
 
 PARAMS_RESET_HELP = ("start on the parameter defaults (and --set) instead of the --params "
                      "file, which is left untouched: for a file that no longer loads")
+QUIET_HELP = ("no status line every 5 s (printed only when stdout is a terminal); what "
+              "happens and errors are still said")
 DEFAULT_GCS_URL = "udpout:127.0.0.1:14550"
 """Where QGroundControl and MAVProxy listen by default."""
 
@@ -340,24 +350,32 @@ def signing_keys(args: argparse.Namespace) -> tuple[bytes | None, bytes | None]:
 
 def serve(params: Params, gcs_url: str, fc_url: str, param_path: Path | None,
           tlog_path: Path | None,
-          keys: tuple[bytes | None, bytes | None] = (None, None)) -> int:
+          keys: tuple[bytes | None, bytes | None] = (None, None), *,
+          quiet: bool = False) -> int:
     """Run the companion in the foreground until SIGINT/SIGTERM; ``fc_url`` may be ``sim``.
 
     The status line (:meth:`~mecanum_mav.control.core.RoverCore.status_line`: messages
     received, malformed packets, failed sends, refusals per kind) goes to stderr on SIGUSR1
-    and at exit."""
+    and at exit. On stdout it says what it does (:class:`~mecanum_mav.app.progress.Progress`:
+    waiting for the flight controller, found, lost; on a terminal and without ``quiet`` a
+    status line every 5 s). A SIGINT or SIGTERM while it starts abandons the start-up
+    (:class:`KeyboardInterrupt`); once it runs, the first one stops it in order and any
+    further one is ignored (:class:`~mecanum_mav.app.shutdown.Termination`)."""
     import signal
 
     from mecanum_mav.app.companion import Companion
-    from mecanum_mav.app.shutdown import on_signals, on_termination
+    from mecanum_mav.app.progress import Progress
+    from mecanum_mav.app.shutdown import on_signals, terminate_in_order
+    from mecanum_mav.io.claims import claim_ground_station
     from mecanum_mav.io.storage import claim_parameter_file
     from mecanum_mav.sim.simfc import SimFlightController
 
-    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s: %(message)s")
-    with contextlib.ExitStack() as stack:
+    with terminate_in_order() as termination, contextlib.ExitStack() as stack:
         try:
             if param_path is not None:  # one rover per file: a second one is refused
                 stack.enter_context(claim_parameter_file(param_path))
+            # one rover per system id and ground station (and per listening port)
+            stack.enter_context(claim_ground_station(int(params["SYSID_THISMAV"]), gcs_url))
             if fc_url == "sim":
                 sim = SimFlightController("udpin:127.0.0.1:0", params)
                 sim.start()
@@ -379,14 +397,23 @@ def serve(params: Params, gcs_url: str, fc_url: str, param_path: Path | None,
         def print_status() -> None:
             print(f"mecanum-mav: {companion.core.status_line()}", file=sys.stderr, flush=True)
 
-        with on_termination(companion.stop), on_signals((signal.SIGUSR1,), print_status):
+        progress = Progress(companion.core, fc_url, sys.stdout,
+                            periodic=not quiet and sys.stdout.isatty())
+        progress.started()
+        companion.set_timer(progress.tick)
+
+        # From here a SIGINT or SIGTERM, however many, ends the loop in order (neutral,
+        # release) and waits for the links to linger: none cuts the shutdown short.
+        termination.running(companion.stop)
+        with on_signals((signal.SIGUSR1,), print_status):
             companion.run()
         print_status()
     return 0
 
 
 def cmd_run(args: argparse.Namespace, params: Params) -> int:
-    return serve(params, args.gcs, args.fc, args.params, args.tlog, args.keys)
+    return serve(params, args.gcs, args.fc, args.params, args.tlog, args.keys,
+                 quiet=args.quiet)
 
 
 def cmd_sim(args: argparse.Namespace, params: Params) -> int:
@@ -401,7 +428,7 @@ def cmd_sim(args: argparse.Namespace, params: Params) -> int:
               f"{params['SYSID_THISMAV']}, sending to UDP {host_port}: one --master="
               f"udpin:{host_port} of the router (see docs/fleet.md)",
               flush=True)
-    return serve(params, gcs, "sim", args.params, args.tlog, args.keys)
+    return serve(params, gcs, "sim", args.params, args.tlog, args.keys, quiet=args.quiet)
 
 
 def sim_gcs_url(args: argparse.Namespace) -> str:
@@ -413,18 +440,22 @@ def sim_gcs_url(args: argparse.Namespace) -> str:
 
 
 def cmd_demo(args: argparse.Namespace, params: Params) -> int:
-    from mecanum_mav.app.demo import plot_demo, run_demo
+    from mecanum_mav.app.demo import TABLE_HEADER, LegReport, leg_row, plot_demo, run_demo
 
-    logging.basicConfig(level=logging.ERROR, format="%(name)s: %(message)s")
     print(f"mecanum-mav demo: simulator + companion + scripted ground station on loopback; "
           f"uploading a {args.side:g} m square with a diagonal, facing north, then AUTO ...",
           flush=True)
+    print(TABLE_HEADER, flush=True)
+
+    def print_leg(k: int, leg: LegReport) -> None:
+        print(leg_row(k, leg), flush=True)  # as the rover drives on
+
     try:
-        result = run_demo(params, side_m=args.side)
+        result = run_demo(params, side_m=args.side, on_leg=print_leg)
     except (RuntimeError, TimeoutError, OSError) as exc:
         print(f"mecanum-mav demo: {exc}", file=sys.stderr)
         return 1
-    print(result.table())
+    print(result.summary())
     try:
         print(f"wrote {plot_demo(result, Path(args.png))}")
     except RuntimeError as exc:  # no matplotlib
@@ -489,9 +520,14 @@ def build_parser() -> argparse.ArgumentParser:
 
     common = argparse.ArgumentParser(add_help=False)
     common.add_argument("--params", type=Path, metavar="FILE",
-                        help="parameter file (NAME VALUE per line, # comments)")
+                        help="parameter file (NAME VALUE per line, # comments); sim and run "
+                        "save the ground station's changes to it, and start from the defaults "
+                        "when it does not exist yet")
     common.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
                         help="override a parameter (repeatable)")
+    common.add_argument("--log-level", choices=LOG_LEVELS, type=str.upper, metavar="LEVEL",
+                        help=f"what the log shows: {', '.join(LOG_LEVELS)} (default INFO for "
+                        f"run and sim, ERROR for demo, WARNING for the others)")
 
     sim = sub.add_parser("sim", parents=[common],
                          help="companion + simulated flight controller (start here)",
@@ -509,7 +545,8 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--tlog", type=Path, metavar="FILE", help="record all traffic (tlog)")
     sim.add_argument("--params-reset", action="store_true", help=PARAMS_RESET_HELP)
     sim.add_argument("--signing-key", type=Path, metavar="FILE", help=SIGNING_KEY_HELP)
-    sim.set_defaults(handler=cmd_sim)
+    sim.add_argument("--quiet", action="store_true", help=QUIET_HELP)
+    sim.set_defaults(handler=cmd_sim, default_log_level="INFO", creates_params=True)
 
     demo = sub.add_parser("demo", parents=[common],
                           help="the whole product in one command: an AUTO mission in the "
@@ -522,7 +559,7 @@ def build_parser() -> argparse.ArgumentParser:
                       help="side of the square in metres (default 2)")
     demo.add_argument("--png", default="demo.png", metavar="FILE",
                       help="where to write the figure (default demo.png)")
-    demo.set_defaults(handler=cmd_demo)
+    demo.set_defaults(handler=cmd_demo, default_log_level="ERROR")  # (its companion's noise)
 
     run = sub.add_parser("run", parents=[common], help="the companion",
                          description="Run the companion: the rover a ground station sees, "
@@ -536,7 +573,8 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--params-reset", action="store_true", help=PARAMS_RESET_HELP)
     run.add_argument("--signing-key", type=Path, metavar="FILE", help=SIGNING_KEY_HELP)
     run.add_argument("--fc-signing-key", type=Path, metavar="FILE", help=FC_SIGNING_KEY_HELP)
-    run.set_defaults(handler=cmd_run)
+    run.add_argument("--quiet", action="store_true", help=QUIET_HELP)
+    run.set_defaults(handler=cmd_run, default_log_level="INFO", creates_params=True)
 
     setup = sub.add_parser(
         "setup-fc", parents=[common], help="check (and fix) an ArduPilot flight controller",
@@ -610,16 +648,54 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+INTERRUPTED = 130
+"""Exit status of a command cut short by Ctrl-C (128 + SIGINT, as shells report it)."""
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of the ``mecanum-mav`` console script."""
+    """Entry point of the ``mecanum-mav`` console script: a Ctrl-C anywhere ends with one
+    line and status :data:`INTERRUPTED`, never a traceback (``run`` and ``sim`` stop in order
+    and exit 0)."""
+    try:
+        return _main(argv)
+    except KeyboardInterrupt:
+        with contextlib.suppress(KeyboardInterrupt):  # (a second Ctrl-C while saying so)
+            print("mecanum-mav: interrupted", file=sys.stderr, flush=True)
+        return INTERRUPTED
+
+
+def configure_logging(args: argparse.Namespace) -> None:
+    """The root logger's level from ``--log-level`` (else the sub-command's default: INFO for
+    ``run`` and ``sim``, ERROR for ``demo``, WARNING for the others), and a handler on stderr
+    if there is none."""
+    level = args.log_level or getattr(args, "default_log_level", "WARNING")
+    logging.basicConfig(format="%(asctime)s %(name)s: %(message)s")
+    logging.getLogger().setLevel(level)
+
+
+def _main(argv: Sequence[str] | None) -> int:
     args = build_parser().parse_args(argv)
+    configure_logging(args)
     if getattr(args, "params_reset", False) and args.params is not None:
         print(f"mecanum-mav: --params-reset: starting on the defaults; {args.params} is not "
               f"read and left untouched (changes made from the ground station are not saved)",
               file=sys.stderr)
         args.params = None  # neither read nor saved to
+    read_from = args.params
+    if read_from is not None and not read_from.exists():
+        if not getattr(args, "creates_params", False):
+            print(f"mecanum-mav: --params {read_from} does not exist (only sim and run start "
+                  f"without it, from the defaults, and create it)", file=sys.stderr)
+            return 2
+        if not read_from.parent.is_dir():
+            print(f"mecanum-mav: --params {read_from}: the folder {read_from.parent} does not "
+                  f"exist", file=sys.stderr)
+            return 2
+        print(f"mecanum-mav: {read_from} does not exist: starting from the defaults; changes "
+              f"will be saved there", file=sys.stderr)
+        read_from = None  # (still saved to)
     try:
-        params = load_params(args.params, args.set, getattr(args, "instance", None))
+        params = load_params(read_from, args.set, getattr(args, "instance", None))
         args.keys = signing_keys(args)
     except (ParamFileError, ParamError, KeyFileError) as exc:
         print(f"mecanum-mav: {exc}", file=sys.stderr)

@@ -5,7 +5,8 @@ opens the links, feeds the core what arrives, writes what it returns, and shuts 
 One thread, one loop (:meth:`Companion.run`), top to bottom:
 
 1. Wait until a link is readable or the core's next timer is due (epoll,
-   :class:`~mecanum_mav.io.poller.Poller`; it never polls, so an idle companion uses no CPU).
+   :class:`~mecanum_mav.io.poller.Poller`; it never polls, so an idle companion uses no CPU);
+   then the shell's own slow timer (:meth:`Companion.set_timer`, once a second), if due.
 2. Read everything waiting on a link; each message goes to ``core.handle`` and its answers
    out at once. Under overload this drains the queue and the core acts on the newest stick.
    On a datagram link the first datagram is answered before the rest are read: the pilot's
@@ -43,6 +44,7 @@ reported in SYS_STATUS ``errors_comm`` and the status line; it never stops the l
 from __future__ import annotations
 
 import contextlib
+import math
 import os
 import selectors
 import threading
@@ -124,6 +126,15 @@ class Companion:
         self._loop_ident: int | None = None  # the thread running run(), while it runs
         self._ended = threading.Event()  # run() has sent its last overrides
         self._ended.set()
+        self._timer: Callable[[float], float] | None = None
+        self._timer_due_s = math.inf
+
+    def set_timer(self, action: Callable[[float], float]) -> None:
+        """Call ``action(now_s)`` from the loop on the first pass and then whenever the time
+        it returned (monotonic s) has come: for something slow-paced beside the rover (the
+        progress a person sees, :class:`~mecanum_mav.app.progress.Progress`). It runs in the
+        loop's thread between passes: keep it short (no waiting)."""
+        self._timer, self._timer_due_s = action, -math.inf
 
     def run(self) -> None:
         """Run until :meth:`stop`; always ends with neutral wheels and released channels."""
@@ -138,13 +149,15 @@ class Companion:
         try:
             while not self._stopping:
                 due = min(core.next_due_s(), gcs.next_reopen_s, fc.next_reopen_s,
-                          gcs.next_send_s, fc.next_send_s)
+                          gcs.next_send_s, fc.next_send_s, self._timer_due_s)
                 for link, events in selector.wait(due - self.clock()):
                     if link is None:
                         os.read(self._wake_r, 64)
                     elif events & READABLE:  # (writable: follow() flushes)
                         self._drain(link)
                 now = self.clock()
+                if now >= self._timer_due_s and self._timer is not None:
+                    self._timer_due_s = self._timer(now)
                 if not streams and core.settled(now):
                     continue  # nothing arrived and nothing is due
                 for link in streams:  # (a datagram link never goes down)

@@ -4,9 +4,10 @@ It starts the simulated flight controller and chassis, the companion, and a scri
 station (:class:`~mecanum_mav.sim.groundstation.ScriptedGroundStation`), all in this process
 on UDP loopback, in real time. The ground station uploads a mission over the MAVLink mission
 protocol (a square with a diagonal, the rover facing north all the way), arms, switches to AUTO
-and watches MISSION_ITEM_REACHED and the odometry until the rover holds at the end. Then it
-prints one row per leg (time, largest cross-track error, arrival error; from the simulator's
-true pose) and draws the planned path, the true path and the odometry to a PNG.
+and watches MISSION_ITEM_REACHED and the odometry until the rover holds at the end. It
+reports each leg as it ends (``on_leg``; the CLI prints it as one row of the table: time,
+largest cross-track error, arrival error; from the simulator's true pose) and draws the
+planned path, the true path and the odometry to a PNG.
 
 ``run_demo(..., virtual=True)`` runs the same script in the lockstep harness
 (:class:`~mecanum_mav.sim.lockstep.Lockstep`: the rover core, the simulated board and the same
@@ -37,7 +38,8 @@ from mecanum_mav.sim.groundstation import ScriptedGroundStation, udp_ground_stat
 from mecanum_mav.sim.lockstep import Lockstep
 from mecanum_mav.sim.simfc import SimFlightController
 
-__all__ = ["DemoResult", "LegReport", "demo_mission", "plot_demo", "run_demo"]
+__all__ = ["TABLE_HEADER", "DemoResult", "LegReport", "OnLeg", "demo_mission", "leg_row",
+           "plot_demo", "run_demo"]
 
 Vec = tuple[float, float]
 WATCH_PERIOD_S = 0.02
@@ -84,23 +86,43 @@ class DemoResult:
     max_yaw_deg: float = 0.0
 
     def table(self) -> str:
-        """The per-leg table as text."""
-        rows = [f"{'leg':<4}{'item':>5}  {'from':>13} -> {'to':<13}{'time s':>8}"
-                f"{'max cross-track cm':>20}{'arrival error cm':>18}"]
-        for k, leg in enumerate(self.legs, start=1):
-            rows.append(f"{k:<4}{leg.seq:>5}  ({leg.start[0]:5.2f},{leg.start[1]:5.2f}) -> "
-                        f"({leg.goal[0]:5.2f},{leg.goal[1]:5.2f}){leg.time_s:8.2f}"
-                        f"{leg.max_cross_track_m * 100:20.2f}{leg.arrival_error_m * 100:18.2f}")
+        """The per-leg table as text: :data:`TABLE_HEADER`, :func:`leg_row` per leg, then
+        :meth:`summary`."""
+        rows = [TABLE_HEADER, *(leg_row(k, leg) for k, leg in enumerate(self.legs, start=1))]
+        return "\n".join([*rows, self.summary()])
+
+    def summary(self) -> str:
+        """The table's last line: mission time, worst errors, heading."""
         worst_xt = max(leg.max_cross_track_m for leg in self.legs) * 100
         worst_arr = max(leg.arrival_error_m for leg in self.legs) * 100
-        rows.append(f"mission {self.total_s:.1f} s; worst cross-track {worst_xt:.2f} cm, worst "
-                    f"arrival {worst_arr:.2f} cm; heading within {self.max_yaw_deg:.2f} deg of "
-                    f"north")
-        return "\n".join(rows)
+        return (f"mission {self.total_s:.1f} s; worst cross-track {worst_xt:.2f} cm, worst "
+                f"arrival {worst_arr:.2f} cm; heading within {self.max_yaw_deg:.2f} deg of "
+                f"north")
+
+
+TABLE_HEADER = (f"{'leg':<4}{'item':>5}  {'from':>13} -> {'to':<13}{'time s':>8}"
+                f"{'max cross-track cm':>20}{'arrival error cm':>18}")
+"""The first line of :meth:`DemoResult.table`."""
+
+
+def leg_row(k: int, leg: LegReport) -> str:
+    """Leg number ``k`` (from 1) as a row of :meth:`DemoResult.table`."""
+    return (f"{k:<4}{leg.seq:>5}  ({leg.start[0]:5.2f},{leg.start[1]:5.2f}) -> "
+            f"({leg.goal[0]:5.2f},{leg.goal[1]:5.2f}){leg.time_s:8.2f}"
+            f"{leg.max_cross_track_m * 100:20.2f}{leg.arrival_error_m * 100:18.2f}")
+
+
+OnLeg = Callable[[int, LegReport], None]
+"""Called with each leg's number (from 1) and report as soon as the leg ends."""
+
+
+def _ignore_leg(k: int, leg: LegReport) -> None:
+    pass
 
 
 def run_demo(params: Params | None = None, side_m: float = 2.0, timeout_s: float = 120.0,
-             *, virtual: bool = False, dt_s: float = 0.002) -> DemoResult:
+             *, virtual: bool = False, dt_s: float = 0.002,
+             on_leg: OnLeg = _ignore_leg) -> DemoResult:
     """Run the demo mission in the simulator; returns the measurements.
 
     Args:
@@ -110,6 +132,7 @@ def run_demo(params: Params | None = None, side_m: float = 2.0, timeout_s: float
         virtual: run in the lockstep harness (virtual time, no sockets) instead of real time
             on UDP loopback.
         dt_s: the harness's time step with ``virtual``.
+        on_leg: told each leg as soon as it ends (to print it while the rover drives on).
 
     Raises:
         RuntimeError: a step failed (upload refused, arming refused, mission not finished).
@@ -118,14 +141,14 @@ def run_demo(params: Params | None = None, side_m: float = 2.0, timeout_s: float
     items, points = demo_mission(side_m)
     if virtual:
         harness = Lockstep(params, dt_s=dt_s)
-        return _fly(harness.gcs, harness.truth, items, points, timeout_s)
+        return _fly(harness.gcs, harness.truth, items, points, timeout_s, on_leg)
     sim = SimFlightController("udpin:127.0.0.1:0", params)
     sim.start()
     gcs, port = udp_ground_station()
     companion = Companion(params, port.url, f"udpout:127.0.0.1:{sim.local_port}")
     companion.start()
     try:
-        return _fly(gcs, sim.snapshot, items, points, timeout_s)
+        return _fly(gcs, sim.snapshot, items, points, timeout_s, on_leg)
     finally:
         companion.close()
         sim.stop()
@@ -133,7 +156,7 @@ def run_demo(params: Params | None = None, side_m: float = 2.0, timeout_s: float
 
 
 def _fly(gcs: ScriptedGroundStation, truth: Callable[[], SimState], items: list[MissionItem],
-         points: list[Vec], timeout_s: float) -> DemoResult:
+         points: list[Vec], timeout_s: float, on_leg: OnLeg) -> DemoResult:
     """The ground station's script: upload, arm, AUTO, watch until HOLD."""
     if gcs.wait("HEARTBEAT", lambda m: m.get_srcSystem() == 1, 5.0) is None:
         raise RuntimeError("no heartbeat from the companion")
@@ -151,11 +174,11 @@ def _fly(gcs: ScriptedGroundStation, truth: Callable[[], SimState], items: list[
         raise RuntimeError("arming refused") from None
     if gcs.set_mode(Mode.AUTO) != mavlink.MAV_RESULT_ACCEPTED:
         raise RuntimeError("AUTO refused")
-    return _watch(gcs, truth, points, timeout_s)
+    return _watch(gcs, truth, points, timeout_s, on_leg)
 
 
 def _watch(gcs: ScriptedGroundStation, truth: Callable[[], SimState], points: list[Vec],
-           timeout_s: float) -> DemoResult:
+           timeout_s: float, on_leg: OnLeg) -> DemoResult:
     planned = [(0.0, 0.0), *points]
     out = DemoResult([], planned)
     first_leg_seq = 2  # item 1 is the CONDITION_YAW
@@ -181,6 +204,7 @@ def _watch(gcs: ScriptedGroundStation, truth: Callable[[], SimState], points: li
                 now = clock()
                 out.legs.append(LegReport(msg.seq, planned[k], planned[k + 1], now - leg_start_s,
                                           leg_cross, math.dist(here, planned[k + 1])))
+                on_leg(len(out.legs), out.legs[-1])
                 leg_start_s, leg_cross = now, 0.0
             elif kind == "HEARTBEAT" and msg.get_srcSystem() == 1 and msg.custom_mode == Mode.HOLD:
                 if len(out.legs) == len(points):

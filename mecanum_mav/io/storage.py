@@ -4,14 +4,13 @@ beside it, written atomically (the core's :class:`~mecanum_mav.control.core.Stor
 from __future__ import annotations
 
 import contextlib
-import fcntl
 import logging
-import os
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 
 from mecanum_mav.config.params import Params
 from mecanum_mav.io.atomicfile import remove_stale_temporaries
+from mecanum_mav.io.claims import InUseError, exclusive_lock
 from mecanum_mav.io.missionfile import (
     MissionFileError,
     load_mission,
@@ -61,7 +60,7 @@ class FileStorage:
         return items, ""
 
 
-class FileInUseError(OSError):
+class FileInUseError(InUseError):
     """Another running process keeps its parameters (and mission) in this file."""
 
 
@@ -74,21 +73,14 @@ def claim_parameter_file(param_path: Path) -> Iterator[None]:
     ``rover.parm``, another one asking for it gets :class:`FileInUseError` instead. The claim
     is an exclusive ``flock`` on ``.rover.parm.lock`` beside the file (the file itself is
     replaced by every atomic save, so it cannot carry the lock); the kernel releases it when
-    the process ends, however it ends. The lock file stays (removing it would race).
+    the process ends, however it ends (:func:`~mecanum_mav.io.claims.exclusive_lock`).
 
     Raises:
         FileInUseError: another process holds the file.
         OSError: the lock file cannot be created (e.g. a read-only folder).
     """
     lock_path = param_path.with_name(f".{param_path.name}.lock")
-    fd = os.open(lock_path, os.O_RDWR | os.O_CREAT, 0o644)
-    try:
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            raise FileInUseError(
-                f"{param_path} is in use by another running rover (it holds {lock_path}); "
-                f"give each rover its own --params file") from None
+    with exclusive_lock(lock_path, f"{param_path} is in use by another running rover{{holder}} "
+                        f"(it holds {lock_path}); give each rover its own --params file",
+                        FileInUseError):
         yield
-    finally:
-        os.close(fd)

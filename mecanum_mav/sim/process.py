@@ -1,10 +1,11 @@
 """The companion as its own process, for tests and tools that meet it from outside.
 
-:class:`CompanionProcess` runs ``python -m mecanum_mav run --gcs GCS --fc FC ...`` in a
-process group of its own (so that killing it takes everything it started), with its output
-in ``workdir/companion.log``, and reads what it costs (CPU from the kernel's clock of the
-process, resident memory from ``/proc``). The tests, ``tools/fuzz.py``, ``tools/soak.py`` and
-``tools/bench_ab.py`` all start the companion this one way.
+:class:`CompanionProcess` runs ``python -m mecanum_mav run --gcs GCS --fc FC ...`` (and
+:class:`CliProcess` any sub-command) in a process group of its own (so that killing it takes
+everything it started), with its output in ``workdir/companion.log``, and reads what it
+costs (CPU from the kernel's clock of the process, resident memory from ``/proc``).
+The tests, ``tools/fuzz.py``, ``tools/soak.py`` and ``tools/bench_ab.py`` all start the
+companion this one way.
 """
 
 from __future__ import annotations
@@ -16,10 +17,12 @@ import socket
 import subprocess
 import sys
 import time
+from collections.abc import Sequence
 from pathlib import Path
 from types import TracebackType
+from typing import TypeVar
 
-__all__ = ["CompanionProcess", "free_port", "process_cpu_s"]
+__all__ = ["CliProcess", "CompanionProcess", "free_port", "process_cpu_s"]
 
 def free_port(kind: int = socket.SOCK_DGRAM, host: str = "127.0.0.1") -> int:
     """A port the OS says is free now (bind port 0, read it, close): for programs that cannot
@@ -47,20 +50,22 @@ def process_cpu_s(pid: int) -> float:
     return time.clock_gettime((~pid << 3) | _CPUCLOCK_SCHED)
 
 
-class CompanionProcess:
-    """``python -m mecanum_mav run --gcs GCS --fc FC *extra`` in its own process group, the
-    package imported from ``package_root`` (default: the one this module belongs to; another
-    checkout's tree to run another version).
+_Process = TypeVar("_Process", bound="CliProcess")
+
+
+class CliProcess:
+    """``python -m mecanum_mav *argv`` in its own process group, the package imported from
+    ``package_root`` (default: the one this module belongs to; another checkout's tree to run
+    another version), its output (stdout and stderr) in ``workdir/log_name``.
 
     A context manager: on the way out the group is killed if it is still running.
     """
 
-    def __init__(self, gcs_url: str, fc_url: str, workdir: Path, *extra: str,
-                 package_root: Path = _PACKAGE_ROOT) -> None:
-        self.command = [sys.executable, "-m", "mecanum_mav", "run", "--gcs", gcs_url,
-                        "--fc", fc_url, *extra]
+    def __init__(self, argv: Sequence[str], workdir: Path, *,
+                 package_root: Path = _PACKAGE_ROOT, log_name: str = "companion.log") -> None:
+        self.command = [sys.executable, "-m", "mecanum_mav", *argv]
         workdir.mkdir(parents=True, exist_ok=True)
-        self.log_path = workdir / "companion.log"
+        self.log_path = workdir / log_name
         env = dict(os.environ)
         env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(package_root),
                                                           env.get("PYTHONPATH")]))
@@ -130,9 +135,18 @@ class CompanionProcess:
         with contextlib.suppress(subprocess.TimeoutExpired):
             self.proc.wait(timeout=10)
 
-    def __enter__(self) -> CompanionProcess:
+    def __enter__(self: _Process) -> _Process:
         return self
 
     def __exit__(self, kind: type[BaseException] | None, exc: BaseException | None,
                  tb: TracebackType | None) -> None:
         self.kill()
+
+
+class CompanionProcess(CliProcess):
+    """``python -m mecanum_mav run --gcs GCS --fc FC *extra`` (see :class:`CliProcess`)."""
+
+    def __init__(self, gcs_url: str, fc_url: str, workdir: Path, *extra: str,
+                 package_root: Path = _PACKAGE_ROOT) -> None:
+        super().__init__(["run", "--gcs", gcs_url, "--fc", fc_url, *extra], workdir,
+                         package_root=package_root)

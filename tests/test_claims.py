@@ -1,0 +1,69 @@
+"""One rover per system id and ground station on a machine (:mod:`mecanum_mav.io.claims`):
+a second ``sim`` or ``run`` that would send as the same system to the same ground station,
+or listen on the same port, is refused with exit status 2; the claim dies with its holder,
+kill -9 included."""
+
+from __future__ import annotations
+
+import os
+import signal
+from pathlib import Path
+
+import pytest
+from conftest import wait_until
+
+from mecanum_mav.io.claims import InUseError, claim_ground_station
+from mecanum_mav.sim.process import CliProcess, free_port
+
+
+@pytest.fixture(autouse=True)
+def _runtime(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("XDG_RUNTIME_DIR", str(tmp_path))
+
+
+def test_the_same_system_id_to_the_same_ground_station_is_refused_while_held() -> None:
+    with claim_ground_station(1, "udpout:127.0.0.1:14550"):
+        with pytest.raises(InUseError) as refused, claim_ground_station(
+                1, "udpout:localhost:14550"):
+            pass
+        assert str(refused.value).startswith(
+            f"system id 1 on --gcs udpout:localhost:14550 is in use by another running rover "
+            f"(process {os.getpid()})")
+        with claim_ground_station(2, "udpout:127.0.0.1:14550"):  # another system id
+            pass
+        with claim_ground_station(1, "udpout:127.0.0.1:14560"):  # another ground station
+            pass
+    with claim_ground_station(1, "udpout:127.0.0.1:14550"):  # released by its holder
+        pass
+
+
+def test_a_listening_port_is_one_rovers_whatever_its_system_id() -> None:
+    with claim_ground_station(1, "udpin:0.0.0.0:14550"):
+        with pytest.raises(InUseError, match="listens on UDP port 14550"), \
+                claim_ground_station(7, "udpin:127.0.0.1:14550"):
+            pass
+        with claim_ground_station(1, "tcpin:0.0.0.0:14550"):  # TCP is another port
+            pass
+    with claim_ground_station(1, "udpin:127.0.0.1:0"), claim_ground_station(
+            1, "udpin:127.0.0.1:0"):  # port 0: the OS gives each its own
+        pass
+
+
+def started(rover: CliProcess) -> bool:
+    return "mecanum-mav: rover system" in rover.log()
+
+
+def test_a_second_rover_with_the_same_id_and_ground_station_exits_2_until_the_first_is_killed(
+        tmp_path: Path) -> None:
+    gcs = f"udpout:127.0.0.1:{free_port()}"
+    with CliProcess(["sim", "--gcs", gcs], tmp_path / "first") as first:
+        assert wait_until(lambda: started(first), 20.0), first.log()
+        with CliProcess(["run", "--fc", "sim", "--gcs", gcs], tmp_path / "second") as second:
+            assert second.wait(20.0) == 2, second.log()
+            assert (f"mecanum-mav: system id 1 on --gcs {gcs} is in use by another running "
+                    f"rover (process {first.pid})") in second.log()
+        os.killpg(first.pid, signal.SIGKILL)  # no clean-up: the kernel frees the claim
+        first.wait(10.0)
+        with CliProcess(["run", "--fc", "sim", "--gcs", gcs], tmp_path / "third") as third:
+            assert wait_until(lambda: started(third), 20.0), third.log()
+            assert third.stop(10.0) == 0, third.log()
