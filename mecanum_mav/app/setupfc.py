@@ -28,7 +28,7 @@ import selectors
 import sys
 import time
 from collections.abc import Iterable, Sequence
-from typing import Any, TextIO
+from typing import Any, NamedTuple, TextIO
 
 from mecanum_mav.config.params import Params
 from mecanum_mav.control.core import FC_LINK_COMPID
@@ -55,12 +55,11 @@ REBOOT_TIMEOUT_S = 60.0
 EXIT_REBOOT_PENDING = 3
 
 
-class Reading:
+class Reading(NamedTuple):
     """What one read of the board gave: the values answered and the settings not answered."""
 
-    def __init__(self, values: dict[str, float], missing: Sequence[str]) -> None:
-        self.values = values
-        self.missing = list(missing)
+    values: dict[str, float]
+    missing: list[str]
 
 
 class FcSession:
