@@ -12,8 +12,8 @@ blocking anything. Time is passed in.
   ``FC setup not confirmed: no answer for ...`` (the board answered some parameters but not
   these by the deadline: never called a hazard, but arming waits for them, and each arm
   attempt reads the board again); ``FC setup not checked: no parameters from the flight
-  controller`` (a board that answers no parameter at all, such as the built-in simulator:
-  nothing to check, nothing blocked).
+  controller`` (a board that answers no parameter at all within 3 s: a firmware without
+  them, a signing board the link cannot talk to; nothing to check, nothing blocked).
 - ArduPilot announces every parameter a ground station changes (a PARAM_VALUE on all its
   links). A checked setting that changes starts a new read at once, and arming waits for it.
 """
