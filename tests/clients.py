@@ -1,9 +1,9 @@
 """Meeting the rover from outside, as a user of a real client does: the rover is its own
-process (``python -m mecanum_mav run --fc sim``), MAVProxy is driven through its console, and
+process (``python -m mecanum_mav sim``), MAVProxy is driven through its console, and
 what a test asserts is what a client prints or receives, never the rover's objects.
 
-- :func:`rover`: the companion with its built-in simulator as a process, its ground-station
-  link sending to a client's port, recording both links to a tlog (``--tlog``).
+- :func:`rover`: ``mecanum-mav sim`` as a process (the companion with its simulator), its
+  ground-station link sending to a client's port, recording both links to a tlog (``--tlog``).
 - :class:`MavProxy`: MAVProxy headless; :meth:`MavProxy.saw` waits for a whole console line.
 - :class:`Observer`: a pymavlink listener behind MAVProxy's ``--out``: it receives what
   MAVProxy receives from the rover (HEARTBEAT, LOCAL_POSITION_NED, ATTITUDE, ...).
@@ -41,11 +41,11 @@ VEHICLE_SYSID = 1
 
 @contextmanager
 def rover(workdir: Path, port: int, *options: str) -> Iterator[CompanionProcess]:
-    """``python -m mecanum_mav run --gcs udpout:127.0.0.1:PORT --fc sim --tlog rover.tlog
-    *options`` (its output in ``workdir/rover/companion.log``), stopped (SIGTERM) and reaped
-    on the way out, so that its tlog is complete."""
-    with CompanionProcess(f"udpout:127.0.0.1:{port}", "sim", workdir / "rover", "--tlog",
-                          str(tlog_path(workdir)), *options) as process:
+    """``python -m mecanum_mav sim --gcs udpout:127.0.0.1:PORT --tlog rover.tlog *options``
+    (its output in ``workdir/rover/companion.log``), stopped (SIGTERM) and reaped on the way
+    out, so that its tlog is complete."""
+    with CompanionProcess.sim(f"udpout:127.0.0.1:{port}", workdir / "rover", "--tlog",
+                              str(tlog_path(workdir)), *options) as process:
         try:
             yield process
         finally:

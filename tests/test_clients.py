@@ -1,5 +1,5 @@
 """The real client programs users run (MAVProxy, MAVSDK), driving the rover as a user runs it:
-its own process with the built-in simulator (``python -m mecanum_mav run --fc sim``). What
+its own process with the built-in simulator (``python -m mecanum_mav sim``). What
 these tests assert comes from outside: the lines MAVProxy prints, what MAVSDK's API returns,
 a pymavlink observer behind MAVProxy, and the simulator's truth in the rover's tlog."""
 
@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import inspect
 import math
 import re
 import socket
@@ -137,9 +138,14 @@ async def _first(stream: AsyncIterator[Any], timeout_s: float = 10.0,
 
 
 async def _until(condition: Callable[[], object], timeout_s: float) -> object:
+    """Poll ``condition`` (a function, or a coroutine function such as MAVSDK's
+    ``is_mission_finished``) every 50 ms until it returns something true; that, or None at
+    the deadline."""
     deadline = time.monotonic() + timeout_s
     while time.monotonic() < deadline:
         result = condition()
+        if inspect.isawaitable(result):
+            result = await result
         if result:
             return result
         await asyncio.sleep(0.05)
@@ -402,7 +408,7 @@ async def _mavsdk_mission_scenario(port: int, grpc_port: int) -> None:
         await _arm(drone)
         assert await _armed(drone)
         await drone.mission.start_mission()
-        finished = await _until_async(drone.mission.is_mission_finished, 60.0)
+        finished = await _until(drone.mission.is_mission_finished, 60.0)
         assert finished, progress
         total = len(plan.mission_items)
         assert await _until(lambda: progress and progress[-1] == (total, total), 10.0), progress
@@ -411,17 +417,6 @@ async def _mavsdk_mission_scenario(port: int, grpc_port: int) -> None:
                             lambda mode: mode == FlightMode.HOLD)
         assert mode == FlightMode.HOLD
         await drone.action.disarm()
-
-
-async def _until_async(condition: Callable[[], Any], timeout_s: float) -> object:
-    """Like :func:`_until`, for a condition that is awaited."""
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        result = await condition()
-        if result:
-            return result
-        await asyncio.sleep(0.05)
-    return None
 
 
 def test_mavsdk_uploads_a_mission_downloads_it_and_runs_it_to_the_end(tmp_path):

@@ -50,15 +50,26 @@ def process_cpu_s(pid: int) -> float:
 class CompanionProcess:
     """``python -m mecanum_mav run --gcs GCS --fc FC *extra`` in its own process group, the
     package imported from ``package_root`` (default: the one this module belongs to; another
-    checkout's tree to run another version).
+    checkout's tree to run another version). :meth:`sim` starts ``sim`` instead.
 
     A context manager: on the way out the group is killed if it is still running.
     """
 
     def __init__(self, gcs_url: str, fc_url: str, workdir: Path, *extra: str,
                  package_root: Path = _PACKAGE_ROOT) -> None:
-        self.command = [sys.executable, "-m", "mecanum_mav", "run", "--gcs", gcs_url,
-                        "--fc", fc_url, *extra]
+        self._start(["run", "--gcs", gcs_url, "--fc", fc_url, *extra], workdir, package_root)
+
+    @classmethod
+    def sim(cls, gcs_url: str, workdir: Path, *extra: str,
+            package_root: Path = _PACKAGE_ROOT) -> CompanionProcess:
+        """``python -m mecanum_mav sim --gcs GCS *extra``: the rover with the built-in
+        simulated flight controller, as a user starts it first."""
+        process = cls.__new__(cls)
+        process._start(["sim", "--gcs", gcs_url, *extra], workdir, package_root)
+        return process
+
+    def _start(self, arguments: list[str], workdir: Path, package_root: Path) -> None:
+        self.command = [sys.executable, "-m", "mecanum_mav", *arguments]
         workdir.mkdir(parents=True, exist_ok=True)
         self.log_path = workdir / "companion.log"
         env = dict(os.environ)
