@@ -1,166 +1,186 @@
-"""The real client programs users run, driving the companion with the built-in simulator."""
+"""The real client programs users run (MAVProxy, MAVSDK), driving the rover as a user runs it:
+its own process with the built-in simulator (``python -m mecanum_mav sim``). What
+these tests assert comes from outside: the lines MAVProxy prints, what MAVSDK's API returns,
+a pymavlink observer behind MAVProxy, and the simulator's truth in the rover's tlog."""
 
 from __future__ import annotations
 
 import asyncio
 import contextlib
+import inspect
 import math
 import re
-import shutil
 import socket
 import subprocess
-import sys
-import threading
 import time
-from collections.abc import AsyncIterator, Callable, Iterator
-from contextlib import contextmanager
+from collections.abc import AsyncIterator, Callable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import pytest
+from clients import MavProxy, Observer, key_file, now_unix_s, rover, true_pose_at, true_track
 from conftest import wait_until
 
-from mecanum_mav.app.companion import Companion
-from mecanum_mav.config.params import SCHEMA, Params
+from mecanum_mav.config.params import SCHEMA
 from mecanum_mav.io.links import mavlink
 from mecanum_mav.mecanum.geo import GlobalOrigin
-from mecanum_mav.mecanum.geometry import Pose2d
-from mecanum_mav.protocol.signing import key_from_text
-from mecanum_mav.sim.board import ORIGIN
 from mecanum_mav.sim.process import free_port
-from mecanum_mav.sim.simfc import SimFlightController
 
-
-@contextmanager
-def rover_for_client(port: int, pose: Pose2d = ORIGIN, signing_key: bytes | None = None
-                     ) -> Iterator[tuple[SimFlightController, Companion, Params]]:
-    """Simulator (its chassis starting at ``pose``) + companion whose ground-station link goes
-    to a client on ``port`` (signed with ``signing_key``, if given)."""
-    params = Params()
-    sim = SimFlightController("udpin:127.0.0.1:0", params, pose)
-    sim.start()
-    companion = Companion(params, f"udpout:127.0.0.1:{port}",
-                          f"udpout:127.0.0.1:{sim.local_port}", gcs_signing_key=signing_key)
-    companion.start()
-    try:
-        yield sim, companion, params
-    finally:
-        companion.close()
-        sim.stop()
-
-
-class MavProxy:
-    """MAVProxy headless, driven through a pipe, its output collected line by line."""
-
-    def __init__(self, port: int, workdir: Path, *options: str) -> None:
-        exe = shutil.which("mavproxy.py", path=str(Path(sys.executable).parent))
-        if exe is None:
-            pytest.skip("MAVProxy is not installed (pip install '.[test]')")
-        self.proc = subprocess.Popen(
-            [sys.executable, exe, f"--master=udpin:127.0.0.1:{port}", "--nowait", *options],
-            stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-            bufsize=1, cwd=workdir)
-        self.lines: list[str] = []
-        self._reader = threading.Thread(target=self._read, daemon=True)
-        self._reader.start()
-
-    def _read(self) -> None:
-        assert self.proc.stdout is not None
-        for line in self.proc.stdout:
-            self.lines.append(line)
-
-    def saw(self, text: str, timeout_s: float = 15.0) -> bool:
-        return bool(wait_until(lambda: any(text in line for line in self.lines), timeout_s))
-
-    def send(self, command: str) -> None:
-        assert self.proc.stdin is not None
-        self.proc.stdin.write(command + "\n")
-        self.proc.stdin.flush()
-
-    def close(self) -> None:
-        self.proc.terminate()
-        try:
-            self.proc.wait(10)
-        except subprocess.TimeoutExpired:
-            self.proc.kill()
+PASSPHRASE = "rover-on-a-shared-radio"
+SAFETY_ARMED = mavlink.MAV_MODE_FLAG_SAFETY_ARMED
 
 
 def test_mavproxy_with_the_passphrase_arms_and_drives_the_signed_rover_and_without_it_cannot(
         tmp_path):
     """``signing key PASSPHRASE`` in MAVProxy and the same passphrase in --signing-key's file
-    give the same key. Before MAVProxy has it, its arm request is refused and said so."""
+    give the same key. Before MAVProxy has it, its arm request is refused and said so, and the
+    rover's HEARTBEAT stays disarmed."""
     port = free_port()
-    passphrase = "rover-on-a-shared-radio"
-    with rover_for_client(port, signing_key=key_from_text(passphrase)) as (sim, companion, _):
-        mavproxy = MavProxy(port, tmp_path)
+    key = key_file(tmp_path, PASSPHRASE)
+    with rover(tmp_path, port, "--signing-key", str(key)) as process, Observer() as seen:
+        mavproxy = MavProxy(port, tmp_path, f"--out={seen.url}")
         try:
-            assert mavproxy.saw("Detected vehicle", 30.0), mavproxy.lines
+            assert mavproxy.saw(r"Detected vehicle 1:\d+ on link 0", timeout_s=30.0), (
+                mavproxy.lines, process.log())
+            since = mavproxy.mark()
             mavproxy.send("arm throttle")
-            assert mavproxy.saw("Unsigned packet refused: signing required"), mavproxy.lines
-            assert not companion.core.vehicle.armed
-            mavproxy.send(f"signing key {passphrase}")
-            mavproxy.send("arm throttle")
-            assert mavproxy.saw("ARMED"), mavproxy.lines
-            mavproxy.send("rc 3 1800")  # throttle channel: forward
-            assert wait_until(lambda: sim.snapshot().pose.x_m > 0.3, 5.0)
+            assert mavproxy.saw("AP: Unsigned packet refused: signing required", since), (
+                mavproxy.lines)
+            beat = seen.next_heartbeat()  # one sent after the refusal
+            assert beat is not None and not beat.base_mode & SAFETY_ARMED
+            assert mavproxy.find("ARMED", since) is None
+            mavproxy.send(f"signing key {PASSPHRASE}")
+            assert mavproxy.arm(since), "\n".join(mavproxy.lines)
+            assert wait_until(seen.armed, 5.0)
+            north = seen.north_east()[0]
+            mavproxy.send("rc 3 1800")  # throttle channel: forward (north)
+            assert wait_until(lambda: seen.north_east()[0] > north + 0.3, 10.0), (
+                seen.north_east())
             mavproxy.send("rc 3 1500")
         finally:
             mavproxy.close()
+
+
+FACE_EAST = ("message SET_POSITION_TARGET_LOCAL_NED 0 1 1 8 3064 0 0 0 0 0 0 0 0 0 "
+             f"{math.pi / 2:.6f} 0")
+"""A MAVProxy user's way to a heading (``module load message`` first): a GUIDED target in
+BODY_NED 0 m ahead (stay here) with yaw 90 deg (east); type_mask 3064 keeps position and yaw."""
 
 
 def test_mavproxy_fetches_params_sets_one_arms_and_drives_by_rc_velocity_and_position(
         tmp_path):
-    """The rover faces east (heading 90): MAVProxy's ``velocity`` and ``position`` are in the
-    body frame (BODY_NED), so "ahead" is east, and ``position 1 0 0`` is the point 1 m ahead."""
+    """Turned to face east (heading 90) through MAVProxy first: its ``velocity`` and
+    ``position`` are in the body frame (BODY_NED), so "ahead" is east, and ``position 1 0 0``
+    is the point 1 m ahead. Positions: the rover's LOCAL_POSITION_NED, as MAVProxy gets it."""
     port = free_port()
-    with rover_for_client(port, Pose2d(0.0, 0.0, math.pi / 2)) as (sim, _, params):
-        mavproxy = MavProxy(port, tmp_path)
+    with rover(tmp_path, port) as process, Observer() as seen:
+        mavproxy = MavProxy(port, tmp_path, f"--out={seen.url}")
         try:
-            assert mavproxy.saw(f"Received {len(SCHEMA)} parameters", 30.0), mavproxy.lines
-            mavproxy.send("param set INP_EXPO 0.2")
-            assert wait_until(lambda: params["INP_EXPO"] == 0.2, 5.0)
-            mavproxy.send("arm throttle")
-            assert mavproxy.saw("ARMED")
-            mavproxy.send("rc 3 1800")  # throttle channel: forward, here east
-            assert wait_until(lambda: sim.snapshot().pose.y_m > 0.3, 5.0)
-            mavproxy.send("rc 3 1500")
+            assert mavproxy.saw(f"Received {len(SCHEMA)} parameters", timeout_s=30.0), (
+                mavproxy.lines, process.log())
+            since = mavproxy.mark()
+            assert mavproxy.set_param("INP_EXPO", 0.2, seen), mavproxy.lines[since:]
+            assert mavproxy.arm(since), mavproxy.lines[since:]
+            assert wait_until(seen.armed, 5.0)
+
+            mavproxy.send("module load message")
             mavproxy.send("mode GUIDED")
-            assert mavproxy.saw("Mode GUIDED")
-            start = sim.snapshot().pose
+            assert mavproxy.saw("Mode GUIDED", since), mavproxy.lines[since:]
+            mavproxy.send(FACE_EAST)
+            assert seen.wait(lambda s: abs(s.yaw() - math.pi / 2) < 0.005
+                             and abs(s.latest("ATTITUDE").yawspeed) < 0.01, 15.0), seen.yaw()
+            since = mavproxy.mark()
+            mavproxy.send("mode MANUAL")
+            assert mavproxy.saw("Mode MANUAL", since), mavproxy.lines[since:]
+
+            east = seen.north_east()[1]
+            mavproxy.send("rc 3 1800")  # throttle channel: forward, here east
+            assert wait_until(lambda: seen.north_east()[1] > east + 0.3, 10.0), seen.north_east()
+            mavproxy.send("rc 3 1500")
+            assert wait_until(lambda: seen.speed() < 0.01, 10.0), seen.speed()
+
+            since = mavproxy.mark()
+            mavproxy.send("mode GUIDED")
+            assert mavproxy.saw("Mode GUIDED", since), mavproxy.lines[since:]
+            north, east = seen.north_east()
             mavproxy.send("velocity 0 0.5 0")  # body frame: 0.5 m/s to the right, here south
-            assert wait_until(lambda: sim.snapshot().pose.x_m < start.x_m - 0.3, 5.0)
-            assert abs(sim.snapshot().pose.y_m - start.y_m) < 0.05
-            assert abs(sim.snapshot().pose.yaw_rad - math.pi / 2) < 0.02  # it did not turn
+            assert wait_until(lambda: seen.north_east()[0] < north - 0.3, 10.0), (
+                seen.north_east())
+            assert abs(seen.north_east()[1] - east) < 0.05, (east, seen.north_east())
+            assert abs(seen.yaw() - math.pi / 2) < 0.02  # it did not turn
             mavproxy.send("velocity 0 0 0")
-            assert wait_until(lambda: math.hypot(*sim.snapshot().velocity_body) < 0.01, 5.0)
-            start = sim.snapshot().pose
+            assert wait_until(lambda: seen.speed() < 0.01, 10.0), seen.speed()
+
+            north, east = seen.north_east()
             mavproxy.send("position 1 0 0")  # 1 m ahead of the rover: here 1 m east
-            assert wait_until(lambda: abs(sim.snapshot().pose.y_m - start.y_m - 1.0) < 0.03
-                              and math.hypot(*sim.snapshot().velocity_body) < 0.01, 10.0), (
-                start, sim.snapshot().pose)
-            assert abs(sim.snapshot().pose.x_m - start.x_m) < 0.03
-            assert not [line for line in mavproxy.lines if "fence breach" in line]
+            assert wait_until(lambda: abs(seen.north_east()[1] - east - 1.0) < 0.03
+                              and seen.speed() < 0.01, 15.0), ((north, east), seen.north_east())
+            assert abs(seen.north_east()[0] - north) < 0.03, ((north, east), seen.north_east())
+            assert mavproxy.find(r".*fence breach.*") is None
         finally:
             mavproxy.close()
 
 
-async def _first(stream, timeout_s: float = 10.0):
-    async def first():
+# --------------------------------------------------------------------------- MAVSDK
+
+
+async def _first(stream: AsyncIterator[Any], timeout_s: float = 10.0,
+                 condition: Callable[[Any], object] = lambda item: True) -> Any:
+    """The first item of ``stream`` for which ``condition`` holds (None if it ends first)."""
+    async def first() -> Any:
         async for item in stream:
-            return item
+            if condition(item):
+                return item
         return None
 
     return await asyncio.wait_for(first(), timeout_s)
 
 
 async def _until(condition: Callable[[], object], timeout_s: float) -> object:
+    """Poll ``condition`` (a function, or a coroutine function such as MAVSDK's
+    ``is_mission_finished``) every 50 ms until it returns something true; that, or None at
+    the deadline."""
     deadline = time.monotonic() + timeout_s
     while time.monotonic() < deadline:
         result = condition()
+        if inspect.isawaitable(result):
+            result = await result
         if result:
             return result
         await asyncio.sleep(0.05)
     return None
+
+
+class Watch:
+    """The latest item of MAVSDK telemetry streams, each kept by a task of its own: ``pv``
+    (LOCAL_POSITION_NED), ``odometry`` (ODOMETRY), ``attitude`` (ATTITUDE, degrees)."""
+
+    def __init__(self, drone: Any) -> None:
+        telemetry = drone.telemetry
+        self.latest: dict[str, Any] = {}
+        self._tasks = [asyncio.ensure_future(self._keep(name, stream)) for name, stream in (
+            ("pv", telemetry.position_velocity_ned()), ("odometry", telemetry.odometry()),
+            ("attitude", telemetry.attitude_euler()))]
+
+    async def _keep(self, name: str, stream: AsyncIterator[Any]) -> None:
+        async for item in stream:
+            self.latest[name] = item
+
+    def ready(self) -> bool:
+        return len(self.latest) == len(self._tasks)
+
+    def north_east(self) -> tuple[float, float]:
+        """The rover's position (metres north, east of where it started)."""
+        position = self.latest["pv"].position
+        return position.north_m, position.east_m
+
+    def yaw_deg(self) -> float:
+        return float(self.latest["attitude"].yaw_deg)
+
+    def close(self) -> None:
+        for task in self._tasks:
+            task.cancel()
 
 
 @contextlib.asynccontextmanager
@@ -172,9 +192,7 @@ async def _mavsdk_connected(port: int, grpc_port: int) -> AsyncIterator[Any]:
     drone = System(port=grpc_port)
     try:
         await drone.connect(system_address=f"udpin://127.0.0.1:{port}")
-        state = await _first(drone.core.connection_state())
-        while not state.is_connected:
-            state = await _first(drone.core.connection_state())
+        await _first(drone.core.connection_state(), 30.0, lambda state: state.is_connected)
         yield drone
     finally:
         server = drone._server_process
@@ -183,57 +201,105 @@ async def _mavsdk_connected(port: int, grpc_port: int) -> AsyncIterator[Any]:
             server.wait(timeout=5.0)
 
 
-async def _mavsdk_scenario(port: int, grpc_port: int, sim: SimFlightController,
-                           params: Params) -> None:
+@contextlib.asynccontextmanager
+async def _watching(drone: Any) -> AsyncIterator[Watch]:
+    watch = Watch(drone)
+    try:
+        assert await _until(watch.ready, 15.0), watch.latest
+        yield watch
+    finally:
+        watch.close()
+
+
+async def _arm(drone: Any, timeout_s: float = 30.0) -> None:
+    """``action.arm()`` as a pilot does it: again every second while the rover denies it (it
+    refuses while it still checks its flight controller's setup)."""
+    from mavsdk.action import ActionError, ActionResult
+
+    deadline = time.monotonic() + timeout_s
+    while True:
+        try:
+            await drone.action.arm()
+            return
+        except ActionError as exc:
+            if (exc._result.result != ActionResult.Result.COMMAND_DENIED
+                    or time.monotonic() > deadline):
+                raise
+        await asyncio.sleep(1.0)
+
+
+async def _armed(drone: Any, timeout_s: float = 10.0) -> bool:
+    """The rover's HEARTBEAT (MAVSDK's ``telemetry.armed``) says armed within ``timeout_s``."""
+    with contextlib.suppress(asyncio.TimeoutError):
+        return bool(await _first(drone.telemetry.armed(), timeout_s, bool))
+    return False
+
+
+GOAL_YAW_DEG = 30.0
+
+
+@dataclass(frozen=True)
+class OffboardSeen:
+    """What MAVSDK reported when the rover held its offboard position goal, at ``time_s``
+    (Unix seconds): the goal (north, east m), ODOMETRY and LOCAL_POSITION_NED (north, east m)."""
+
+    time_s: float
+    goal: tuple[float, float]
+    odometry: tuple[float, float]
+    local_position: tuple[float, float]
+
+
+async def _mavsdk_scenario(port: int, grpc_port: int) -> OffboardSeen:
     from mavsdk.offboard import PositionNedYaw, VelocityBodyYawspeed, VelocityNedYaw
 
-    async with _mavsdk_connected(port, grpc_port) as drone:
-        # Parameters (ArduPilot's float encoding).
+    async with _mavsdk_connected(port, grpc_port) as drone, _watching(drone) as watch:
+        # Parameters (ArduPilot's float encoding), read back from the rover.
         assert await drone.param.get_param_float("INP_EXPO") == 0.0
         await drone.param.set_param_float("INP_EXPO", 0.25)
-        assert params["INP_EXPO"] == 0.25
+        assert await drone.param.get_param_float("INP_EXPO") == 0.25
         assert await drone.param.get_param_int("MIX_ALGO") == 0
         # Arm, then drive by manual control input in MANUAL.
-        await drone.action.arm()
-        start = sim.snapshot().pose.x_m
+        await _arm(drone)
+        assert await _armed(drone)
+        start = watch.north_east()[0]
+
         async def forward() -> bool:
-            for _ in range(40):
+            for _ in range(100):
                 await drone.manual_control.set_manual_control_input(0.6, 0.0, 0.5, 0.0)
                 await asyncio.sleep(0.05)
-                if sim.snapshot().pose.x_m > start + 0.3:
+                if watch.north_east()[0] > start + 0.3:
                     return True
             return False
-        assert await forward()
+        assert await forward(), watch.north_east()
         # Offboard (GUIDED): body velocity right, then NED velocity north, then a position.
         await drone.offboard.set_velocity_body(VelocityBodyYawspeed(0.0, 0.5, 0.0, 0.0))
         await drone.offboard.start()
-        y0 = sim.snapshot().pose.y_m
-        assert await _until(lambda: sim.snapshot().pose.y_m > y0 + 0.3, 5.0)
+        east = watch.north_east()[1]
+        assert await _until(lambda: watch.north_east()[1] > east + 0.3, 10.0)
         await drone.offboard.set_velocity_ned(VelocityNedYaw(0.5, 0.0, 0.0, 0.0))
-        x0 = sim.snapshot().pose.x_m
-        assert await _until(lambda: sim.snapshot().pose.x_m > x0 + 0.3, 5.0)
-        goal = (sim.snapshot().pose.x_m + 0.5, sim.snapshot().pose.y_m - 0.5)
-        await drone.offboard.set_position_ned(PositionNedYaw(goal[0], goal[1], 0.0, 30.0))
+        north = watch.north_east()[0]
+        assert await _until(lambda: watch.north_east()[0] > north + 0.3, 10.0)
+        here = watch.north_east()
+        goal = (here[0] + 0.5, here[1] - 0.5)
+        await drone.offboard.set_position_ned(
+            PositionNedYaw(goal[0], goal[1], 0.0, GOAL_YAW_DEG))
         reached = await _until(
-            lambda: abs(sim.snapshot().pose.x_m - goal[0]) < 0.05
-            and abs(sim.snapshot().pose.y_m - goal[1]) < 0.05
-            and abs(sim.snapshot().pose.yaw_rad - 0.5236) < 0.035, 8.0)
-        assert reached, sim.snapshot().pose
-        # Telemetry: odometry and local position agree with the true pose.
-        truth = sim.snapshot().pose
-        odometry = await _first(drone.telemetry.odometry())
-        assert abs(odometry.position_body.x_m - truth.x_m) < 0.05
-        assert abs(odometry.position_body.y_m - truth.y_m) < 0.05
-        pv = await _first(drone.telemetry.position_velocity_ned())
-        assert abs(pv.position.north_m - truth.x_m) < 0.05
-        assert abs(pv.position.east_m - truth.y_m) < 0.05
+            lambda: math.dist(watch.north_east(), goal) < 0.05
+            and abs(watch.yaw_deg() - GOAL_YAW_DEG) < 2.0
+            and math.hypot(watch.latest["pv"].velocity.north_m_s,
+                           watch.latest["pv"].velocity.east_m_s) < 0.01, 15.0)
+        assert reached, (watch.north_east(), watch.yaw_deg())
+        odometry = watch.latest["odometry"].position_body
+        seen = OffboardSeen(now_unix_s(), goal, (odometry.x_m, odometry.y_m), watch.north_east())
         await drone.offboard.stop()
         await drone.action.disarm()
+        return seen
 
 
-async def _mavsdk_arm(port: int, grpc_port: int) -> None:
+async def _mavsdk_arm(port: int, grpc_port: int) -> bool:
     async with _mavsdk_connected(port, grpc_port) as drone:
-        await drone.action.arm()
+        await _arm(drone)
+        return await _armed(drone)
 
 
 def test_mavsdk_behind_mavproxy_with_the_key_arms_the_signed_rover(tmp_path):
@@ -242,39 +308,42 @@ def test_mavsdk_behind_mavproxy_with_the_key_arms_the_signed_rover(tmp_path):
     (245, 190): the rover's answers are addressed to those, and MAVSDK takes only its own."""
     pytest.importorskip("mavsdk")
     port, out_port, grpc_port = free_port(), free_port(), free_port(socket.SOCK_STREAM)
-    passphrase = "rover-on-a-shared-radio"
-    with rover_for_client(port, signing_key=key_from_text(passphrase)) as (_, companion, _):
+    key = key_file(tmp_path, PASSPHRASE)
+    with rover(tmp_path, port, "--signing-key", str(key)) as process:
         mavproxy = MavProxy(port, tmp_path, f"--out=udp:127.0.0.1:{out_port}",
                             "--source-system=245", "--source-component=190")
         try:
-            assert mavproxy.saw("Detected vehicle", 30.0), mavproxy.lines
-            mavproxy.send(f"signing key {passphrase}")
-            asyncio.run(asyncio.wait_for(_mavsdk_arm(out_port, grpc_port), 60.0))
-            assert wait_until(lambda: companion.core.vehicle.armed, 5.0)
+            assert mavproxy.saw(r"Detected vehicle 1:\d+ on link 0", timeout_s=30.0), (
+                mavproxy.lines, process.log())
+            since = mavproxy.mark()
+            mavproxy.send(f"signing key {PASSPHRASE}")
+            assert asyncio.run(asyncio.wait_for(_mavsdk_arm(out_port, grpc_port), 60.0))
+            assert mavproxy.saw("ARMED", since), mavproxy.lines[since:]
         finally:
             mavproxy.close()
 
 
-def test_mavsdk_connects_sets_params_arms_and_drives_manual_and_offboard():
+def test_mavsdk_connects_sets_params_arms_and_drives_manual_and_offboard(tmp_path):
+    """Offboard velocity (body, then NED) and a position with a heading; the odometry and local
+    position MAVSDK reports there agree with the simulator's truth (SIM_STATE, --tlog)."""
     pytest.importorskip("mavsdk")
     port, grpc_port = free_port(), free_port(socket.SOCK_STREAM)
-    with rover_for_client(port) as (sim, _, params):
-        asyncio.run(asyncio.wait_for(_mavsdk_scenario(port, grpc_port, sim, params), 90.0))
+    with rover(tmp_path, port):
+        seen = asyncio.run(asyncio.wait_for(_mavsdk_scenario(port, grpc_port), 120.0))
+    truth = true_pose_at(true_track(tmp_path), seen.time_s)
+    assert math.dist((truth.north_m, truth.east_m), seen.goal) < 0.05, (truth, seen)
+    assert abs(math.degrees(truth.yaw_rad) - GOAL_YAW_DEG) < 2.0, truth
+    for north, east in (seen.odometry, seen.local_position):
+        assert abs(north - truth.north_m) < 0.05, (truth, seen)
+        assert abs(east - truth.east_m) < 0.05, (truth, seen)
 
 
 # --------------------------------------------------------------------------- missions
 
 # Exact in float32 (ORIGIN_LAT/LON travel and are stored as float32).
 ORIGIN_LAT_DEG, ORIGIN_LON_DEG = 47.375, 8.5
-
-
-def set_origin(companion) -> GlobalOrigin:
-    """ORIGIN_LAT/LON on the running rover (as a PARAM_SET would: store, then reconfigure);
-    the origin the companion converts with."""
-    params = companion.core.params
-    params.update({"ORIGIN_LAT": ORIGIN_LAT_DEG, "ORIGIN_LON": ORIGIN_LON_DEG})
-    companion.core.reconfigure()
-    return GlobalOrigin.from_degrees(float(params["ORIGIN_LAT"]), float(params["ORIGIN_LON"]))
+ORIGIN = GlobalOrigin.from_degrees(ORIGIN_LAT_DEG, ORIGIN_LON_DEG)
+"""The origin the tests give the rover through the client (its ORIGIN_LAT/LON)."""
 
 
 def _mavsdk_waypoint(lat_deg: float, lon_deg: float, *, speed_m_s: float,
@@ -293,27 +362,31 @@ def _mavsdk_waypoint(lat_deg: float, lon_deg: float, *, speed_m_s: float,
 MAVSDK_LEGS_NE = [(0.8, 0.0), (0.8, 0.6), (0.2, 0.6)]  # metres north, east of the origin
 
 
-async def _mavsdk_mission_scenario(port: int, grpc_port: int, sim: SimFlightController,
-                                   companion: Companion, origin: GlobalOrigin) -> None:
+async def _mavsdk_mission_scenario(port: int, grpc_port: int) -> None:
     from mavsdk.mission import MissionPlan
     from mavsdk.telemetry import FlightMode
 
-    points = [origin.to_global(n, e) for n, e in MAVSDK_LEGS_NE]
+    points = [ORIGIN.to_global(n, e) for n, e in MAVSDK_LEGS_NE]
     # MAVSDK 3.x's mission plugin does not insert ArduPilot's home item 0 (it sends the plan's
     # items from seq 0, and downloads item 0 back as the first item), so a MAVSDK user talking
     # to an ArduPilot vehicle puts a placeholder for home first; without it the first
     # waypoint would be taken as home and never driven to.
-    home = _mavsdk_waypoint(origin.lat_e7 / 1e7, origin.lon_e7 / 1e7, speed_m_s=math.nan,
+    home = _mavsdk_waypoint(ORIGIN.lat_e7 / 1e7, ORIGIN.lon_e7 / 1e7, speed_m_s=math.nan,
                             fly_through=True, radius_m=math.nan)
     plan = MissionPlan([home, *(_mavsdk_waypoint(lat / 1e7, lon / 1e7, speed_m_s=0.5,
                                                  fly_through=False, radius_m=0.05)
                                 for lat, lon in points)])
     async with _mavsdk_connected(port, grpc_port) as drone:
+        await drone.param.set_param_float("ORIGIN_LAT", ORIGIN_LAT_DEG)
+        await drone.param.set_param_float("ORIGIN_LON", ORIGIN_LON_DEG)
         await drone.mission.upload_mission(plan)
-        stored = companion.core.mission.items
-        # seq 0 home, then each waypoint followed by its DO_CHANGE_SPEED.
+        # What the rover stored, item by item (MAVSDK's raw mission download): seq 0 home,
+        # then each waypoint followed by its DO_CHANGE_SPEED.
+        stored = await drone.mission_raw.download_mission()
         assert len(stored) == 1 + 2 * len(points), stored
         assert [(it.x, it.y) for it in stored[1::2]] == points, stored
+        assert {it.command for it in stored[1::2]} == {mavlink.MAV_CMD_NAV_WAYPOINT}, stored
+        assert {it.command for it in stored[2::2]} == {mavlink.MAV_CMD_DO_CHANGE_SPEED}, stored
 
         downloaded = (await drone.mission.download_mission()).mission_items
         assert len(downloaded) == len(plan.mission_items)
@@ -332,128 +405,116 @@ async def _mavsdk_mission_scenario(port: int, grpc_port: int, sim: SimFlightCont
                 progress.append((p.current, p.total))
 
         watcher = asyncio.ensure_future(watch_progress())
-        await drone.action.arm()
+        await _arm(drone)
+        assert await _armed(drone)
         await drone.mission.start_mission()
-        closest = [math.inf] * len(MAVSDK_LEGS_NE)
-        deadline = time.monotonic() + 30.0
-        finished = False
-        while time.monotonic() < deadline and not finished:
-            pose = sim.snapshot().pose
-            for k, goal in enumerate(MAVSDK_LEGS_NE):
-                closest[k] = min(closest[k], math.dist((pose.x_m, pose.y_m), goal))
-            finished = await drone.mission.is_mission_finished()
-            await asyncio.sleep(0.05)
-        assert finished, (progress, sim.snapshot().pose)
+        finished = await _until(drone.mission.is_mission_finished, 60.0)
+        assert finished, progress
         total = len(plan.mission_items)
-        assert await _until(lambda: progress and progress[-1] == (total, total), 5.0), progress
+        assert await _until(lambda: progress and progress[-1] == (total, total), 10.0), progress
         watcher.cancel()
-        assert max(closest) < 0.10, closest  # every waypoint visited, the first one too
-        mode = await _first(drone.telemetry.flight_mode())
-        deadline = time.monotonic() + 5.0
-        while mode != FlightMode.HOLD and time.monotonic() < deadline:
-            mode = await _first(drone.telemetry.flight_mode())
+        mode = await _first(drone.telemetry.flight_mode(), 10.0,
+                            lambda mode: mode == FlightMode.HOLD)
         assert mode == FlightMode.HOLD
-        truth = sim.snapshot().pose
-        assert math.dist((truth.x_m, truth.y_m), MAVSDK_LEGS_NE[-1]) < 0.10, truth
         await drone.action.disarm()
 
 
-def test_mavsdk_uploads_a_mission_downloads_it_and_runs_it_to_the_end():
+def test_mavsdk_uploads_a_mission_downloads_it_and_runs_it_to_the_end(tmp_path):
+    """The origin is given through MAVSDK (ORIGIN_LAT/LON); the simulator's truth (--tlog)
+    passes within 10 cm of every waypoint, the first one too, and ends at the last."""
     pytest.importorskip("mavsdk")
     port, grpc_port = free_port(), free_port(socket.SOCK_STREAM)
-    with rover_for_client(port) as (sim, companion, _params):
-        origin = set_origin(companion)
-        asyncio.run(asyncio.wait_for(
-            _mavsdk_mission_scenario(port, grpc_port, sim, companion, origin), 90.0))
+    with rover(tmp_path, port):
+        asyncio.run(asyncio.wait_for(_mavsdk_mission_scenario(port, grpc_port), 120.0))
+    track = true_track(tmp_path)
+    closest = [min(math.dist((p.north_m, p.east_m), goal) for p in track)
+               for goal in MAVSDK_LEGS_NE]
+    assert max(closest) < 0.10, closest  # every waypoint visited, the first one too
+    end = track[-1]
+    assert math.dist((end.north_m, end.east_m), MAVSDK_LEGS_NE[-1]) < 0.10, end
 
 
-def saw_since(mavproxy: MavProxy, text: str, since: int, timeout_s: float = 15.0) -> int | None:
-    """Index of the first line from ``since`` on that contains ``text``, waiting for it."""
-    def find() -> int | None:
-        for index in range(since, len(mavproxy.lines)):
-            if text in mavproxy.lines[index]:
-                return index + 1  # truthy even for line 0
-        return None
-
-    found = wait_until(find, timeout_s)
-    return None if found is None else int(found) - 1
+WP_LINE = re.compile(r"(\d+) (\d+) (-?\d+\.\d+) (-?\d+\.\d+) .*")  # MAVProxy's "wp list" rows
 
 
-def stop_mavproxy(mavproxy: MavProxy) -> None:
-    """End of input first: MAVProxy's main thread sits in its stdin read and only sees SIGTERM
-    after the next line, so ``close`` alone waits out its 10 s timeout."""
-    assert mavproxy.proc.stdin is not None
-    with contextlib.suppress(OSError):
-        mavproxy.proc.stdin.close()
-    mavproxy.close()
-
-
-WP_LINE = re.compile(r"^(\d+) (\d+) (-?\d+\.\d+) (-?\d+\.\d+) ")  # MAVProxy's "wp list" rows
+def _waypoint_file(path: Path, legs: list[tuple[float, float]]) -> list[tuple[int, int]]:
+    """QGC WPL 110 of NAV_WAYPOINTs at ``legs`` (north, east m of :data:`ORIGIN`; the first
+    is home) in MAV_FRAME_GLOBAL_RELATIVE_ALT; their (lat_e7, lon_e7)."""
+    points = [ORIGIN.to_global(n, e) for n, e in legs]
+    rows = ["QGC WPL 110"]
+    for seq, (lat, lon) in enumerate(points):
+        fields = (seq, int(seq == 0), mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT,
+                  mavlink.MAV_CMD_NAV_WAYPOINT, 0, 0, 0, 0, f"{lat / 1e7:.7f}",
+                  f"{lon / 1e7:.7f}", 0, 1)
+        rows.append("\t".join(str(f) for f in fields))
+    path.write_text("\n".join(rows) + "\n")
+    return points
 
 
 def test_mavproxy_loads_a_waypoint_file_lists_it_and_clears_it(tmp_path):
     """QGC WPL 110 in a global frame (MAVProxy scales every location command's x/y by 1e7,
-    which is right only for global frames). Between list and clear it also runs the mission."""
+    which is right only for global frames), the origin given by ``param set``. Between list
+    and clear it also runs the mission; the simulator's truth (--tlog) ends at the last
+    waypoint."""
+    legs = [(0.0, 0.0), (0.8, 0.0), (0.8, 0.5)]  # home, then two waypoints (north, east)
+    points = _waypoint_file(tmp_path / "square.waypoints", legs)
     port = free_port()
-    with rover_for_client(port) as (sim, companion, _params):
-        origin = set_origin(companion)
-        legs = [(0.0, 0.0), (0.8, 0.0), (0.8, 0.5)]  # home, then two waypoints (north, east)
-        points = [origin.to_global(n, e) for n, e in legs]
-        rows = ["QGC WPL 110"]
-        for seq, (lat, lon) in enumerate(points):
-            fields = (seq, int(seq == 0), mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT,
-                      mavlink.MAV_CMD_NAV_WAYPOINT, 0, 0, 0, 0, f"{lat / 1e7:.7f}",
-                      f"{lon / 1e7:.7f}", 0, 1)
-            rows.append("\t".join(str(f) for f in fields))
-        (tmp_path / "square.waypoints").write_text("\n".join(rows) + "\n")
-        mavproxy = MavProxy(port, tmp_path)
+    with rover(tmp_path, port) as process, Observer() as seen:
+        mavproxy = MavProxy(port, tmp_path, f"--out={seen.url}")
         try:
-            assert mavproxy.saw(f"Received {len(SCHEMA)} parameters", 30.0), mavproxy.lines
-            since = len(mavproxy.lines)
-            mavproxy.send("wp load square.waypoints")
-            assert saw_since(mavproxy, "Sent all 3 waypoints", since) is not None, mavproxy.lines
-            assert saw_since(mavproxy, "MISSION_ACK: TYPE_MISSION: ACCEPTED", since) is not None
-            stored = companion.core.mission.items
-            assert len(stored) == 3
-            for item, (lat, lon) in zip(stored, points, strict=True):
-                assert item.frame == mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT
-                assert item.command == mavlink.MAV_CMD_NAV_WAYPOINT
-                assert abs(item.x - lat) <= 1 and abs(item.y - lon) <= 1  # MAVProxy truncates
+            assert mavproxy.saw(f"Received {len(SCHEMA)} parameters", timeout_s=30.0), (
+                mavproxy.lines, process.log())
+            since = mavproxy.mark()
+            assert mavproxy.set_param("ORIGIN_LAT", ORIGIN_LAT_DEG, seen), mavproxy.lines[since:]
+            assert mavproxy.set_param("ORIGIN_LON", ORIGIN_LON_DEG, seen), mavproxy.lines[since:]
 
-            since = len(mavproxy.lines)
+            since = mavproxy.mark()
+            mavproxy.send("wp load square.waypoints")
+            assert mavproxy.saw("Sent all 3 waypoints", since), mavproxy.lines[since:]
+            assert mavproxy.saw("Got MISSION_ACK: TYPE_MISSION: ACCEPTED", since), (
+                mavproxy.lines[since:])
+
+            since, items_before = mavproxy.mark(), len(seen.received)
             mavproxy.send("wp list")
-            at = saw_since(mavproxy, "Requesting 3 waypoints", since)
-            assert at is not None, mavproxy.lines[since:]
+            assert mavproxy.saw(r"Requesting 3 waypoints .*", since), mavproxy.lines[since:]
 
             def rows_listed() -> list[re.Match[str]]:
-                found = [m for line in mavproxy.lines[at + 1:] if (m := WP_LINE.match(line))]
+                found = [m for line in mavproxy.lines[since:] if (m := WP_LINE.fullmatch(line))]
                 return found if len(found) >= 3 else []
 
-            listed = wait_until(rows_listed, 10.0)
-            assert listed, mavproxy.lines[at:]
+            listed = wait_until(rows_listed, 15.0)
+            assert listed, mavproxy.lines[since:]
             for match, (lat, lon) in zip(listed, points, strict=True):
                 assert int(match[1]) == mavlink.MAV_CMD_NAV_WAYPOINT
                 assert int(match[2]) == mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT
                 assert abs(float(match[3]) - lat / 1e7) < 2e-7, match[0]
                 assert abs(float(match[4]) - lon / 1e7) < 2e-7, match[0]
+            # The rover's own answers to that listing, as MAVProxy received them.
+            answers = [m for m in seen.received[items_before:]
+                       if m.get_type() in ("MISSION_ITEM_INT", "MISSION_ITEM")]
+            assert [m.seq for m in answers] == [0, 1, 2], answers
+            for item, (lat, lon) in zip(answers, points, strict=True):
+                assert item.frame == mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT
+                assert item.command == mavlink.MAV_CMD_NAV_WAYPOINT
+                assert abs(item.x - lat) <= 1 and abs(item.y - lon) <= 1  # MAVProxy truncates
 
-            mavproxy.send("arm throttle")
-            assert mavproxy.saw("ARMED")
-            since = len(mavproxy.lines)
+            since = mavproxy.mark()
+            assert mavproxy.arm(since), mavproxy.lines[since:]
+            assert wait_until(seen.armed, 5.0)
             mavproxy.send("mode AUTO")
-            assert saw_since(mavproxy, "Mission started at item 1", since) is not None
-            assert saw_since(mavproxy, "Mission complete", since, 20.0) is not None, (
-                mavproxy.lines[since:], sim.snapshot().pose)
-            assert saw_since(mavproxy, "Mode HOLD", since) is not None
-            truth = sim.snapshot().pose
-            assert math.dist((truth.x_m, truth.y_m), legs[-1]) < 0.10, truth
+            assert mavproxy.saw("AP: Mission started at item 1", since), mavproxy.lines[since:]
+            assert mavproxy.saw("AP: Mission complete", since, 30.0), (
+                mavproxy.lines[since:], seen.north_east())
+            assert mavproxy.saw("Mode HOLD", since), mavproxy.lines[since:]
 
-            since = len(mavproxy.lines)
+            since = mavproxy.mark()
             mavproxy.send("wp clear")
-            assert saw_since(mavproxy, "MISSION_ACK: TYPE_MISSION: ACCEPTED", since) is not None
-            assert wait_until(lambda: companion.core.mission.items == (), 5.0)
-            since = len(mavproxy.lines)
+            assert mavproxy.saw("Got MISSION_ACK: TYPE_MISSION: ACCEPTED", since), (
+                mavproxy.lines[since:])
+            since = mavproxy.mark()
             mavproxy.send("wp list")
-            assert saw_since(mavproxy, "Requesting 0 waypoints", since) is not None
+            assert mavproxy.saw(r"Requesting 0 waypoints .*", since), mavproxy.lines[since:]
         finally:
-            stop_mavproxy(mavproxy)
+            mavproxy.close()
+    end = true_track(tmp_path)[-1]
+    assert math.dist((end.north_m, end.east_m), legs[-1]) < 0.10, end

@@ -150,3 +150,10 @@ class CompanionProcess(CliProcess):
                  package_root: Path = _PACKAGE_ROOT) -> None:
         super().__init__(["run", "--gcs", gcs_url, "--fc", fc_url, *extra], workdir,
                          package_root=package_root)
+
+    @staticmethod
+    def sim(gcs_url: str, workdir: Path, *extra: str,
+            package_root: Path = _PACKAGE_ROOT) -> CliProcess:
+        """``python -m mecanum_mav sim --gcs GCS *extra``: the rover with the built-in
+        simulated flight controller, as a user starts it first."""
+        return CliProcess(["sim", "--gcs", gcs_url, *extra], workdir, package_root=package_root)
