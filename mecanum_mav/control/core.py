@@ -96,7 +96,7 @@ from mecanum_mav.protocol.modes import Mode
 from mecanum_mav.protocol.outbox import MessageOutbox
 from mecanum_mav.protocol.paramservice import RESTART_REQUIRED, ParamService, ParamValue
 from mecanum_mav.protocol.rcoverride import override_fields, release_fields
-from mecanum_mav.protocol.signing import Check
+from mecanum_mav.protocol.signing import REFUSED_TEXTS, Check
 from mecanum_mav.protocol.statustext import Severity, statustext_messages
 from mecanum_mav.protocol.telemetry import (
     REQUESTABLE,
@@ -124,14 +124,6 @@ FORCE_ARM_MAGIC = 21196.0
 """MAV_CMD_COMPONENT_ARM_DISARM param2 that forces arming past the pre-arm checks (ArduPilot)."""
 
 _NEUTRAL_WHEELS = (0.0, 0.0, 0.0, 0.0)
-_SIGNATURE_REFUSED = {
-    Check.UNSIGNED: "Unsigned packet refused: signing required",
-    Check.BAD_SIGNATURE: "Bad signature: packet refused (wrong key?)",
-    Check.REPLAYED: "Replayed signed packet refused",
-    Check.TOO_OLD: "Signed packet refused: timestamp too old",
-}
-"""What a ground station is told (at most once a second) when a link with a signing key drops
-a packet; each under 50 characters, one STATUSTEXT."""
 _LINK_LABELS = {"fc": "FC", "gcs": "GCS"}
 _FC_SIGNATURE_REFUSED = {
     Check.UNSIGNED: "FC sent unsigned: board has no signing key",
@@ -619,7 +611,7 @@ class RoverCore:
         or kept the ground-station failsafe from firing (or, ``from_fc``, brought the
         flight-controller link up)."""
         self._now_s = now_s
-        texts = _FC_SIGNATURE_REFUSED if from_fc else _SIGNATURE_REFUSED
+        texts = _FC_SIGNATURE_REFUSED if from_fc else REFUSED_TEXTS
         for kind, count in rejected.items():
             self.refuse(Refusal.SIGNATURE, texts[kind], count)
 
