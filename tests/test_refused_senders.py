@@ -216,3 +216,15 @@ def test_an_unsigned_udpin_link_keeps_no_refused_senders():
         plain.close()
         signed_out.close()
 
+
+
+def test_a_peer_that_sends_an_unsigned_packet_gets_its_heartbeat_once_not_a_hint_too(
+        link, sockets):
+    """A peer already gets the heartbeat and the core's own refusal text (at most once a
+    second): the link does not send it a second heartbeat of its own."""
+    pilot = sockets()
+    deliver(link, pilot, gcs_heartbeat(sender(KEY)))
+    assert deliver(link, pilot, gcs_heartbeat(sender())) == []  # refused, from a peer
+    link.send(rover_heartbeat())
+    assert kinds(received(pilot)) == ["HEARTBEAT"]
+    assert link.refused_senders is not None and len(link.refused_senders) == 0
