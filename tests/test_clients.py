@@ -32,14 +32,16 @@ from mecanum_mav.sim.simfc import SimFlightController
 
 
 @contextmanager
-def rover_for_client(port: int, pose: Pose2d = ORIGIN, signing_key: bytes | None = None
+def rover_for_client(port: int, pose: Pose2d = ORIGIN, signing_key: bytes | None = None,
+                     *, listen: bool = False
                      ) -> Iterator[tuple[SimFlightController, Companion, Params]]:
     """Simulator (its chassis starting at ``pose``) + companion whose ground-station link goes
-    to a client on ``port`` (signed with ``signing_key``, if given)."""
+    to a client on ``port`` (or, ``listen``, listens there: ``udpin:``), signed with
+    ``signing_key``, if given."""
     params = Params()
     sim = SimFlightController("udpin:127.0.0.1:0", params, pose)
     sim.start()
-    companion = Companion(params, f"udpout:127.0.0.1:{port}",
+    companion = Companion(params, f"{'udpin' if listen else 'udpout'}:127.0.0.1:{port}",
                           f"udpout:127.0.0.1:{sim.local_port}", gcs_signing_key=signing_key)
     companion.start()
     try:
@@ -50,14 +52,15 @@ def rover_for_client(port: int, pose: Pose2d = ORIGIN, signing_key: bytes | None
 
 
 class MavProxy:
-    """MAVProxy headless, driven through a pipe, its output collected line by line."""
+    """MAVProxy headless, driven through a pipe, its output collected line by line; it listens
+    on ``port`` (``udpin:``), or with ``master="udpout"`` sends there first."""
 
-    def __init__(self, port: int, workdir: Path, *options: str) -> None:
+    def __init__(self, port: int, workdir: Path, *options: str, master: str = "udpin") -> None:
         exe = shutil.which("mavproxy.py", path=str(Path(sys.executable).parent))
         if exe is None:
             pytest.skip("MAVProxy is not installed (pip install '.[test]')")
         self.proc = subprocess.Popen(
-            [sys.executable, exe, f"--master=udpin:127.0.0.1:{port}", "--nowait", *options],
+            [sys.executable, exe, f"--master={master}:127.0.0.1:{port}", "--nowait", *options],
             stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
             bufsize=1, cwd=workdir)
         self.lines: list[str] = []
@@ -104,6 +107,33 @@ def test_mavproxy_with_the_passphrase_arms_and_drives_the_signed_rover_and_witho
             mavproxy.send("rc 3 1800")  # throttle channel: forward
             assert wait_until(lambda: sim.snapshot().pose.x_m > 0.3, 5.0)
             mavproxy.send("rc 3 1500")
+        finally:
+            mavproxy.close()
+
+
+def test_mavproxy_without_the_key_sees_a_listening_signed_rover_and_why_then_with_it_arms(
+        tmp_path):
+    """The rover listens (``--gcs udpin:``) with a key and MAVProxy connects to it
+    (``--master=udpout:``) without one: the rover answers it only with its HEARTBEAT, signed
+    (MAVProxy does not verify without a key), and the reason, so MAVProxy shows the vehicle and
+    why; no parameters, and its arm is refused. With the key it is the rover's ground station."""
+    port = free_port()
+    passphrase = "rover-on-a-shared-radio"
+    with rover_for_client(port, signing_key=key_from_text(passphrase), listen=True) as (
+            _sim, companion, _):
+        mavproxy = MavProxy(port, tmp_path, master="udpout")
+        try:
+            assert mavproxy.saw("Detected vehicle", 30.0), mavproxy.lines
+            assert mavproxy.saw("Unsigned packet refused: signing required"), mavproxy.lines
+            mavproxy.send("arm throttle")
+            since = len(mavproxy.lines)
+            assert saw_since(mavproxy, "Unsigned packet refused", since), mavproxy.lines
+            assert not companion.core.vehicle.armed
+            assert not [line for line in mavproxy.lines if "parameters" in line]
+            mavproxy.send(f"signing key {passphrase}")
+            mavproxy.send("arm throttle")
+            assert mavproxy.saw("ARMED"), mavproxy.lines
+            assert wait_until(lambda: companion.core.vehicle.armed, 5.0)
         finally:
             mavproxy.close()
 
