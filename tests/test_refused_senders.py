@@ -73,7 +73,7 @@ def test_a_forgotten_address_is_told_nothing_more():
 
 def signed_udpin() -> Link:
     return open_link("udpin:127.0.0.1:0", source_system=1, source_component=191, name="gcs",
-                     signing_key=KEY)
+                     signing_key=KEY, tell_refused=True)
 
 
 def sender(key: bytes | None = None) -> mavlink.MAVLink:
@@ -206,15 +206,18 @@ def test_a_refused_sender_that_signs_becomes_a_peer_and_is_told_no_more(link, so
     assert kinds(received(station)) == ["HEARTBEAT", "ATTITUDE"]
 
 
-def test_an_unsigned_udpin_link_keeps_no_refused_senders():
-    plain = open_link("udpin:127.0.0.1:0", source_system=1, source_component=191, name="gcs")
-    signed_out = open_link("udpout:127.0.0.1:9", source_system=1, source_component=191,
-                           name="gcs", signing_key=KEY)
+def test_only_a_signed_udpin_link_told_to_keeps_refused_senders():
+    """Not an unsigned one, not a udpout one, and not the flight controller's."""
+    made = [open_link(url, source_system=1, source_component=191, name="gcs",
+                      signing_key=key, tell_refused=tell)
+            for url, key, tell in (("udpin:127.0.0.1:0", None, True),
+                                   ("udpout:127.0.0.1:9", KEY, True),
+                                   ("udpin:127.0.0.1:0", KEY, False))]
     try:
-        assert plain.refused_senders is None and signed_out.refused_senders is None
+        assert [link.refused_senders for link in made] == [None, None, None]
     finally:
-        plain.close()
-        signed_out.close()
+        for link in made:
+            link.close()
 
 
 

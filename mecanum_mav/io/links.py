@@ -211,6 +211,9 @@ class Link:
             MAVLink C library and pymavlink do; ArduPilot relies on it: it drops a new stream
             more than a minute behind its own timestamp, which starts a minute ahead of the one
             it stored (tests/test_sitl_signing.py).
+        tell_refused: with a signing key on a ``udpin:`` link (the ground station's), tell an
+            address whose packets were all refused why, with each heartbeat
+            (:attr:`refused_senders`); off for the flight controller's link.
 
     On a stream link (serial, TCP) what is sent waits in the link until :meth:`flush` can
     hand it to the kernel without a standing queue there (see the module's description);
@@ -218,7 +221,7 @@ class Link:
     """
 
     def __init__(self, url: str, *, source_system: int, source_component: int, name: str,
-                 signing_key: bytes | None = None) -> None:
+                 signing_key: bytes | None = None, tell_refused: bool = False) -> None:
         self.url = url
         self.name = name
         self.conn: Any = mavutil.mavlink_connection(
@@ -254,8 +257,8 @@ class Link:
         self._peers_s: dict[Any, float] = {}  # udpin peers -> when last heard (monotonic s)
         self.peer_timeout_s = PEER_TIMEOUT_S
         self._next_prune_s = -math.inf
-        self.refused_senders = (RefusedSenders() if check is not None and self._udp_server
-                                else None)
+        self.refused_senders = (RefusedSenders() if tell_refused and check is not None
+                                and self._udp_server else None)
         """A signed ``udpin:`` link: the addresses it refused lately, told why with each
         heartbeat (:meth:`_tell_refused`); None on other links."""
         self.hints_sent = 0
@@ -656,7 +659,7 @@ class Link:
             self._send_failed(exc)
             return False
         self.sent += 1
-        if check is not None and self.refused_senders and msg.id == _HEARTBEAT_ID:
+        if check is not None and msg.id == _HEARTBEAT_ID and self.refused_senders:
             self._tell_refused(msg)  # (the heartbeat, 1 Hz, paces the hints)
         return True
 
@@ -1077,10 +1080,10 @@ _READ_WRITE = selectors.EVENT_READ | selectors.EVENT_WRITE
 
 
 def open_link(url: str, *, source_system: int, source_component: int, name: str,
-              signing_key: bytes | None = None) -> Link:
+              signing_key: bytes | None = None, tell_refused: bool = False) -> Link:
     """Open a :class:`Link`; raises ``OSError``/``ValueError`` with the URL on failure."""
     try:
         return Link(url, source_system=source_system, source_component=source_component,
-                    name=name, signing_key=signing_key)
+                    name=name, signing_key=signing_key, tell_refused=tell_refused)
     except (OSError, ValueError) as exc:
         raise type(exc)(f"cannot open {name} link {url!r}: {exc}") from exc
