@@ -95,6 +95,11 @@ def rover_heartbeat() -> Any:
                                              mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA, 0, 0, 3, 3)
 
 
+def said(text: str) -> Any:
+    """A STATUSTEXT of one chunk: its own ``id`` field is 0, HEARTBEAT's message id."""
+    return mavlink.MAVLink_statustext_message(6, text.encode(), 0, 0)
+
+
 def telemetry() -> Any:
     return mavlink.MAVLink_attitude_message(1000, 0.0, 0.0, 0.5, 0.0, 0.0, 0.0)
 
@@ -153,12 +158,12 @@ def test_a_refused_sender_gets_the_signed_heartbeat_and_the_reason_and_nothing_e
     stranger, pilot = sockets(), sockets()
     assert deliver(link, pilot, gcs_heartbeat(sender(KEY))) != []  # a peer, signing
     assert deliver(link, stranger, gcs_heartbeat(sender(key))) == []  # refused
-    link.send_all([rover_heartbeat(), telemetry()])
+    link.send_all([said("Arming checks passed"), rover_heartbeat(), telemetry()])
     got = received(stranger)
     assert kinds(got) == ["HEARTBEAT", "STATUSTEXT"] and got[1].text == reason
     check = SignatureCheck(KEY, ticks_from_unix(time.time()) - 10**6)
     assert all(check.check(m.get_msgbuf()) is Check.ACCEPTED for m in got)  # signed with KEY
-    assert [m.get_seq() for m in received(pilot)] == [0, 1]  # the pilot's stream, no gap
+    assert [m.get_seq() for m in received(pilot)] == [0, 1, 2]  # the pilot's, no gap
     assert link.hints_sent == 1
 
 

@@ -125,7 +125,8 @@ no readiness event for "the unsent queue shrank"."""
 _SIOCOUTQNSD = 0x894B  # Linux: bytes of a TCP socket's queue not yet sent
 _SERIAL, _TCP, _TCP_SERVER, _DATAGRAM = "serial", "tcp", "tcpin", "datagram"
 _AGAIN = (BlockingIOError, InterruptedError)
-_HEARTBEAT_ID = mavlink.MAVLINK_MSG_ID_HEARTBEAT
+_HEARTBEAT = mavlink.MAVLink_heartbeat_message
+"""(By class: ``msg.id`` is no message id on STATUSTEXT, whose chunk ``id`` field shadows it.)"""
 _NOTHING_TO_READ = (BlockingIOError, InterruptedError, ConnectionRefusedError)
 
 
@@ -659,7 +660,7 @@ class Link:
             self._send_failed(exc)
             return False
         self.sent += 1
-        if check is not None and msg.id == _HEARTBEAT_ID and self.refused_senders:
+        if check is not None and type(msg) is _HEARTBEAT and self.refused_senders:
             self._tell_refused(msg)  # (the heartbeat, 1 Hz, paces the hints)
         return True
 
