@@ -33,19 +33,22 @@ from conftest import wait_until
 from mecanum_mav.io.tlog import read_tlog
 from mecanum_mav.mecanum.geo import GlobalOrigin
 from mecanum_mav.protocol.dialect import mavlink, mavutil
-from mecanum_mav.sim.process import CompanionProcess
+from mecanum_mav.sim.process import CliProcess, CompanionProcess
 
 VEHICLE_SYSID = 1
 """The rover's system id (SYSID_THISMAV's default)."""
 
 
 @contextmanager
-def rover(workdir: Path, port: int, *options: str) -> Iterator[CompanionProcess]:
+def rover(workdir: Path, port: int, *options: str,
+          listen: bool = False) -> Iterator[CliProcess]:
     """``python -m mecanum_mav sim --gcs udpout:127.0.0.1:PORT --tlog rover.tlog *options``
-    (its output in ``workdir/rover/companion.log``), stopped (SIGTERM) and reaped on the way
-    out, so that its tlog is complete."""
-    with CompanionProcess.sim(f"udpout:127.0.0.1:{port}", workdir / "rover", "--tlog",
-                              str(tlog_path(workdir)), *options) as process:
+    (``listen``: ``--gcs udpin:...``, the rover waits for its ground station), its output in
+    ``workdir/rover/companion.log``, stopped (SIGTERM) and reaped on the way out, so that its
+    tlog is complete."""
+    gcs = f"{'udpin' if listen else 'udpout'}:127.0.0.1:{port}"
+    with CompanionProcess.sim(gcs, workdir / "rover", "--tlog", str(tlog_path(workdir)),
+                              *options) as process:
         try:
             yield process
         finally:
@@ -70,14 +73,16 @@ _PROMPT = re.compile(r"^(?:\S+> )+")
 
 
 class MavProxy:
-    """MAVProxy headless, driven through a pipe, its output collected line by line."""
+    """MAVProxy headless, driven through a pipe, its output collected line by line; it listens
+    on ``port`` (``udpin:``), or with ``master="udpout"`` sends there first (a rover that
+    listens)."""
 
-    def __init__(self, port: int, workdir: Path, *options: str) -> None:
+    def __init__(self, port: int, workdir: Path, *options: str, master: str = "udpin") -> None:
         exe = shutil.which("mavproxy.py", path=str(Path(sys.executable).parent))
         if exe is None:
             pytest.skip("MAVProxy is not installed (pip install '.[test]')")
         self.proc = subprocess.Popen(
-            [sys.executable, exe, f"--master=udpin:127.0.0.1:{port}", "--nowait", *options],
+            [sys.executable, exe, f"--master={master}:127.0.0.1:{port}", "--nowait", *options],
             stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
             bufsize=1, cwd=workdir)
         self.lines: list[str] = []

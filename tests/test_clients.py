@@ -62,6 +62,34 @@ def test_mavproxy_with_the_passphrase_arms_and_drives_the_signed_rover_and_witho
             mavproxy.close()
 
 
+def test_mavproxy_without_the_key_sees_a_listening_signed_rover_and_why_then_with_it_arms(
+        tmp_path):
+    """The rover listens (``--gcs udpin:``) with a key and MAVProxy connects to it
+    (``--master=udpout:``) without one: the rover answers it only with its HEARTBEAT, signed
+    (MAVProxy does not verify without a key), and the reason, so MAVProxy shows the vehicle and
+    why; no parameters, and its arm is refused. With the key it is the rover's ground station."""
+    port = free_port()
+    key = key_file(tmp_path, PASSPHRASE)
+    with rover(tmp_path, port, "--signing-key", str(key), listen=True) as process, \
+            Observer() as seen:
+        mavproxy = MavProxy(port, tmp_path, f"--out={seen.url}", master="udpout")
+        try:
+            assert mavproxy.saw(r"Detected vehicle 1:\d+ on link 0", timeout_s=30.0), (
+                mavproxy.lines, process.log())
+            assert mavproxy.saw("AP: Unsigned packet refused: signing required"), mavproxy.lines
+            since = mavproxy.mark()
+            mavproxy.send("arm throttle")
+            assert mavproxy.saw("AP: Unsigned packet refused: signing required", since)
+            beat = seen.next_heartbeat()  # one sent after the refusal
+            assert beat is not None and not beat.base_mode & SAFETY_ARMED
+            assert mavproxy.find(r"Received \d+ parameters") is None  # none for a stranger
+            mavproxy.send(f"signing key {PASSPHRASE}")
+            assert mavproxy.arm(since), "\n".join(mavproxy.lines)
+            assert wait_until(seen.armed, 5.0)
+        finally:
+            mavproxy.close()
+
+
 FACE_EAST = ("message SET_POSITION_TARGET_LOCAL_NED 0 1 1 8 3064 0 0 0 0 0 0 0 0 0 "
              f"{math.pi / 2:.6f} 0")
 """A MAVProxy user's way to a heading (``module load message`` first): a GUIDED target in

@@ -96,7 +96,7 @@ from mecanum_mav.protocol.modes import Mode
 from mecanum_mav.protocol.outbox import MessageOutbox
 from mecanum_mav.protocol.paramservice import RESTART_REQUIRED, ParamService, ParamValue
 from mecanum_mav.protocol.rcoverride import override_fields, release_fields
-from mecanum_mav.protocol.signing import Check
+from mecanum_mav.protocol.signing import REFUSED_TEXTS, Check
 from mecanum_mav.protocol.statustext import Severity, statustext_messages
 from mecanum_mav.protocol.telemetry import (
     REQUESTABLE,
@@ -126,14 +126,6 @@ FORCE_ARM_MAGIC = 21196.0
 _NEUTRAL_WHEELS = (0.0, 0.0, 0.0, 0.0)
 _FC_CHECK_FINE = (FcCheckState.SAFE, FcCheckState.NOT_CHECKED)
 """Verdicts said as a NOTICE; the others as a WARNING."""
-_SIGNATURE_REFUSED = {
-    Check.UNSIGNED: "Unsigned packet refused: signing required",
-    Check.BAD_SIGNATURE: "Bad signature: packet refused (wrong key?)",
-    Check.REPLAYED: "Replayed signed packet refused",
-    Check.TOO_OLD: "Signed packet refused: timestamp too old",
-}
-"""What a ground station is told (at most once a second) when a link with a signing key drops
-a packet; each under 50 characters, one STATUSTEXT."""
 _LINK_LABELS = {"fc": "FC", "gcs": "GCS"}
 _FC_SIGNATURE_REFUSED = {
     Check.UNSIGNED: "FC sent unsigned: board has no signing key",
@@ -621,7 +613,7 @@ class RoverCore:
         or kept the ground-station failsafe from firing (or, ``from_fc``, brought the
         flight-controller link up)."""
         self._now_s = now_s
-        texts = _FC_SIGNATURE_REFUSED if from_fc else _SIGNATURE_REFUSED
+        texts = _FC_SIGNATURE_REFUSED if from_fc else REFUSED_TEXTS
         for kind, count in rejected.items():
             self.refuse(Refusal.SIGNATURE, texts[kind], count)
 

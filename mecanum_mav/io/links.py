@@ -30,7 +30,12 @@ a correctly signed one), so a ground station that restarts on a new port is answ
 first packet on, while garbage or unsigned datagrams from other addresses make no one a peer
 (they get nothing back, and cannot make the rover send everything many times over). A peer
 silent for :data:`PEER_TIMEOUT_S` is forgotten once another peer is heard; at most
-:data:`MAX_PEERS` are kept (the longest silent goes first).
+:data:`MAX_PEERS` are kept (the longest silent goes first). With a signing key, an address
+whose well-formed MAVLink packets were all refused (unsigned, badly signed: a ground station
+without the key) is no peer either, but is told why: with each of the rover's heartbeats it
+gets that HEARTBEAT, signed, and a STATUSTEXT with the reason, and nothing else, at most once
+per heartbeat; such addresses are few and forgotten when silent
+(:mod:`~mecanum_mav.protocol.refusedsenders`), and garbage makes no one one.
 
 Stream links (serial, TCP) never block the loop on a write, and keep no standing queue in the
 kernel. What is sent waits in the link (:meth:`Link.flush` hands it over); a packet goes to
@@ -69,7 +74,7 @@ import socket
 import termios
 import time
 from collections import deque
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any, BinaryIO
 
@@ -79,7 +84,9 @@ from mecanum_mav.io.tlog import tlog_record
 from mecanum_mav.protocol.codec import encode_rc_override, send_message
 from mecanum_mav.protocol.dialect import mavlink, mavutil
 from mecanum_mav.protocol.framing import MessageParser
-from mecanum_mav.protocol.signing import Check, SignatureCheck, ticks_from_unix
+from mecanum_mav.protocol.refusedsenders import RefusedSenders
+from mecanum_mav.protocol.signing import REFUSED_TEXTS, Check, SignatureCheck, ticks_from_unix
+from mecanum_mav.protocol.statustext import Severity, statustext_messages
 
 log = logging.getLogger(__name__)
 
@@ -118,6 +125,8 @@ no readiness event for "the unsent queue shrank"."""
 _SIOCOUTQNSD = 0x894B  # Linux: bytes of a TCP socket's queue not yet sent
 _SERIAL, _TCP, _TCP_SERVER, _DATAGRAM = "serial", "tcp", "tcpin", "datagram"
 _AGAIN = (BlockingIOError, InterruptedError)
+_HEARTBEAT = mavlink.MAVLink_heartbeat_message
+"""(By class: ``msg.id`` is no message id on STATUSTEXT, whose chunk ``id`` field shadows it.)"""
 _NOTHING_TO_READ = (BlockingIOError, InterruptedError, ConnectionRefusedError)
 
 
@@ -203,6 +212,9 @@ class Link:
             MAVLink C library and pymavlink do; ArduPilot relies on it: it drops a new stream
             more than a minute behind its own timestamp, which starts a minute ahead of the one
             it stored (tests/test_sitl_signing.py).
+        tell_refused: with a signing key on a ``udpin:`` link (the ground station's), tell an
+            address whose packets were all refused why, with each heartbeat
+            (:attr:`refused_senders`); off for the flight controller's link.
 
     On a stream link (serial, TCP) what is sent waits in the link until :meth:`flush` can
     hand it to the kernel without a standing queue there (see the module's description);
@@ -210,7 +222,7 @@ class Link:
     """
 
     def __init__(self, url: str, *, source_system: int, source_component: int, name: str,
-                 signing_key: bytes | None = None) -> None:
+                 signing_key: bytes | None = None, tell_refused: bool = False) -> None:
         self.url = url
         self.name = name
         self.conn: Any = mavutil.mavlink_connection(
@@ -246,6 +258,16 @@ class Link:
         self._peers_s: dict[Any, float] = {}  # udpin peers -> when last heard (monotonic s)
         self.peer_timeout_s = PEER_TIMEOUT_S
         self._next_prune_s = -math.inf
+        self.refused_senders = (RefusedSenders() if tell_refused and check is not None
+                                and self._udp_server else None)
+        """A signed ``udpin:`` link: the addresses it refused lately, told why with each
+        heartbeat (:meth:`_tell_refused`); None on other links."""
+        self.hints_sent = 0
+        """Datagrams (a HEARTBEAT and the reason) sent to refused addresses."""
+        self._hint_seq = 0  # the hints' own sequence numbers (the peers' have no gaps)
+        self._parse_one: Callable[[bytes, Any], list[Any]] = (
+            self._parse_datagram if self.refused_senders is None
+            else self._parse_signed_datagram)
         # outgoing, stream links only (see flush)
         self._buffered = self._kind != _DATAGRAM
         self.steady = not self._buffered
@@ -403,7 +425,7 @@ class Link:
             messages = self._read_stream(max_reads)
         else:  # pymavlink's recv, less its overhead (it would also make every sender on a
             # udpin link a peer, see _heard)
-            receive, parse = self.receive_datagram, self._parse_datagram
+            receive, parse = self.receive_datagram, self._parse_one
             messages = []
             for _ in range(max_reads):
                 got = receive()
@@ -441,7 +463,7 @@ class Link:
     def parse_datagram(self, data: bytes, address: Any) -> list[Any]:
         """The messages of a datagram from :meth:`receive_datagram`, counted as :meth:`read`
         counts them."""
-        messages = self._parse_datagram(data, address)
+        messages = self._parse_one(data, address)
         check = self.signature_check
         if check is not None:
             self._catch_up(check)
@@ -477,6 +499,56 @@ class Link:
                 for msg in parsed:
                     self._record(msg)
         return parsed
+
+    def _parse_signed_datagram(self, data: bytes, address: Any) -> list[Any]:
+        """:meth:`_parse_datagram` on a signed ``udpin:`` link: a sender that is not a peer
+        and whose datagram held only refused MAVLink packets is kept (bounded) to be told
+        why; garbage (no packet the signature check saw) is not."""
+        check = self.signature_check
+        assert check is not None and self.refused_senders is not None
+        before = check.new_rejections
+        parsed = self._parse_datagram(data, address)
+        kind = check.last_rejection
+        if (not parsed and check.new_rejections != before and kind is not None
+                and address not in self._peers_s):
+            self.refused_senders.refused(address, kind, time.monotonic())
+        return parsed
+
+    def _tell_refused(self, heartbeat: Any) -> None:
+        """After the heartbeat went to the peers of a signed ``udpin:`` link: each refused
+        address that is due (:meth:`~mecanum_mav.protocol.refusedsenders.RefusedSenders.due`)
+        gets one datagram, the same HEARTBEAT (signed) and the STATUSTEXT saying why its
+        packets are refused, and nothing else. Never raises."""
+        refused = self.refused_senders
+        assert refused is not None
+        due = refused.due(time.monotonic())
+        if not due:
+            return
+        mav = self.conn.mav
+        peers_seq, outer_batch = mav.seq, self._batch
+        captured: list[bytes] = []
+        self._batch, mav.seq = captured, self._hint_seq
+        reasons: dict[Check, bytes] = {}
+        try:
+            send_message(mav, heartbeat)
+            beat = captured.pop()
+            for kind in {kind for _, kind in due}:
+                for msg in statustext_messages(Severity.WARNING, REFUSED_TEXTS[kind]):
+                    send_message(mav, msg)
+                reasons[kind] = b"".join(captured)
+                captured.clear()
+        except Exception as exc:  # a send must never take the control loop down
+            self._send_failed(exc)
+            return
+        finally:
+            self._hint_seq, mav.seq, self._batch = mav.seq, peers_seq, outer_batch
+        for address, kind in due:
+            try:
+                self._sendto(beat + reasons[kind], address)
+            except OSError as exc:
+                self._send_failed(exc)
+            else:
+                self.hints_sent += 1
 
     def _read_stream(self, max_reads: int) -> list[Any]:
         conn, parse = self.conn, self.parser.parse
@@ -531,6 +603,8 @@ class Link:
         peers[address] = now
         if known and now < self._next_prune_s:  # the common case: a peer already sent to
             return
+        if not known and self.refused_senders is not None:
+            self.refused_senders.forget(address)  # signed now: a peer, told no more
         self._next_prune_s = now + 1.0
         clients = self.conn.clients
         clients.add(address)
@@ -574,8 +648,9 @@ class Link:
 
         Packed by the fast codec (:func:`~mecanum_mav.protocol.codec.send_message`: the bytes,
         sequence numbers, signing and send callback of pymavlink's ``mav.send``)."""
-        if self.signature_check is not None:
-            self._follow_clock(self.signature_check)
+        check = self.signature_check
+        if check is not None:
+            self._follow_clock(check)
         try:
             send_message(self.conn.mav, msg)
         except LinkDownError:
@@ -585,6 +660,8 @@ class Link:
             self._send_failed(exc)
             return False
         self.sent += 1
+        if check is not None and type(msg) is _HEARTBEAT and self.refused_senders:
+            self._tell_refused(msg)  # (the heartbeat, 1 Hz, paces the hints)
         return True
 
     def send_all(self, messages: Sequence[Any]) -> None:
@@ -1004,10 +1081,10 @@ _READ_WRITE = selectors.EVENT_READ | selectors.EVENT_WRITE
 
 
 def open_link(url: str, *, source_system: int, source_component: int, name: str,
-              signing_key: bytes | None = None) -> Link:
+              signing_key: bytes | None = None, tell_refused: bool = False) -> Link:
     """Open a :class:`Link`; raises ``OSError``/``ValueError`` with the URL on failure."""
     try:
         return Link(url, source_system=source_system, source_component=source_component,
-                    name=name, signing_key=signing_key)
+                    name=name, signing_key=signing_key, tell_refused=tell_refused)
     except (OSError, ValueError) as exc:
         raise type(exc)(f"cannot open {name} link {url!r}: {exc}") from exc

@@ -28,6 +28,7 @@ __all__ = [
     "IFLAG_SIGNED",
     "KEY_LEN",
     "NEW_STREAM_WINDOW_TICKS",
+    "REFUSED_TEXTS",
     "SIGNATURE_BLOCK_LEN",
     "TICKS_PER_S",
     "Check",
@@ -136,6 +137,8 @@ class SignatureCheck:
         self._reported = [0] * len(_REJECTIONS)
         self.new_rejections = 0
         """Packets refused since :meth:`take_rejections` last ran (a cheap test for the loop)."""
+        self.last_rejection: Check | None = None
+        """The kind of the latest packet refused (None before the first)."""
 
     @property
     def counts(self) -> dict[Check, int]:
@@ -178,7 +181,8 @@ class SignatureCheck:
     def _reject(self, index: int) -> Check:
         self._rejected[index] += 1
         self.new_rejections += 1
-        return _REJECTIONS[index]
+        kind = self.last_rejection = _REJECTIONS[index]
+        return kind
 
     def take_rejections(self) -> dict[Check, int]:
         """The refusals per kind since the last call (kinds with a count only)."""
@@ -194,6 +198,15 @@ class SignatureCheck:
                  if n]
         return ", ".join(parts) or "none"
 
+
+REFUSED_TEXTS = {
+    Check.UNSIGNED: "Unsigned packet refused: signing required",
+    Check.BAD_SIGNATURE: "Bad signature: packet refused (wrong key?)",
+    Check.REPLAYED: "Replayed signed packet refused",
+    Check.TOO_OLD: "Signed packet refused: timestamp too old",
+}
+"""What a ground station is told (at most once a second) when a link with a signing key drops
+a packet; each under 50 characters, one STATUSTEXT."""
 
 _ACCEPTED = Check.ACCEPTED
 _REJECTIONS = (Check.UNSIGNED, Check.BAD_SIGNATURE, Check.REPLAYED, Check.TOO_OLD)

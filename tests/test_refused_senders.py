@@ -1,0 +1,238 @@
+"""A signed ``udpin:`` link tells a sender it refused why, with its heartbeat, and nothing else.
+
+Real UDP sockets on 127.0.0.1 around a :class:`~mecanum_mav.io.links.Link` with a key (the
+heartbeat is sent by hand, as the core's housekeeping sends it once a second), and the bounded
+table of refused addresses alone, in its own time."""
+
+from __future__ import annotations
+
+import hashlib
+import select
+import socket
+import time
+from typing import Any
+
+import pytest
+
+from mecanum_mav.io.links import Link, open_link
+from mecanum_mav.protocol.dialect import mavlink
+from mecanum_mav.protocol.refusedsenders import (
+    HINT_MIN_INTERVAL_S,
+    MAX_REFUSED_SENDERS,
+    REFUSED_TIMEOUT_S,
+    RefusedSenders,
+)
+from mecanum_mav.protocol.signing import Check, SignatureCheck, ticks_from_unix
+
+KEY = hashlib.sha256(b"rover-on-a-shared-radio").digest()
+UNSIGNED_REASON = "Unsigned packet refused: signing required"
+BAD_SIGNATURE_REASON = "Bad signature: packet refused (wrong key?)"
+
+# --------------------------------------------------------------------------- the table alone
+
+
+def test_a_refused_address_is_due_at_most_once_per_interval_with_its_latest_refusal():
+    table = RefusedSenders()
+    table.refused("a", Check.UNSIGNED, 0.0)
+    assert table.due(0.0) == [("a", Check.UNSIGNED)]
+    table.refused("a", Check.BAD_SIGNATURE, 0.1)
+    assert table.due(0.1) == []
+    assert table.due(HINT_MIN_INTERVAL_S) == [("a", Check.BAD_SIGNATURE)]
+
+
+def test_a_refused_address_silent_for_the_timeout_is_forgotten_one_still_sending_is_not():
+    table = RefusedSenders()
+    table.refused("quiet", Check.UNSIGNED, 0.0)
+    for t in range(int(REFUSED_TIMEOUT_S) + 2):
+        table.refused("chatty", Check.UNSIGNED, float(t))
+    assert [a for a, _ in table.due(REFUSED_TIMEOUT_S + 1.0)] == ["chatty"]
+    assert "quiet" not in table and len(table) == 1
+
+
+def test_the_table_keeps_the_most_recently_heard_addresses_and_drops_the_longest_silent():
+    table = RefusedSenders()
+    table.refused("first", Check.UNSIGNED, 0.0)
+    for n in range(MAX_REFUSED_SENDERS - 1):
+        table.refused(n, Check.UNSIGNED, 0.1 + n * 0.01)
+    table.refused("first", Check.UNSIGNED, 0.5)  # heard again: now the newest
+    table.refused("new", Check.UNSIGNED, 0.6)  # one too many: address 0 goes
+    assert len(table) == MAX_REFUSED_SENDERS
+    assert "first" in table and "new" in table and 0 not in table
+
+
+def test_a_forgotten_address_is_told_nothing_more():
+    table = RefusedSenders()
+    table.refused("a", Check.UNSIGNED, 0.0)
+    table.forget("a")
+    table.forget("never heard")
+    assert table.due(1.0) == [] and len(table) == 0
+
+
+# --------------------------------------------------------------------------- the link
+
+
+def signed_udpin() -> Link:
+    return open_link("udpin:127.0.0.1:0", source_system=1, source_component=191, name="gcs",
+                     signing_key=KEY, tell_refused=True)
+
+
+def sender(key: bytes | None = None) -> mavlink.MAVLink:
+    """A ground station's packer: unsigned, or signing with ``key`` (as MAVProxy does)."""
+    mav = mavlink.MAVLink(None, srcSystem=255, srcComponent=190)
+    if key is not None:
+        mav.signing.secret_key, mav.signing.sign_outgoing = key, True
+        mav.signing.timestamp = ticks_from_unix(time.time())
+    return mav
+
+
+def gcs_heartbeat(mav: mavlink.MAVLink) -> bytes:
+    return bytes(mavlink.MAVLink_heartbeat_message(
+        mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID, 0, 0, 0, 3).pack(mav))
+
+
+def rover_heartbeat() -> Any:
+    return mavlink.MAVLink_heartbeat_message(mavlink.MAV_TYPE_GROUND_ROVER,
+                                             mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA, 0, 0, 3, 3)
+
+
+def said(text: str) -> Any:
+    """A STATUSTEXT of one chunk: its own ``id`` field is 0, HEARTBEAT's message id."""
+    return mavlink.MAVLink_statustext_message(6, text.encode(), 0, 0)
+
+
+def telemetry() -> Any:
+    return mavlink.MAVLink_attitude_message(1000, 0.0, 0.0, 0.5, 0.0, 0.0, 0.0)
+
+
+def peer() -> socket.socket:
+    sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    sock.bind(("127.0.0.1", 0))
+    return sock
+
+
+def deliver(link: Link, sock: socket.socket, data: bytes) -> list[Any]:
+    """Send ``data`` from ``sock`` to the link and read it there (what the link kept)."""
+    sock.sendto(data, ("127.0.0.1", link.local_port))
+    assert select.select([link.fileno()], [], [], 2.0)[0], "the datagram never arrived"
+    return link.read()
+
+
+def received(sock: socket.socket, timeout_s: float = 0.3) -> list[Any]:
+    """Every message reaching ``sock`` within ``timeout_s``, parsed (signed or not)."""
+    parser = mavlink.MAVLink(None)
+    messages: list[Any] = []
+    deadline = time.monotonic() + timeout_s
+    while (left := deadline - time.monotonic()) > 0 and select.select([sock], [], [], left)[0]:
+        messages += parser.parse_buffer(sock.recv(65536)) or []
+    return messages
+
+
+def kinds(messages: list[Any]) -> list[str]:
+    return [m.get_type() for m in messages]
+
+
+@pytest.fixture
+def link():
+    opened = signed_udpin()
+    yield opened
+    opened.close()
+
+
+@pytest.fixture
+def sockets():
+    made: list[socket.socket] = []
+
+    def make() -> socket.socket:
+        made.append(peer())
+        return made[-1]
+    yield make
+    for sock in made:
+        sock.close()
+
+
+@pytest.mark.parametrize(("key", "reason"), [(None, UNSIGNED_REASON),
+                                             (b"\x07" * 32, BAD_SIGNATURE_REASON)],
+                         ids=["unsigned", "wrong key"])
+def test_a_refused_sender_gets_the_signed_heartbeat_and_the_reason_and_nothing_else(
+        link, sockets, key, reason):
+    stranger, pilot = sockets(), sockets()
+    assert deliver(link, pilot, gcs_heartbeat(sender(KEY))) != []  # a peer, signing
+    assert deliver(link, stranger, gcs_heartbeat(sender(key))) == []  # refused
+    link.send_all([said("Arming checks passed"), rover_heartbeat(), telemetry()])
+    got = received(stranger)
+    assert kinds(got) == ["HEARTBEAT", "STATUSTEXT"] and got[1].text == reason
+    check = SignatureCheck(KEY, ticks_from_unix(time.time()) - 10**6)
+    assert all(check.check(m.get_msgbuf()) is Check.ACCEPTED for m in got)  # signed with KEY
+    assert [m.get_seq() for m in received(pilot)] == [0, 1, 2]  # the pilot's, no gap
+    assert link.hints_sent == 1
+
+
+def test_a_refused_sender_is_told_at_most_once_per_interval_however_often_the_link_beats(
+        link, sockets):
+    stranger = sockets()
+    deliver(link, stranger, gcs_heartbeat(sender()))
+    for _ in range(5):
+        deliver(link, stranger, gcs_heartbeat(sender()))
+        link.send(rover_heartbeat())
+    assert kinds(received(stranger)) == ["HEARTBEAT", "STATUSTEXT"]
+    assert link.hints_sent == 1
+
+
+def test_garbage_or_a_truncated_packet_gets_nothing(link, sockets):
+    stranger, noise = sockets(), sockets()
+    deliver(link, stranger, gcs_heartbeat(sender()))  # a refusal just before
+    for data in (b"hello rover", b"\xfd\x09\x00\x00\x00\xff\xbe\x00\x00\x00",
+                 gcs_heartbeat(sender())[:-3]):
+        assert deliver(link, noise, data) == []
+    link.send(rover_heartbeat())
+    assert received(noise) == []
+    assert kinds(received(stranger)) == ["HEARTBEAT", "STATUSTEXT"]
+
+
+def test_a_flood_of_refused_addresses_keeps_the_newest_eight_told(link, sockets):
+    strangers = [sockets() for _ in range(MAX_REFUSED_SENDERS + 4)]
+    for sock in strangers:
+        deliver(link, sock, gcs_heartbeat(sender()))
+    link.send(rover_heartbeat())
+    told = [bool(received(sock, 0.1)) for sock in strangers]
+    assert told == [False] * 4 + [True] * MAX_REFUSED_SENDERS
+    assert link.refused_senders is not None and len(link.refused_senders) == MAX_REFUSED_SENDERS
+
+
+def test_a_refused_sender_that_signs_becomes_a_peer_and_is_told_no_more(link, sockets):
+    station = sockets()
+    deliver(link, station, gcs_heartbeat(sender()))
+    link.send(rover_heartbeat())
+    assert kinds(received(station)) == ["HEARTBEAT", "STATUSTEXT"]
+    assert kinds(deliver(link, station, gcs_heartbeat(sender(KEY)))) == ["HEARTBEAT"]
+    assert link.refused_senders is not None
+    assert station.getsockname() not in link.refused_senders
+    link.send_all([rover_heartbeat(), telemetry()])
+    assert kinds(received(station)) == ["HEARTBEAT", "ATTITUDE"]
+
+
+def test_only_a_signed_udpin_link_told_to_keeps_refused_senders():
+    """Not an unsigned one, not a udpout one, and not the flight controller's."""
+    made = [open_link(url, source_system=1, source_component=191, name="gcs",
+                      signing_key=key, tell_refused=tell)
+            for url, key, tell in (("udpin:127.0.0.1:0", None, True),
+                                   ("udpout:127.0.0.1:9", KEY, True),
+                                   ("udpin:127.0.0.1:0", KEY, False))]
+    try:
+        assert [link.refused_senders for link in made] == [None, None, None]
+    finally:
+        for link in made:
+            link.close()
+
+
+
+def test_a_peer_that_sends_an_unsigned_packet_gets_its_heartbeat_once_not_a_hint_too(
+        link, sockets):
+    """A peer already gets the heartbeat and the core's own refusal text (at most once a
+    second): the link does not send it a second heartbeat of its own."""
+    pilot = sockets()
+    deliver(link, pilot, gcs_heartbeat(sender(KEY)))
+    assert deliver(link, pilot, gcs_heartbeat(sender())) == []  # refused, from a peer
+    link.send(rover_heartbeat())
+    assert kinds(received(pilot)) == ["HEARTBEAT"]
+    assert link.refused_senders is not None and len(link.refused_senders) == 0
