@@ -30,6 +30,7 @@ from typing import Any
 import pytest
 from conftest import wait_until
 
+from mecanum_mav.config.params import SCHEMA
 from mecanum_mav.io.tlog import read_tlog
 from mecanum_mav.mecanum.geo import GlobalOrigin
 from mecanum_mav.protocol.dialect import mavlink, mavutil
@@ -53,6 +54,22 @@ def rover(workdir: Path, port: int, *options: str,
             yield process
         finally:
             process.stop(10.0)
+
+
+@contextmanager
+def mavproxy_on_rover(workdir: Path, port: int, *options: str
+                      ) -> Iterator[tuple[CliProcess, Observer, MavProxy]]:
+    """A :func:`rover` (with ``options``), an :class:`Observer` and MAVProxy connected to the
+    rover with an ``--out`` to the observer, once MAVProxy has read the rover's parameters (as
+    a user waits for "Received N parameters" before typing)."""
+    with rover(workdir, port, *options) as process, Observer() as seen:
+        mavproxy = MavProxy(port, workdir, f"--out={seen.url}")
+        try:
+            assert mavproxy.saw(f"Received {len(SCHEMA)} parameters", timeout_s=30.0), (
+                mavproxy.lines, process.log())
+            yield process, seen, mavproxy
+        finally:
+            mavproxy.close()
 
 
 def tlog_path(workdir: Path) -> Path:

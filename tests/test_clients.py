@@ -19,10 +19,18 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from clients import MavProxy, Observer, key_file, now_unix_s, rover, true_pose_at, true_track
+from clients import (
+    MavProxy,
+    Observer,
+    key_file,
+    mavproxy_on_rover,
+    now_unix_s,
+    rover,
+    true_pose_at,
+    true_track,
+)
 from conftest import wait_until
 
-from mecanum_mav.config.params import SCHEMA
 from mecanum_mav.io.links import mavlink
 from mecanum_mav.mecanum.geo import GlobalOrigin
 from mecanum_mav.sim.process import free_port
@@ -102,52 +110,46 @@ def test_mavproxy_fetches_params_sets_one_arms_and_drives_by_rc_velocity_and_pos
     ``position`` are in the body frame (BODY_NED), so "ahead" is east, and ``position 1 0 0``
     is the point 1 m ahead. Positions: the rover's LOCAL_POSITION_NED, as MAVProxy gets it."""
     port = free_port()
-    with rover(tmp_path, port) as process, Observer() as seen:
-        mavproxy = MavProxy(port, tmp_path, f"--out={seen.url}")
-        try:
-            assert mavproxy.saw(f"Received {len(SCHEMA)} parameters", timeout_s=30.0), (
-                mavproxy.lines, process.log())
-            since = mavproxy.mark()
-            assert mavproxy.set_param("INP_EXPO", 0.2, seen), mavproxy.lines[since:]
-            assert mavproxy.arm(since), mavproxy.lines[since:]
-            assert wait_until(seen.armed, 5.0)
+    with mavproxy_on_rover(tmp_path, port) as (_process, seen, mavproxy):
+        since = mavproxy.mark()
+        assert mavproxy.set_param("INP_EXPO", 0.2, seen), mavproxy.lines[since:]
+        assert mavproxy.arm(since), mavproxy.lines[since:]
+        assert wait_until(seen.armed, 5.0)
 
-            mavproxy.send("module load message")
-            mavproxy.send("mode GUIDED")
-            assert mavproxy.saw("Mode GUIDED", since), mavproxy.lines[since:]
-            mavproxy.send(FACE_EAST)
-            assert seen.wait(lambda s: abs(s.yaw() - math.pi / 2) < 0.005
-                             and abs(s.latest("ATTITUDE").yawspeed) < 0.01, 15.0), seen.yaw()
-            since = mavproxy.mark()
-            mavproxy.send("mode MANUAL")
-            assert mavproxy.saw("Mode MANUAL", since), mavproxy.lines[since:]
+        mavproxy.send("module load message")
+        mavproxy.send("mode GUIDED")
+        assert mavproxy.saw("Mode GUIDED", since), mavproxy.lines[since:]
+        mavproxy.send(FACE_EAST)
+        assert seen.wait(lambda s: abs(s.yaw() - math.pi / 2) < 0.005
+                         and abs(s.latest("ATTITUDE").yawspeed) < 0.01, 15.0), seen.yaw()
+        since = mavproxy.mark()
+        mavproxy.send("mode MANUAL")
+        assert mavproxy.saw("Mode MANUAL", since), mavproxy.lines[since:]
 
-            east = seen.north_east()[1]
-            mavproxy.send("rc 3 1800")  # throttle channel: forward, here east
-            assert wait_until(lambda: seen.north_east()[1] > east + 0.3, 10.0), seen.north_east()
-            mavproxy.send("rc 3 1500")
-            assert wait_until(lambda: seen.speed() < 0.01, 10.0), seen.speed()
+        east = seen.north_east()[1]
+        mavproxy.send("rc 3 1800")  # throttle channel: forward, here east
+        assert wait_until(lambda: seen.north_east()[1] > east + 0.3, 10.0), seen.north_east()
+        mavproxy.send("rc 3 1500")
+        assert wait_until(lambda: seen.speed() < 0.01, 10.0), seen.speed()
 
-            since = mavproxy.mark()
-            mavproxy.send("mode GUIDED")
-            assert mavproxy.saw("Mode GUIDED", since), mavproxy.lines[since:]
-            north, east = seen.north_east()
-            mavproxy.send("velocity 0 0.5 0")  # body frame: 0.5 m/s to the right, here south
-            assert wait_until(lambda: seen.north_east()[0] < north - 0.3, 10.0), (
-                seen.north_east())
-            assert abs(seen.north_east()[1] - east) < 0.05, (east, seen.north_east())
-            assert abs(seen.yaw() - math.pi / 2) < 0.02  # it did not turn
-            mavproxy.send("velocity 0 0 0")
-            assert wait_until(lambda: seen.speed() < 0.01, 10.0), seen.speed()
+        since = mavproxy.mark()
+        mavproxy.send("mode GUIDED")
+        assert mavproxy.saw("Mode GUIDED", since), mavproxy.lines[since:]
+        north, east = seen.north_east()
+        mavproxy.send("velocity 0 0.5 0")  # body frame: 0.5 m/s to the right, here south
+        assert wait_until(lambda: seen.north_east()[0] < north - 0.3, 10.0), (
+            seen.north_east())
+        assert abs(seen.north_east()[1] - east) < 0.05, (east, seen.north_east())
+        assert abs(seen.yaw() - math.pi / 2) < 0.02  # it did not turn
+        mavproxy.send("velocity 0 0 0")
+        assert wait_until(lambda: seen.speed() < 0.01, 10.0), seen.speed()
 
-            north, east = seen.north_east()
-            mavproxy.send("position 1 0 0")  # 1 m ahead of the rover: here 1 m east
-            assert wait_until(lambda: abs(seen.north_east()[1] - east - 1.0) < 0.03
-                              and seen.speed() < 0.01, 15.0), ((north, east), seen.north_east())
-            assert abs(seen.north_east()[0] - north) < 0.03, ((north, east), seen.north_east())
-            assert mavproxy.find(r".*fence breach.*") is None
-        finally:
-            mavproxy.close()
+        north, east = seen.north_east()
+        mavproxy.send("position 1 0 0")  # 1 m ahead of the rover: here 1 m east
+        assert wait_until(lambda: abs(seen.north_east()[1] - east - 1.0) < 0.03
+                          and seen.speed() < 0.01, 15.0), ((north, east), seen.north_east())
+        assert abs(seen.north_east()[0] - north) < 0.03, ((north, east), seen.north_east())
+        assert mavproxy.find(r".*fence breach.*") is None
 
 
 # --------------------------------------------------------------------------- MAVSDK
@@ -487,62 +489,56 @@ def test_mavproxy_loads_a_waypoint_file_lists_it_and_clears_it(tmp_path):
     legs = [(0.0, 0.0), (0.8, 0.0), (0.8, 0.5)]  # home, then two waypoints (north, east)
     points = _waypoint_file(tmp_path / "square.waypoints", legs)
     port = free_port()
-    with rover(tmp_path, port) as process, Observer() as seen:
-        mavproxy = MavProxy(port, tmp_path, f"--out={seen.url}")
-        try:
-            assert mavproxy.saw(f"Received {len(SCHEMA)} parameters", timeout_s=30.0), (
-                mavproxy.lines, process.log())
-            since = mavproxy.mark()
-            assert mavproxy.set_param("ORIGIN_LAT", ORIGIN_LAT_DEG, seen), mavproxy.lines[since:]
-            assert mavproxy.set_param("ORIGIN_LON", ORIGIN_LON_DEG, seen), mavproxy.lines[since:]
+    with mavproxy_on_rover(tmp_path, port) as (_process, seen, mavproxy):
+        since = mavproxy.mark()
+        assert mavproxy.set_param("ORIGIN_LAT", ORIGIN_LAT_DEG, seen), mavproxy.lines[since:]
+        assert mavproxy.set_param("ORIGIN_LON", ORIGIN_LON_DEG, seen), mavproxy.lines[since:]
 
-            since = mavproxy.mark()
-            mavproxy.send("wp load square.waypoints")
-            assert mavproxy.saw("Sent all 3 waypoints", since), mavproxy.lines[since:]
-            assert mavproxy.saw("Got MISSION_ACK: TYPE_MISSION: ACCEPTED", since), (
-                mavproxy.lines[since:])
+        since = mavproxy.mark()
+        mavproxy.send("wp load square.waypoints")
+        assert mavproxy.saw("Sent all 3 waypoints", since), mavproxy.lines[since:]
+        assert mavproxy.saw("Got MISSION_ACK: TYPE_MISSION: ACCEPTED", since), (
+            mavproxy.lines[since:])
 
-            since, items_before = mavproxy.mark(), len(seen.received)
-            mavproxy.send("wp list")
-            assert mavproxy.saw(r"Requesting 3 waypoints .*", since), mavproxy.lines[since:]
+        since, items_before = mavproxy.mark(), len(seen.received)
+        mavproxy.send("wp list")
+        assert mavproxy.saw(r"Requesting 3 waypoints .*", since), mavproxy.lines[since:]
 
-            def rows_listed() -> list[re.Match[str]]:
-                found = [m for line in mavproxy.lines[since:] if (m := WP_LINE.fullmatch(line))]
-                return found if len(found) >= 3 else []
+        def rows_listed() -> list[re.Match[str]]:
+            found = [m for line in mavproxy.lines[since:] if (m := WP_LINE.fullmatch(line))]
+            return found if len(found) >= 3 else []
 
-            listed = wait_until(rows_listed, 15.0)
-            assert listed, mavproxy.lines[since:]
-            for match, (lat, lon) in zip(listed, points, strict=True):
-                assert int(match[1]) == mavlink.MAV_CMD_NAV_WAYPOINT
-                assert int(match[2]) == mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT
-                assert abs(float(match[3]) - lat / 1e7) < 2e-7, match[0]
-                assert abs(float(match[4]) - lon / 1e7) < 2e-7, match[0]
-            # The rover's own answers to that listing, as MAVProxy received them.
-            answers = [m for m in seen.received[items_before:]
-                       if m.get_type() in ("MISSION_ITEM_INT", "MISSION_ITEM")]
-            assert [m.seq for m in answers] == [0, 1, 2], answers
-            for item, (lat, lon) in zip(answers, points, strict=True):
-                assert item.frame == mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT
-                assert item.command == mavlink.MAV_CMD_NAV_WAYPOINT
-                assert abs(item.x - lat) <= 1 and abs(item.y - lon) <= 1  # MAVProxy truncates
+        listed = wait_until(rows_listed, 15.0)
+        assert listed, mavproxy.lines[since:]
+        for match, (lat, lon) in zip(listed, points, strict=True):
+            assert int(match[1]) == mavlink.MAV_CMD_NAV_WAYPOINT
+            assert int(match[2]) == mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT
+            assert abs(float(match[3]) - lat / 1e7) < 2e-7, match[0]
+            assert abs(float(match[4]) - lon / 1e7) < 2e-7, match[0]
+        # The rover's own answers to that listing, as MAVProxy received them.
+        answers = [m for m in seen.received[items_before:]
+                   if m.get_type() in ("MISSION_ITEM_INT", "MISSION_ITEM")]
+        assert [m.seq for m in answers] == [0, 1, 2], answers
+        for item, (lat, lon) in zip(answers, points, strict=True):
+            assert item.frame == mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT
+            assert item.command == mavlink.MAV_CMD_NAV_WAYPOINT
+            assert abs(item.x - lat) <= 1 and abs(item.y - lon) <= 1  # MAVProxy truncates
 
-            since = mavproxy.mark()
-            assert mavproxy.arm(since), mavproxy.lines[since:]
-            assert wait_until(seen.armed, 5.0)
-            mavproxy.send("mode AUTO")
-            assert mavproxy.saw("AP: Mission started at item 1", since), mavproxy.lines[since:]
-            assert mavproxy.saw("AP: Mission complete", since, 30.0), (
-                mavproxy.lines[since:], seen.north_east())
-            assert mavproxy.saw("Mode HOLD", since), mavproxy.lines[since:]
+        since = mavproxy.mark()
+        assert mavproxy.arm(since), mavproxy.lines[since:]
+        assert wait_until(seen.armed, 5.0)
+        mavproxy.send("mode AUTO")
+        assert mavproxy.saw("AP: Mission started at item 1", since), mavproxy.lines[since:]
+        assert mavproxy.saw("AP: Mission complete", since, 30.0), (
+            mavproxy.lines[since:], seen.north_east())
+        assert mavproxy.saw("Mode HOLD", since), mavproxy.lines[since:]
 
-            since = mavproxy.mark()
-            mavproxy.send("wp clear")
-            assert mavproxy.saw("Got MISSION_ACK: TYPE_MISSION: ACCEPTED", since), (
-                mavproxy.lines[since:])
-            since = mavproxy.mark()
-            mavproxy.send("wp list")
-            assert mavproxy.saw(r"Requesting 0 waypoints .*", since), mavproxy.lines[since:]
-        finally:
-            mavproxy.close()
+        since = mavproxy.mark()
+        mavproxy.send("wp clear")
+        assert mavproxy.saw("Got MISSION_ACK: TYPE_MISSION: ACCEPTED", since), (
+            mavproxy.lines[since:])
+        since = mavproxy.mark()
+        mavproxy.send("wp list")
+        assert mavproxy.saw(r"Requesting 0 waypoints .*", since), mavproxy.lines[since:]
     end = true_track(tmp_path)[-1]
     assert math.dist((end.north_m, end.east_m), legs[-1]) < 0.10, end
