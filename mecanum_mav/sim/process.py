@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import random
 import signal
 import socket
 import subprocess
@@ -25,11 +26,28 @@ from typing import TypeVar
 __all__ = ["CliProcess", "CompanionProcess", "free_port", "process_cpu_s"]
 
 def free_port(kind: int = socket.SOCK_DGRAM, host: str = "127.0.0.1") -> int:
-    """A port the OS says is free now (bind port 0, read it, close): for programs that cannot
-    bind port 0 themselves and say which one they got (SITL, MAVProxy, MAVSDK)."""
-    with socket.socket(socket.AF_INET, kind) as s:
-        s.bind((host, 0))
-        return int(s.getsockname()[1])
+    """A port free now, for programs that cannot bind port 0 themselves and say which one
+    they got (SITL, MAVProxy, MAVSDK).
+
+    Drawn at random from :data:`FREE_PORTS`, below Linux's ephemeral range (32768-60999), and
+    checked by binding it: a port the OS handed out for port 0 could be handed out again to
+    any socket that binds port 0 before the program meant to use it binds it (seen: a rover's
+    simulated flight controller got the port a test had set aside for MAVProxy)."""
+    for _ in range(200):
+        port = _random.randrange(*FREE_PORTS)
+        with socket.socket(socket.AF_INET, kind) as s:
+            try:
+                s.bind((host, port))
+            except OSError:
+                continue
+            return port
+    raise OSError(f"no free port in {FREE_PORTS}")
+
+
+FREE_PORTS = (20000, 32768)
+"""Where :func:`free_port` draws from: above the fixed MAVLink ports (5760, 14550, 14560 +
+10 N), below the ephemeral range, so no port-0 bind can take it meanwhile."""
+_random = random.SystemRandom()
 
 
 _PACKAGE_ROOT = Path(__file__).resolve().parents[2]
