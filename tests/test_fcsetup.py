@@ -187,7 +187,7 @@ def test_the_reader_keeps_at_most_a_window_of_requests_unanswered_and_asks_again
     assert reader.requests(0.1) == ["P5", "P6"]  # B answered by B_OLD: both slots open
     again = reader.requests(REPEAT_S)
     assert "A" in again and "B" not in again  # not answered in time: asked again
-    assert reader.value(("B", "B_OLD")) == ("B_OLD", 255.0)
+    assert reader.values == {"B_OLD": 255.0}  # the old name answered the group
     assert reader.requests(DEADLINE_S) == [] and reader.over
     assert reader.missing()[0] == "A" and "B" not in reader.missing()
 

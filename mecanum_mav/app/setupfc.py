@@ -66,7 +66,6 @@ class FcSession:
     """A MAVLink session with a flight controller for reading and writing parameters."""
 
     def __init__(self, url: str, params: Params, signing_key: bytes | None = None) -> None:
-        self.url = url
         self.target = (int(params["FC_SYSID"]), int(params["FC_COMPID"]))
         self.link: Link = open_link(url, source_system=int(params["FC_GCS_SYSID"]),
                                     source_component=FC_LINK_COMPID, name="fc",

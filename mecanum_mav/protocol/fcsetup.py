@@ -53,8 +53,9 @@ GCS_SYSID_NAMES = ("MAV_GCS_SYSID", "SYSID_MYGCS")
 """The ground-station id's name in current and older ArduPilot."""
 OPTIONAL_NAMES = ("RC_PROTOCOLS",)
 """Read for the table only: no value of theirs is a hazard, and no answer is no problem."""
-RCIN_FIRST, RCIN_SCALED_FIRST = 51, 140
-"""SERVOn_FUNCTION of RCIN1 and of RCIN1Scaled (RCINk is 50 + k, RCINkScaled 139 + k)."""
+RCIN_SCALED_FIRST = 140
+"""SERVOn_FUNCTION of RCIN1Scaled (RCINkScaled is 139 + k; the plain RCINk, 50 + k, is a
+hazard)."""
 OVERRIDE_TIME_MAX_S = 1.0
 """A longer RC_OVERRIDE_TIME keeps a dead companion's command alive too long."""
 SAFE_OVERRIDE_TIME_S = 0.5

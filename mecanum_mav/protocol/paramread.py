@@ -77,11 +77,6 @@ class ParamReader:
         """The read has ended: every group answered, or the deadline passed."""
 
     @property
-    def names(self) -> list[str]:
-        """Every name the read may ask for."""
-        return list(self._group_of)
-
-    @property
     def answered(self) -> int:
         """How many of the groups have been answered."""
         return len(self._answered)
@@ -143,7 +138,3 @@ class ParamReader:
         """Each required setting not answered (its first name), in the order given."""
         return [g[0] for g in self.groups
                 if g not in self._answered and not self._optional.intersection(g)]
-
-    def value(self, group: Sequence[str]) -> tuple[str, float] | None:
-        """(the name that answered, its value) of a group, or None if not answered."""
-        return next(((n, self.values[n]) for n in group if n in self.values), None)
