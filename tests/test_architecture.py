@@ -39,14 +39,37 @@ def layer_of(path: Path) -> str | None:
     return parts[0] if len(parts) > 1 else None
 
 
+def package_of(path: Path) -> list[str]:
+    """The dotted package ``path`` belongs to, as parts (``mecanum/geometry.py`` ->
+    ``["mecanum_mav", "mecanum"]``; a package's ``__init__.py`` is its own package)."""
+    parts = ["mecanum_mav", *path.relative_to(PACKAGE).with_suffix("").parts]
+    return parts[:-1]
+
+
+def absolute(path: Path, node: ast.ImportFrom) -> list[str]:
+    """The absolute module names a ``from`` import in ``path`` names: a relative one (``from
+    ..io.links import Link``, level 2) resolved against the importing module's package, as
+    Python resolves it. ``from .. import io`` names the package and, as it may, ``io`` in it."""
+    if node.level == 0:
+        return [node.module] if node.module else []
+    package = package_of(path)
+    assert node.level <= len(package), \
+        f"{path.name}: relative import beyond the top-level package (level {node.level})"
+    base = ".".join(package[:len(package) - node.level + 1])
+    if node.module:
+        return [f"{base}.{node.module}"]
+    return [base] + [f"{base}.{alias.name}" for alias in node.names if alias.name != "*"]
+
+
 def imports(path: Path) -> list[str]:
+    """Every module name ``path`` imports, absolute (relative imports resolved)."""
     tree = ast.parse(path.read_text(), filename=str(path))
     found = []
     for node in ast.walk(tree):
         if isinstance(node, ast.Import):
             found += [alias.name for alias in node.names]
-        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
-            found.append(node.module)
+        elif isinstance(node, ast.ImportFrom):
+            found += absolute(path, node)
     return found
 
 
@@ -94,3 +117,18 @@ def test_the_pure_layers_never_open_a_file(path):
 def test_the_layer_table_covers_every_subpackage():
     subpackages = {p.name for p in PACKAGE.iterdir() if (p / "__init__.py").exists()}
     assert subpackages == set(LAYERS)
+
+
+@pytest.mark.parametrize(("module", "statement", "expected"), [
+    ("mecanum/geometry.py", "from ..io.links import Link", ["mecanum_mav.io.links"]),
+    ("mecanum/geometry.py", "from .wheels import WHEELS", ["mecanum_mav.mecanum.wheels"]),
+    ("mecanum/geometry.py", "from .. import io", ["mecanum_mav", "mecanum_mav.io"]),
+    ("io/__init__.py", "from ..app import cli", ["mecanum_mav.app"]),
+    ("__init__.py", "from .mecanum.wheels import WHEELS", ["mecanum_mav.mecanum.wheels"]),
+    ("app/cli.py", "from pymavlink import mavutil", ["pymavlink"]),
+])
+def test_relative_imports_are_judged_as_the_absolute_module_they_name(module, statement,
+                                                                       expected):
+    node = ast.parse(statement).body[0]
+    assert isinstance(node, ast.ImportFrom)
+    assert absolute(PACKAGE / module, node) == expected
