@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import io
 import json
+import re
 import signal
 import socket
 import subprocess
@@ -15,7 +16,7 @@ from sitl import CompanionProcess
 
 from mecanum_mav.app import cli
 from mecanum_mav.app.cli import main, run_batch
-from mecanum_mav.config.params import Params
+from mecanum_mav.config.params import SCHEMA, Params
 from mecanum_mav.mecanum.mixing import Desaturation
 from mecanum_mav.protocol.dialect import mavlink
 from mecanum_mav.sim.groundstation import udp_ground_station
@@ -114,11 +115,35 @@ def test_batch_answers_a_bad_line_with_its_error_and_keeps_going(line, message):
     assert lines[1].startswith("0.5,0.5,0.5,0.5")
 
 
+def table_cells(line: str) -> list[str]:
+    """The cells of one Markdown table row (``\\|`` is a pipe inside a cell)."""
+    assert line.startswith("|") and line.endswith("|"), f"not a table row: {line!r}"
+    return [c.strip().replace("\\|", "|") for c in re.split(r"(?<!\\)\|", line)[1:-1]]
+
+
 def test_params_markdown_lists_every_parameter(capsys):
+    """A Markdown table: header, separator, then one row per parameter in schema order with
+    its name, default (and label), range or labels, units and description as the schema has
+    them; nothing else is printed."""
     code, out, _ = run(capsys, "params", "--markdown")
     assert code == 0
-    for name in Params().names():
-        assert f"`{name}`" in out or name in out
+    header, separator, *rows = out.strip().splitlines()
+    assert table_cells(header) == ["Name", "Default", "Range / values", "Units", "Description"]
+    assert table_cells(separator) == ["---"] * 5
+    assert len(rows) == len(SCHEMA) == len(Params().names())
+    for row, spec in zip(rows, SCHEMA, strict=True):
+        name, default, values, units, description = table_cells(row)
+        assert name == f"`{spec.name}`"
+        number, _, label = default.partition(" (")
+        assert float(number) == spec.default, row
+        if spec.values is None:
+            assert not label, row
+            low, high = values.split(" .. ")
+            assert (float(low), float(high)) == (spec.minimum, spec.maximum), row
+        else:
+            assert label == f"{spec.values[int(spec.default)]})", row
+            assert values == ", ".join(f"{k} = {v}" for k, v in sorted(spec.values.items()))
+        assert units == spec.units and description == spec.description, row
 
 
 def test_params_save_writes_a_loadable_file(capsys, tmp_path):
