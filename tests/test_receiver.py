@@ -109,10 +109,18 @@ def test_the_arm_switch_is_refused_with_a_stick_deflected():
     assert any("sticks not centred" in t for t in texts(h))
 
 
-@pytest.mark.parametrize("pulse, mode", [(1100, Mode.MANUAL), (1425, Mode.HOLD),
-                                         (1700, Mode.MANUAL)])
-def test_each_mode_switch_position_selects_its_mode_parameter(pulse, mode):
+@pytest.mark.parametrize("start, start_mode, pulse, mode", [
+    (1425, Mode.HOLD, 1100, Mode.MANUAL),  # MODE3 -> MODE1
+    (1100, Mode.MANUAL, 1425, Mode.HOLD),  # MODE1 -> MODE3
+    (1425, Mode.HOLD, 1700, Mode.MANUAL),  # MODE3 -> MODE5
+])
+def test_each_mode_switch_position_selects_its_mode_parameter(start, start_mode, pulse, mode):
+    """Each case starts in another mode, set by the switch, so the mode it expects is a change
+    the switch made (not the start-up MANUAL kept)."""
     h = receiver_harness()
+    rx(h, ch8=start)
+    h.run_for(0.5)
+    assert h.core.vehicle.mode is start_mode != mode
     rx(h, ch8=pulse)
     h.run_for(0.5)
     assert h.core.vehicle.mode is mode
