@@ -39,6 +39,19 @@ PASSPHRASE = "rover-on-a-shared-radio"
 SAFETY_ARMED = mavlink.MAV_MODE_FLAG_SAFETY_ARMED
 
 
+def test_a_mavproxy_line_is_seen_only_as_a_whole_line_so_armed_is_not_disarmed():
+    """What the client tests read from MAVProxy's console: "ARMED" is not seen in "DISARMED",
+    nor "Mode HOLD" in "Mode HOLD not available"; a pattern is a regular expression over the
+    whole line, from ``since`` on."""
+    console = MavProxy.__new__(MavProxy)  # its console lines only, no process
+    console.lines = ["DISARMED", "Mode HOLD not available", "AP: ARMED here", "ARMED"]
+    assert console.find("ARMED") == 3 and console.find("ARMED", 4) is None
+    assert console.find("DISARMED") == 0 and console.find("DISARMED", 1) is None
+    assert console.find("Mode HOLD") is None
+    assert console.find(r"Mode HOLD .*") == 1
+    assert console.saw("ARMED", 0, 0.1) and not console.saw("Mode HOLD", 0, 0.1)
+
+
 def test_mavproxy_with_the_passphrase_arms_and_drives_the_signed_rover_and_without_it_cannot(
         tmp_path):
     """``signing key PASSPHRASE`` in MAVProxy and the same passphrase in --signing-key's file
