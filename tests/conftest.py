@@ -4,9 +4,10 @@ ground station in virtual time). Real-socket tests build their own links on port
 from __future__ import annotations
 
 import os
+import re
 import threading
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Generator, Iterator
 
 import pytest
 
@@ -59,3 +60,58 @@ def _private_rover_claims(tmp_path_factory: pytest.TempPathFactory) -> Iterator[
         del os.environ["XDG_RUNTIME_DIR"]
     else:
         os.environ["XDG_RUNTIME_DIR"] = old
+
+
+# --------------------------------------------------------------------------- CI knows what ran
+
+REQUIRE_SITL = "MECANUM_REQUIRE_SITL"
+"""Set to 1 by .ci/run where the firmware is: a real-firmware test that is skipped fails."""
+
+FIRMWARE_SKIP = re.compile(r"\bSITL\b|ardurover|ardupilot|firmware", re.IGNORECASE)
+"""A skip reason that speaks of the firmware: a real-firmware test someone forgot to mark
+``sitl`` (or a whole module skipped while it is collected) fails too."""
+
+
+def _sitl_required() -> bool:
+    return os.environ.get(REQUIRE_SITL, "") not in ("", "0")
+
+
+def _skip_reason(report: pytest.CollectReport | pytest.TestReport) -> str:
+    longrepr = report.longrepr
+    if isinstance(longrepr, tuple) and len(longrepr) == 3:  # (path, line, "Skipped: why")
+        return str(longrepr[2])
+    return str(longrepr)
+
+
+def _fail_the_skip(report: pytest.CollectReport | pytest.TestReport, reason: str) -> None:
+    report.outcome = "failed"
+    report.longrepr = (f"{REQUIRE_SITL}=1 (the firmware is on this machine) but a real-firmware "
+                       f"test was skipped: {reason}")
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_makereport(
+        item: pytest.Item, call: pytest.CallInfo) -> Generator[None, pytest.TestReport,
+                                                                pytest.TestReport]:
+    """With $MECANUM_REQUIRE_SITL, a skipped test marked ``sitl``, or one skipped for a reason
+    that names the firmware, fails with the skip's reason."""
+    report = yield
+    if report.skipped and _sitl_required() and not hasattr(report, "wasxfail"):
+        reason = _skip_reason(report)
+        if item.get_closest_marker("sitl") is not None or FIRMWARE_SKIP.search(reason):
+            _fail_the_skip(report, reason)
+    return report
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_make_collect_report(
+        collector: pytest.Collector) -> Generator[None, pytest.CollectReport,
+                                                  pytest.CollectReport]:
+    """With $MECANUM_REQUIRE_SITL, a module skipped while it is collected for a reason that
+    names the firmware is a collection error."""
+    report = yield
+    if report.skipped and _sitl_required():
+        reason = _skip_reason(report)
+        if FIRMWARE_SKIP.search(reason):
+            _fail_the_skip(report, reason)
+    return report

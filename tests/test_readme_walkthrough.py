@@ -280,7 +280,14 @@ def test_readme_quick_start_then_its_mavproxy_session_drives_the_rover(workdir):
 # --------------------------------------------------------------------------- real hardware
 
 BINARY, WHY_NO_SITL = find_sitl()
-needs_sitl = pytest.mark.skipif(BINARY is None, reason=WHY_NO_SITL)
+
+
+def needs_sitl(test: Callable[..., None]) -> Callable[..., None]:
+    """A real-firmware test: marked ``sitl`` (conftest: CI fails if it is skipped), skipped
+    without the firmware."""
+    return pytest.mark.sitl(pytest.mark.skipif(BINARY is None, reason=WHY_NO_SITL)(test))
+
+
 REACT_S = 20.0  # generous: the suite must hold on a loaded 2-core machine
 
 

@@ -20,8 +20,7 @@ from mecanum_mav.protocol.dialect import mavlink
 from mecanum_mav.sim.groundstation import udp_ground_station
 
 BINARY, WHY_NOT = find_sitl()
-if BINARY is None:
-    pytest.skip(WHY_NOT, allow_module_level=True)
+pytestmark = [pytest.mark.sitl, pytest.mark.skipif(BINARY is None, reason=WHY_NOT)]
 
 RECEIVER = (1600, 1600, 1600, 1600)  # the simulated radio: "released" is not "neutral"
 TRIM = (1500, 1500, 1500, 1500)

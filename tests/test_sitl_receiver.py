@@ -17,8 +17,7 @@ from mecanum_mav.control.pwm import PwmMap
 from mecanum_mav.sim.groundstation import udp_ground_station
 
 BINARY, WHY_NOT = find_sitl()
-if BINARY is None:
-    pytest.skip(WHY_NOT, allow_module_level=True)
+pytestmark = [pytest.mark.sitl, pytest.mark.skipif(BINARY is None, reason=WHY_NOT)]
 
 COMPANION = {"MOT_FL_CH": 9, "MOT_FR_CH": 10, "MOT_RL_CH": 11, "MOT_RR_CH": 12,
              "RCIN_ENABLE": 1, "RCIN_ARM_CH": 7, "MODE3": 4}

@@ -21,8 +21,7 @@ from mecanum_mav.protocol.signing import key_from_text, ticks_from_unix
 from mecanum_mav.sim.groundstation import udp_ground_station
 
 BINARY, WHY_NOT = find_sitl()
-if BINARY is None:
-    pytest.skip(WHY_NOT, allow_module_level=True)
+pytestmark = [pytest.mark.sitl, pytest.mark.skipif(BINARY is None, reason=WHY_NOT)]
 
 PASSPHRASE = "rover-and-its-flight-controller"
 KEY = key_from_text(PASSPHRASE)
