@@ -9,12 +9,17 @@ port where ArduPilot still takes unsigned packets once it has a key, and runs th
 from __future__ import annotations
 
 import contextlib
+import os
+import select
+import socket
+import threading
 import time
 from collections.abc import Iterator
+from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
-from sitl import CompanionProcess, Rig, Sitl, find_sitl
+from sitl import CompanionProcess, Rig, Sitl, find_sitl, free_port
 
 from mecanum_mav.protocol.dialect import mavlink
 from mecanum_mav.protocol.signing import key_from_text, ticks_from_unix
@@ -85,13 +90,94 @@ class Companion(Rig):
 
 
 @contextlib.contextmanager
-def run_companion(fc: Sitl, workdir: Path, *extra: str) -> Iterator[Companion]:
+def run_companion(fc: Sitl, workdir: Path, *extra: str,
+                  fc_url: str | None = None) -> Iterator[Companion]:
+    """The companion on ``fc`` (on ``fc_url`` instead of the board's own: a :class:`FcTap`)."""
     gcs, port = udp_ground_station()
     try:
-        with CompanionProcess(port.url, fc.fc_url, workdir, *extra) as process:
+        with CompanionProcess(port.url, fc_url or fc.fc_url, workdir, *extra) as process:
             yield Companion(fc, gcs, process)
     finally:
         port.close()
+
+
+@dataclass(frozen=True)
+class Override:
+    """One RC_CHANNELS_OVERRIDE the companion sent the board: from which system, to which,
+    whether signed, and channels 1-4 (us)."""
+
+    source_system: int
+    target_system: int
+    signed: bool
+    channels: tuple[int, int, int, int]
+
+
+class FcTap:
+    """A UDP relay in the flight-controller link that reads what the companion sends.
+
+    The firmware sends to the board's port (``udpclient:``; the tap binds it, where the
+    companion's ``udpin:`` would); the tap forwards to the companion on :attr:`url` and the
+    companion's answers back to the firmware, parsing them on the way: :attr:`overrides`.
+    """
+
+    def __init__(self, board: Sitl) -> None:
+        board_port = int(board.fc_url.rsplit(":", 1)[1])
+        self.companion = ("127.0.0.1", free_port(socket.SOCK_DGRAM))
+        self.url = f"udpin:{self.companion[0]}:{self.companion[1]}"
+        self.overrides: list[Override] = []
+        self._parser = mavlink.MAVLink(None)
+        self._parser.robust_parsing = True
+        self._board_side = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self._board_side.bind(("127.0.0.1", board_port))
+        self._companion_side = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self._companion_side.bind(("127.0.0.1", 0))
+        self._board: tuple[str, int] | None = None  # the firmware's address, once it sent
+        self._lock = threading.Lock()
+        self._stop_r, self._stop_w = os.pipe()
+        self._thread = threading.Thread(target=self._run, name="fc-tap", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        sockets = [self._board_side, self._companion_side]
+        while self._stop_r not in (ready := select.select([*sockets, self._stop_r], [], [])[0]):
+            for sock in ready:
+                with contextlib.suppress(OSError):  # ICMP: the companion not listening yet
+                    data, address = sock.recvfrom(65536)
+                    if sock is self._board_side:
+                        self._board = address
+                        self._companion_side.sendto(data, self.companion)
+                    elif self._board is not None:
+                        self._board_side.sendto(data, self._board)
+                        self._read(data)
+
+    def _read(self, data: bytes) -> None:
+        for msg in self._parser.parse_buffer(data) or []:
+            if msg.get_type() == "RC_CHANNELS_OVERRIDE":
+                override = Override(msg.get_srcSystem(), msg.target_system,
+                                    bool(msg.get_msgbuf()[2] & 1),  # the signed flag
+                                    (msg.chan1_raw, msg.chan2_raw, msg.chan3_raw,
+                                     msg.chan4_raw))
+                with self._lock:
+                    self.overrides.append(override)
+
+    def sent(self, since: int = 0) -> list[Override]:
+        """The overrides the companion sent from index ``since`` on."""
+        with self._lock:
+            return self.overrides[since:]
+
+    def close(self) -> None:
+        os.write(self._stop_w, b"x")
+        self._thread.join(timeout=2)
+        for fd in (self._stop_r, self._stop_w):
+            os.close(fd)
+        self._board_side.close()
+        self._companion_side.close()
+
+    def __enter__(self) -> FcTap:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
 
 
 def test_a_board_that_requires_signing_obeys_the_companion_only_with_fc_signing_key(
@@ -101,7 +187,8 @@ def test_a_board_that_requires_signing_obeys_the_companion_only_with_fc_signing_
     it (initial timestamp: now). Without --fc-signing-key the companion still hears the board
     (its HEARTBEATs are signed, not encrypted) and arms, but ArduPilot drops its unsigned
     overrides (SERVO1..4 stay at the receiver's pulse while it streams full forward) and
-    parameter requests. With the key it drives."""
+    parameter requests; what it sent is read in the link (:class:`FcTap`): full forward from
+    the board's ground-station id, unsigned. With the key it drives."""
     monitor = board.monitor
     assert monitor is not None
     key = str(key_file(tmp_path))
@@ -117,13 +204,22 @@ def test_a_board_that_requires_signing_obeys_the_companion_only_with_fc_signing_
     unsigned, signed = board.setup_fc(), board.setup_fc("--fc-signing-key", key)
     assert unsigned.returncode == 1 and "not confirmed: no answer for" in unsigned.stdout
     assert signed.returncode == 0, signed.stdout + signed.stderr
-    with run_companion(board, tmp_path / "unsigned") as companion:
+    with FcTap(board) as tap, run_companion(board, tmp_path / "unsigned",
+                                            fc_url=tap.url) as companion:
         companion.arm()
-        since = monitor.mark()
+        since, sent = monitor.mark(), len(tap.sent())
         obeyed = monitor.wait_servos(lambda s: s != RECEIVER, IGNORED_WINDOW_S, since=since,
                                      tick=lambda: companion.gcs.sticks(1000, 0, 0))
         assert obeyed is None, f"the board obeyed an unsigned override\n{companion.why()}"
         assert monitor.mark() - since >= 10 * IGNORED_WINDOW_S, companion.why()  # 40/s
+        # ... while the companion streamed full forward, as the board obeys it signed below:
+        # from the board's ground-station id, to the board; only the signature is missing
+        forward = [o for o in tap.sent(sent) if o.channels == FORWARD]
+        assert len(forward) >= 10 * IGNORED_WINDOW_S, (
+            f"the companion did not stream its overrides: {tap.sent(sent)[-5:]}\n"
+            f"{companion.why()}")
+        assert {(o.source_system, o.target_system, o.signed) for o in forward} == {
+            (255, 1, False)}, forward[:3]
         # its parameter requests went unanswered too
         assert companion.said("FC setup not checked: no parameters from the")
         companion.stop()
