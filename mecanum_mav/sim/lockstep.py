@@ -89,7 +89,8 @@ class _GcsPort:
 
 
 class Lockstep:
-    """The core, the board and a scripted ground station, stepped together in virtual time.
+    """The companion's loop (its core on virtual links), the board and a scripted ground
+    station, stepped together in virtual time.
 
     Args:
         params: parameters for the core and the board (defaults if None).
