@@ -277,7 +277,7 @@ def general_path_answer(datagram: bytes, config: InputConfig, pwm: PwmMap,
     return general_path((msg.x, msg.y, msg.z, msg.r), config, pwm, identity, seq)
 
 
-@settings(max_examples=2000, deadline=None)
+@settings(max_examples=1000, deadline=None)
 @given(st.one_of(
     st.binary(max_size=64),
     st.tuples(axes, axes, axes, st.integers(0, 42), st.integers(0, 255)).map(
