@@ -9,7 +9,8 @@ import pytest
 
 PACKAGE = Path(__file__).resolve().parent.parent / "mecanum_mav"
 
-LAYERS = {"mecanum": 1, "config": 2, "protocol": 3, "control": 4, "io": 4, "sim": 5, "app": 6}
+LAYERS = {"mecanum": 1, "config": 2, "protocol": 3, "control": 4, "io": 4, "runtime": 5, "sim": 6,
+          "app": 7}
 """Rank of each subpackage: a module may import its own layer and lower ones. control and io
 share a rank and never import each other."""
 

@@ -1,10 +1,12 @@
-"""The compiled stick lane equals the general path bit for bit, and answers nothing else."""
+"""The compiled stick lane equals the general path bit for bit, answers nothing else, and the
+companion's loop answers the pilot's sticks in it."""
 
 from __future__ import annotations
 
 from dataclasses import replace
 
 import pytest
+from conftest import lockstep
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -14,7 +16,7 @@ from mecanum_mav.control.chain import manual_output
 from mecanum_mav.control.core import FC_LINK_COMPID, RoverCore
 from mecanum_mav.control.lane import compile_stick_lane
 from mecanum_mav.control.pwm import PwmMap, WheelOutput
-from mecanum_mav.control.sticks import INVALID_AXIS, stick_from_manual_control
+from mecanum_mav.control.sticks import INVALID_AXIS, InputError, stick_from_manual_control
 from mecanum_mav.mecanum.mixing import ALGORITHM_NAMES
 from mecanum_mav.protocol.codec import encode_rc_override
 from mecanum_mav.protocol.dialect import mavlink
@@ -171,21 +173,125 @@ def test_the_core_lane_is_closed_while_disarmed_and_follows_a_parameter_change()
 
 
 
+int16 = st.integers(-32768, 32767)
+stick_axes = st.one_of(st.integers(-1000, 1000), st.just(INVALID_AXIS), int16)
+"""Every int16 a MANUAL_CONTROL axis can carry: in range mostly, "invalid", and beyond."""
+extension = st.one_of(st.just(0), int16)
+
+
+@st.composite
+def manual_controls(draw: st.DrawFn) -> dict[str, int]:
+    """MANUAL_CONTROL's every field: the target (this vehicle, all, any other), the axes
+    (full int16 ranges), the buttons and the MAVLink 2 extensions (zero: truncated away)."""
+    fields = {"target": draw(st.one_of(st.sampled_from([0, IDENTITY.sysid]),
+                                       st.integers(0, 255))),
+              "x": draw(stick_axes), "y": draw(stick_axes),
+              "z": draw(st.one_of(st.integers(0, 1000), st.just(INVALID_AXIS), int16)),
+              "r": draw(stick_axes), "buttons": draw(st.integers(0, 65535)),
+              "buttons2": draw(st.one_of(st.just(0), st.integers(0, 65535))),
+              "enabled_extensions": draw(st.one_of(st.just(0), st.integers(0, 255)))}
+    for name in ("s", "t", "aux1", "aux2", "aux3", "aux4", "aux5", "aux6"):
+        fields[name] = draw(extension)
+    return fields
+
+
+def _other_message(mav: mavlink.MAVLink, fields: dict[str, int]) -> bytes:
+    """Another message from the same sender, as like a stick as its fields let it be."""
+    kind = fields["buttons"] % 4
+    msg = (mav.heartbeat_encode(6, 8, 0, 0, 4) if kind == 0 else
+           mav.rc_channels_override_encode(fields["target"], 1,
+                                           *[1000 + abs(fields["x"]) % 1000] * 8) if kind == 1
+           else mav.manual_setpoint_encode(0, fields["x"] / 1000, fields["y"] / 1000,
+                                           fields["r"] / 1000, fields["z"] / 1000, 0, 0)
+           if kind == 2 else mav.command_long_encode(fields["target"], 1, 400, 0, 1, 0, 0, 0,
+                                                     0, 0, 0))
+    return bytes(msg.pack(mav))
+
+
+def _restamped(packet: bytes, at: int, value: int) -> bytes:
+    """A MAVLink 2 MANUAL_CONTROL ``packet`` with its header byte ``at`` set to ``value`` and
+    its CRC made good again: only that field tells it from a stick."""
+    changed = bytearray(packet)
+    changed[at] = value
+    end = 10 + changed[1]
+    crc = mavlink.x25crc(bytes(changed[1:end]))
+    crc.accumulate(bytes([mavlink.MAVLink_manual_control_message.crc_extra]))
+    changed[end:end + 2] = crc.crc.to_bytes(2, "little")
+    return bytes(changed)
+
+
+@st.composite
+def well_formed_datagrams(draw: st.DrawFn) -> bytes:
+    """Whole, good-CRC MAVLink: a stick from the pilot or another sender, signed or not,
+    MAVLink 2 or 1; another message; two packets; a stick one header field away."""
+    fields = draw(manual_controls())
+    source = draw(st.one_of(st.just(PILOT[0]), st.integers(1, 255)))
+    form = draw(st.sampled_from(["stick", "stick", "stick", "signed", "MAVLink 1", "other",
+                                 "two", "restamped"]))
+    if form == "MAVLink 1":
+        from pymavlink.dialects.v10 import ardupilotmega as v1
+
+        mav1 = v1.MAVLink(None, srcSystem=source, srcComponent=PILOT[1])
+        return bytes(mav1.manual_control_encode(*[fields[k] for k in (
+            "target", "x", "y", "z", "r", "buttons")]).pack(mav1))
+    mav = mavlink.MAVLink(None, srcSystem=source, srcComponent=PILOT[1])
+    mav.seq = draw(st.integers(0, 255))
+    if form == "signed":
+        mav.signing.secret_key, mav.signing.sign_outgoing = bytes(32), True
+        mav.signing.link_id, mav.signing.timestamp = 0, 1
+    if form == "other":
+        return _other_message(mav, fields)
+    packet = bytes(mav.manual_control_encode(**fields).pack(mav))
+    if form == "two":
+        return packet + packet
+    if form == "restamped":  # flags, or a message id whose low byte is MANUAL_CONTROL's
+        at = draw(st.sampled_from([2, 8, 9]))
+        return _restamped(packet, at, draw(st.integers(1, 255)))
+    return packet
+
+
+def general_path_answer(datagram: bytes, config: InputConfig, pwm: PwmMap,
+                        identity: IdentityConfig, seq: int) -> tuple[object, ...] | None:
+    """What the general path answers with the override alone, read with pymavlink's own
+    parser: exactly one whole, unsigned MAVLink 2 MANUAL_CONTROL, for this vehicle (or all),
+    from the pilot, with valid axes; None for anything else (refused, or more to do)."""
+    parser = mavlink.MAVLink(None)
+    parser.robust_parsing = True
+    try:
+        messages = parser.parse_buffer(datagram) or []
+    except Exception:  # (a refusal all the same)
+        return None
+    if len(messages) != 1 or len(parser.buf) > parser.buf_index:
+        return None
+    msg = messages[0]
+    if (msg.get_type() != "MANUAL_CONTROL" or msg.get_msgbuf()[0] != mavlink.PROTOCOL_MARKER_V2
+            or msg.get_header().incompat_flags):
+        return None
+    if msg.target not in (0, identity.sysid) or (
+            identity.gcs_sysid and msg.get_srcSystem() != identity.gcs_sysid):
+        return None
+    try:
+        stick_from_manual_control(msg.x, msg.y, msg.r, msg.z, z_scale=config.z_scale)
+    except InputError:
+        return None
+    return general_path((msg.x, msg.y, msg.z, msg.r), config, pwm, identity, seq)
+
+
 @settings(max_examples=1000, deadline=None)
 @given(st.one_of(
     st.binary(max_size=64),
     st.tuples(axes, axes, axes, st.integers(0, 42), st.integers(0, 255)).map(
-        lambda t: _flip(stick_packet(t[0], t[1], 500, t[2]), t[3], t[4]))))
-def test_any_datagram_is_refused_or_answered_as_its_decoded_stick(datagram):
-    from mecanum_mav.protocol.codec import decode_manual_control
-
-    config, pwm = InputConfig.from_params(Params()), PwmMap.from_params(Params())
-    answer = compile_stick_lane(config, pwm, IDENTITY, FC_LINK_COMPID)(datagram, 9)
+        lambda t: _flip(stick_packet(t[0], t[1], 500, t[2]), t[3], t[4])),
+    well_formed_datagrams()), st.booleans(), st.sampled_from([0, PILOT[0]]))
+def test_any_datagram_is_refused_or_answered_as_its_decoded_stick(datagram, z_scale, pilot):
+    config = replace(InputConfig.from_params(Params()), z_scale=z_scale)
+    pwm = PwmMap.from_params(Params())
+    identity = replace(IDENTITY, gcs_sysid=pilot)  # (0: any ground station drives)
+    answer = compile_stick_lane(config, pwm, identity, FC_LINK_COMPID)(datagram, 9)
     if answer is None:
         return
-    msg = decode_manual_control(datagram)  # the general path's own decoder agrees...
-    assert msg is not None and msg.target in (0, IDENTITY.sysid)
-    assert answer == general_path((msg.x, msg.y, msg.z, msg.r), config, pwm, IDENTITY, 9)
+    # pymavlink reads one stick the general path acts on, and it answers the same
+    assert answer == general_path_answer(datagram, config, pwm, identity, 9)
 
 
 def _flip(packet: bytes, at: int, value: int) -> bytes:
@@ -193,3 +299,30 @@ def _flip(packet: bytes, at: int, value: int) -> bytes:
     if at >= len(packet):
         return packet
     return packet[:at] + bytes((value,)) + packet[at + 1:]
+
+
+def test_the_companions_loop_answers_each_stick_of_the_pilot_in_its_lane_in_the_step_it_arrived():
+    """Through the shipped loop (:class:`~mecanum_mav.runtime.loop.ControlLoop`, which the
+    lockstep harness steps): while the rover drives in MANUAL every stick after the first (which
+    makes the stale input fresh: the general path's) is answered in the lane, unparsed
+    (``Lockstep.lane_answers``), its override on the wire to the board in the step the stick
+    arrived, the general path's channels exactly."""
+    h = lockstep()
+    h.gcs.arm()
+    h.run_for(0.1)
+    arrived: list[float] = []
+
+    def send(now_s: float) -> None:
+        h.gcs.mav.manual_control_send(1, 600, -200, 500, 100, 0)
+        arrived.append(now_s if arrived else now_s + h.dt_s)  # (the first: between steps)
+
+    stop = h.every(0.02, send)
+    h.run_for(1.0)
+    stop()
+    h.run_for(0.1)
+    expected = general_path((600, -200, 500, 100), h.core.input, h.core.pwm, h.core.identity,
+                            0)[4]
+    assert len(arrived) >= 50
+    assert h.lane_answers == len(arrived) - 1
+    for t in arrived:
+        assert [o.channels for o in h.overrides if abs(o.time_s - t) < 1e-9] == [expected]

@@ -1,5 +1,6 @@
 """Who a ``udpin:`` link answers: peers that sent a valid (and, with a key, correctly signed)
-message; garbage and unsigned datagrams make no one a peer; silent peers are forgotten."""
+message; garbage and unsigned datagrams make no one a peer; silent peers are forgotten; and
+the companion's loop answers a pilot's stick datagram in the lane."""
 
 from __future__ import annotations
 
@@ -10,10 +11,16 @@ import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 
+from conftest import wait_until
+
+from mecanum_mav.app.companion import Companion
+from mecanum_mav.config.params import Params
 from mecanum_mav.io import links
 from mecanum_mav.io.links import Link, open_link
 from mecanum_mav.protocol.dialect import mavlink
 from mecanum_mav.protocol.signing import ticks_from_unix
+from mecanum_mav.sim.groundstation import udp_ground_station
+from mecanum_mav.sim.simfc import SimFlightController
 
 KEY = hashlib.sha256(b"peers").digest()
 
@@ -145,3 +152,42 @@ def test_a_ground_station_whose_stick_the_lane_answered_is_a_peer_and_counted():
         assert link.received == received + 1
         assert sock.getsockname() in link.conn.clients
         assert link.receive_datagram() is None  # nothing else waits
+
+
+def test_the_companions_loop_answers_a_pilots_sticks_in_the_lane_on_real_sockets():
+    """The shipped loop on real UDP sockets (the companion between a ground station and a
+    simulated board): while the rover drives in MANUAL, the pilot's stick datagrams are
+    answered in the stick lane, unparsed (``Link.answered``), and the wheels follow them."""
+    gcs, port = udp_ground_station()
+    board = SimFlightController("udpin:127.0.0.1:0", Params())
+    board.start()
+    companion = Companion(Params(), port.url, f"udpout:127.0.0.1:{board.local_port}")
+    answered: list[bytes] = []
+    real_answered = companion.gcs.answered
+
+    def spy(data: bytes, address: object) -> None:
+        answered.append(data)
+        real_answered(data, address)
+
+    companion.gcs.answered = spy  # type: ignore[method-assign]
+    companion.start()
+    try:
+        assert gcs.wait("STATUSTEXT", lambda m: m.text == "Flight controller link up", 5.0)
+        gcs.arm()
+
+        def pushed() -> bool:  # a stick, then what came back
+            gcs.sticks(1000)
+            gcs.pump(0.02)
+            return len(answered) >= 10
+
+        assert wait_until(pushed, 5.0), len(answered)
+        for data in answered:
+            (msg,) = mavlink.MAVLink(None).parse_buffer(data)
+            assert (msg.get_type(), msg.x) == ("MANUAL_CONTROL", 1000)
+        forward = board.wait_for(lambda s: [s.channel_pwm.get(ch) for ch in (1, 2, 3, 4)]
+                                 == [2000] * 4, 2.0)
+        assert forward is not None
+    finally:
+        companion.close()
+        board.stop()
+        port.close()

@@ -7,7 +7,7 @@ loopback); its sections are wrapped with timers of the loop thread's own CPU
 (``time.thread_time_ns``), so the harness's work is not counted:
 
 - ``wait``: the poller's ``wait`` (the wake-up: epoll),
-- ``read``: reading and parsing what arrived (``Companion._drain`` less the core's ``handle``
+- ``read``: reading and parsing what arrived (``ControlLoop._drain`` less the core's ``handle``
   and ``stick_lane``, and less any sends from inside it),
 - ``handle``, ``lane``: the core's message handling, and the stick's lane (``stick_lane``
   and, after the send, ``stick_sent``),
@@ -42,6 +42,7 @@ from bench_latency import Harness, companion_pulse_fn, relay_pulse, stick_cycle
 
 from mecanum_mav.app import companion as companion_module
 from mecanum_mav.config.params import Params
+from mecanum_mav.runtime.loop import ControlLoop
 
 SECTIONS = ("wait", "read", "handle", "lane", "tick", "housekeeping",
             "send override", "send other", "loop")
@@ -89,7 +90,7 @@ def instrumented(clock: Clock, params: Params, gcs_url: str, fc_url: str
     for name, attr in (("handle", "handle"), ("lane", "stick_lane"), ("lane", "stick_sent"),
                        ("tick", "tick"), ("housekeeping", "housekeeping")):
         setattr(core, attr, clock.wrap(name, getattr(core, attr)))
-    comp._drain = clock.wrap("read", comp._drain)  # type: ignore[method-assign]
+    ControlLoop._drain = clock.wrap("read", ControlLoop._drain)  # type: ignore[method-assign]
     for link in (comp.gcs, comp.fc):
         link.send_rc_override = clock.wrap("send override",  # type: ignore[method-assign]
                                            link.send_rc_override)
