@@ -4,7 +4,10 @@ The flight controller is played by the test on the far end of a serial pty (behi
 the test owns, as udev's /dev/serial/by-id names are), a TCP server or a TCP client. Pulling
 the cable: close the pty's master and remove the symlink (the companion's end then reads EIO),
 or close the socket. Plugging it back: a new pty behind the same symlink, or a new connection.
-What the core decides meanwhile is tested in virtual time in test_link_drops.py.
+What the core decides meanwhile is tested in virtual time in test_link_drops.py; when the link
+tries to reopen (every half second) on a fake clock in test_link_timing.py. These tests keep
+the causal checks, with generous deadlines; what a companion whose device is gone costs in
+CPU is tools/bench_link_down.py's figure.
 """
 
 from __future__ import annotations
@@ -23,15 +26,18 @@ from test_end_to_end import ARM, NEUTRAL, STICK_PERIOD_S, WHEELS, channels
 
 from mecanum_mav.app.companion import Companion
 from mecanum_mav.config.params import Params
-from mecanum_mav.io.links import mavlink
+from mecanum_mav.io.links import PEER_TIMEOUT_S, Link, mavlink
 from mecanum_mav.protocol.rcoverride import override_fields
 from mecanum_mav.sim.groundstation import ScriptedGroundStation, udp_ground_station
-from mecanum_mav.sim.process import process_cpu_s
 
 FORWARD = override_fields(WHEELS, [2000] * 4)
 BEAT_PERIOD_S = 0.1
-CPU_WINDOW_S = 2.0
+DEADLINE_S = 15.0
+"""How long a step of these tests may take before the test gives up (the loaded machine)."""
 FC_DOWN = "FC link down"
+ANSWER_DEADLINE_S = PEER_TIMEOUT_S / 2
+"""A restarted ground station is answered before this: not after its old address was
+forgotten (a peer silent for PEER_TIMEOUT_S)."""
 
 
 class FcEnd:
@@ -100,8 +106,10 @@ class Pilot:
     """The test's loop: the ground station (pumped, sticks at 50 Hz while ``stick`` is set)
     and the flight controller's end (``fc``, pumped when set)."""
 
-    def __init__(self, gcs: ScriptedGroundStation) -> None:
+    def __init__(self, gcs: ScriptedGroundStation, fc_link: Link | None = None) -> None:
         self.gcs = gcs
+        self.fc_link = fc_link
+        """The companion's own flight-controller link, when it runs in this process."""
         self.fc: FcEnd | None = None
         self.stick: tuple[int, int, int] | None = None
         self._stick_s = 0.0
@@ -121,6 +129,21 @@ class Pilot:
                 self.gcs.mav.manual_control_send(1, x, y, 500, r, 0)
             self.gcs.pump(0.01)
 
+    def reopen_tries(self, count: int) -> bool:
+        """Wait until the companion's flight-controller link has tried to reopen ``count``
+        times (its reopen timer moved on each time); whether it did."""
+        link = self.fc_link
+        assert link is not None
+        tries: list[float] = []
+
+        def tried() -> bool:
+            due = link.next_reopen_s
+            if not tries or tries[-1] != due:
+                tries.append(due)
+            return len(tries) > count  # (the first is the timer the break set)
+
+        return bool(self.run_until(tried, DEADLINE_S))
+
     def said(self, text: str, since: int = 0) -> list[str]:
         return [m.text for m in self.gcs.received("STATUSTEXT", since) if text in m.text]
 
@@ -132,19 +155,19 @@ class Pilot:
             ack = self.gcs.command(ARM, 1, timeout_s=0.1)
             return ack is not None and ack.result == mavlink.MAV_RESULT_ACCEPTED
 
-        return bool(self.run_until(armed, 5.0))
+        return bool(self.run_until(armed, DEADLINE_S))
 
     def drive(self) -> bool:
         """Full stick forward until the flight controller gets full forward."""
         assert self.fc is not None
         self.stick = (1000, 0, 0)
         fc = self.fc
-        return bool(self.run_until(lambda: FORWARD in fc.overrides(), 3.0))
+        return bool(self.run_until(lambda: FORWARD in fc.overrides(), DEADLINE_S))
 
 
 
 
-def test_an_unplugged_serial_flight_controller_is_reported_once_costs_no_cpu_and_is_reopened(
+def test_an_unplugged_serial_flight_controller_is_reported_once_and_reopened_on_its_path(
         tmp_path: Path) -> None:
     device = tmp_path / "ttyFC"
     cable = PtyCable(device)
@@ -160,20 +183,19 @@ def test_an_unplugged_serial_flight_controller_is_reported_once_costs_no_cpu_and
             since = gcs.mark()
             cable.unplug()
             pilot.fc = None
-            assert pilot.run_until(lambda: pilot.said(FC_DOWN, since), 2.0), companion.log()
-            before = process_cpu_s(companion.proc.pid)
-            pilot.run_until(lambda: None, CPU_WINDOW_S)
-            cpu_share = (process_cpu_s(companion.proc.pid) - before) / CPU_WINDOW_S
+            assert pilot.run_until(lambda: pilot.said(FC_DOWN, since), DEADLINE_S), (
+                companion.log())
             # plug it back in: the same path, a new pty
             cable = PtyCable(device)
             pilot.fc = cable.fc
             plugged = time.monotonic()
             fc = cable.fc
-            assert pilot.run_until(lambda: fc.messages, 3.0), companion.log()
+            assert pilot.run_until(lambda: fc.messages, DEADLINE_S), companion.log()
             reopened_s = (fc.first_byte_s or plugged) - plugged
             first = fc.messages[0]
             assert first.get_type() == "RC_CHANNELS_OVERRIDE" and channels(first) == NEUTRAL
-            assert pilot.run_until(lambda: pilot.said("Flight controller link up", since), 3.0)
+            assert pilot.run_until(lambda: pilot.said("Flight controller link up", since),
+                                   DEADLINE_S)
             assert all(o == NEUTRAL for o in fc.overrides())  # the stick is still pushed
             assert pilot.arm() and pilot.drive(), companion.log()
             said = [m.text for m in gcs.received("STATUSTEXT", since)]
@@ -182,13 +204,10 @@ def test_an_unplugged_serial_flight_controller_is_reported_once_costs_no_cpu_and
     finally:
         cable.unplug()
         port.close()
-    print(f"serial: companion CPU while the device was gone {100 * cpu_share:.1f} % of a core; "
-          f"first byte {reopened_s:.3f} s after the device reappeared")
+    print(f"serial: first byte {reopened_s:.3f} s after the device reappeared")
     assert said.count("FC link down: device gone; reconnecting") == 1, said
     assert said.count("FC link reconnected") == 1, said
     assert log.count(FC_DOWN) == 1, log
-    assert cpu_share < 0.05
-    assert reopened_s < 1.0  # one reopen period (0.5 s) and the loop's wake-up
 
 
 @contextlib.contextmanager
@@ -197,7 +216,7 @@ def companion_with_fc(fc_url: str) -> Iterator[Pilot]:
     gcs, port = udp_ground_station()
     companion = Companion(Params(), port.url, fc_url)
     companion.start()
-    pilot = Pilot(gcs)
+    pilot = Pilot(gcs, companion.fc)
     try:
         yield pilot
     finally:
@@ -216,7 +235,7 @@ def test_a_tcp_flight_controller_that_closes_is_reported_once_and_reconnected(
             f"tcp:{address[0]}:{address[1]}") as pilot:
         cleanup.callback(lambda: [s.close() for s in servers])
         pilot.fc = FcEnd.on_socket(server.accept()[0])
-        assert pilot.run_until(lambda: pilot.said("Flight controller link up"), 5.0)
+        assert pilot.run_until(lambda: pilot.said("Flight controller link up"), DEADLINE_S)
         assert pilot.arm() and pilot.drive()
         # the flight controller goes away altogether: its connection and its server
         since = pilot.gcs.mark()
@@ -224,8 +243,8 @@ def test_a_tcp_flight_controller_that_closes_is_reported_once_and_reconnected(
         server.close()
         pilot.fc = None
         closed = time.monotonic()
-        assert pilot.run_until(lambda: pilot.said(FC_DOWN, since), 2.0)
-        pilot.run_until(lambda: None, 1.5)  # connects are refused meanwhile
+        assert pilot.run_until(lambda: pilot.said(FC_DOWN, since), DEADLINE_S)
+        assert pilot.reopen_tries(2)  # connects refused meanwhile
         server = socket.create_server(address)  # back on the same port
         servers.append(server)
         server.setblocking(False)
@@ -237,20 +256,20 @@ def test_a_tcp_flight_controller_that_closes_is_reported_once_and_reconnected(
             except BlockingIOError:
                 return None
 
-        sock = pilot.run_until(accepted, 2.0)
+        sock = pilot.run_until(accepted, DEADLINE_S)
         assert sock is not None
         reconnect_s = time.monotonic() - back
         pilot.fc = fc = FcEnd.on_socket(sock)
-        assert pilot.run_until(lambda: fc.messages, 1.0)
+        assert pilot.run_until(lambda: fc.messages, DEADLINE_S)
         assert fc.overrides()[:1] == [NEUTRAL] and fc.messages[0].get_type() == (
             "RC_CHANNELS_OVERRIDE")
-        assert pilot.run_until(lambda: pilot.said("Flight controller link up", since), 3.0)
+        assert pilot.run_until(lambda: pilot.said("Flight controller link up", since),
+                               DEADLINE_S)
         assert pilot.arm() and pilot.drive()
         said = pilot.said("FC link", since)
     print(f"tcp: reconnected {reconnect_s:.3f} s after the server was back "
           f"({back - closed:.1f} s away)")
     assert said == ["FC link down: closed by the peer; reconnecting", "FC link reconnected"]
-    assert reconnect_s < 1.0
 
 
 def test_a_tcpin_flight_controller_client_that_leaves_is_reported_once_and_a_new_one_heard(
@@ -258,19 +277,22 @@ def test_a_tcpin_flight_controller_client_that_leaves_is_reported_once_and_a_new
     tcp_port = free_port(socket.SOCK_STREAM)
     with companion_with_fc(f"tcpin:127.0.0.1:{tcp_port}") as pilot:
         pilot.fc = FcEnd.on_socket(socket.create_connection(("127.0.0.1", tcp_port)))
-        assert pilot.run_until(lambda: pilot.said("Flight controller link up"), 5.0)
+        assert pilot.run_until(lambda: pilot.said("Flight controller link up"),
+                               DEADLINE_S)
         since = pilot.gcs.mark()
         pilot.fc.close()
         pilot.fc = None
-        assert pilot.run_until(lambda: pilot.said(FC_DOWN, since), 2.0)
+        assert pilot.run_until(lambda: pilot.said(FC_DOWN, since), DEADLINE_S)
         start = time.monotonic()
         pilot.fc = fc = FcEnd.on_socket(socket.create_connection(("127.0.0.1", tcp_port)))
-        assert pilot.run_until(lambda: pilot.said("FC link reconnected", since), 2.0)
+        assert pilot.run_until(lambda: pilot.said("FC link reconnected", since),
+                               DEADLINE_S)
         heard_s = time.monotonic() - start
-        assert pilot.run_until(lambda: fc.messages, 1.0)
+        assert pilot.run_until(lambda: fc.messages, DEADLINE_S)
         assert fc.messages[0].get_type() == "RC_CHANNELS_OVERRIDE"
         assert channels(fc.messages[0]) == NEUTRAL
-        assert pilot.run_until(lambda: pilot.said("Flight controller link up", since), 3.0)
+        assert pilot.run_until(lambda: pilot.said("Flight controller link up", since),
+                               DEADLINE_S)
         assert pilot.arm() and pilot.drive()
         said = pilot.said("FC link", since)
     print(f"tcpin: the new client heard after {heard_s:.3f} s")
@@ -286,14 +308,13 @@ def test_a_ground_station_restarting_on_a_new_port_is_heard_and_answered_at_once
         for _ in range(2):  # the ground station, then the same after a restart
             gcs, gcs_port = udp_ground_station(target)
             stations.append(gcs_port)
-            start = time.monotonic()
             gcs.mav.heartbeat_send(mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID, 0, 0, 0)
             gcs.mav.param_request_read_send(1, 1, b"SYSID_THISMAV", -1)
-            value = gcs.wait("PARAM_VALUE", timeout_s=1.0, since=0)
-            answered_s = time.monotonic() - start
+            # answered before the old address could have been forgotten (PEER_TIMEOUT_S)
+            value = gcs.wait("PARAM_VALUE", timeout_s=ANSWER_DEADLINE_S, since=0)
             assert value is not None and value.param_id == "SYSID_THISMAV"
-            assert answered_s < 0.2, answered_s  # no timeout waited out
-            assert gcs.wait("HEARTBEAT", lambda m: m.get_srcSystem() == 1, 1.5, since=0)
+            assert gcs.wait("HEARTBEAT", lambda m: m.get_srcSystem() == 1, ANSWER_DEADLINE_S,
+                            since=0)
             assert gcs_port.link.local_port not in {s.link.local_port for s in stations[:-1]}
             gcs_port.close()
     finally:

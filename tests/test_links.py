@@ -29,17 +29,16 @@ class FakeClock:
         return self.now
 
 
-def failing_link():
+def failing_link(clock=time.monotonic):
     """A link every send of which the kernel refuses: the broadcast address without
     SO_BROADCAST (EACCES), a failure pymavlink's own write would drop unseen."""
     return open_link("udpout:255.255.255.255:9", source_system=255, source_component=190,
-                     name="fc")
+                     name="fc", clock=clock)
 
 
-def test_a_failing_send_is_counted_and_warned_about_once_a_second_per_link(monkeypatch, caplog):
+def test_a_failing_send_is_counted_and_warned_about_once_a_second_per_link(caplog):
     clock = FakeClock()
-    monkeypatch.setattr(links.time, "monotonic", clock)
-    link = failing_link()
+    link = failing_link(clock)
     try:
         with caplog.at_level(logging.WARNING, logger="mecanum_mav.io.links"):
             for _ in range(10):
@@ -261,13 +260,11 @@ def test_a_udpout_link_with_no_one_listening_fails_no_send_and_loses_none_once_o
         link.close()
 
 
-def test_a_udpout_link_whose_send_fails_connects_again_on_its_port_at_most_twice_a_second(
-        monkeypatch):
+def test_a_udpout_link_whose_send_fails_connects_again_on_its_port_at_most_twice_a_second():
     clock = FakeClock()
-    monkeypatch.setattr(links.time, "monotonic", clock)
     peer = _peer_socket()
     link = open_link(f"udpout:127.0.0.1:{peer.getsockname()[1]}", source_system=1,
-                     source_component=1, name="gcs")
+                     source_component=1, name="gcs", clock=clock)
 
     def unreachable(data: bytes) -> int:  # a connected socket whose route went away
         raise OSError(errno.ENETUNREACH, "Network is unreachable")

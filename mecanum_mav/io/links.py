@@ -215,6 +215,12 @@ class Link:
         tell_refused: with a signing key on a ``udpin:`` link (the ground station's), tell an
             address whose packets were all refused why, with each heartbeat
             (:attr:`refused_senders`); off for the flight controller's link.
+        clock: the monotonic time source (seconds) of every timer of the link: pacing to the
+            baud rate (:attr:`next_send_s`), the reopen timer (:attr:`next_reopen_s`), the
+            send-failure log's rate, the ``udpin:`` peers' ages and the refused senders'
+            hints. The caller's loop passes its own, so the link's times and the loop's are
+            one; a test passes a fake one and asserts them exactly. (Signing timestamps and
+            tlog stamps follow the wall clock, ``time.time``.)
 
     On a stream link (serial, TCP) what is sent waits in the link until :meth:`flush` can
     hand it to the kernel without a standing queue there (see the module's description);
@@ -222,9 +228,11 @@ class Link:
     """
 
     def __init__(self, url: str, *, source_system: int, source_component: int, name: str,
-                 signing_key: bytes | None = None, tell_refused: bool = False) -> None:
+                 signing_key: bytes | None = None, tell_refused: bool = False,
+                 clock: Callable[[], float] = time.monotonic) -> None:
         self.url = url
         self.name = name
+        self.clock = clock
         self.conn: Any = mavutil.mavlink_connection(
             url, source_system=source_system, source_component=source_component
         )
@@ -255,7 +263,7 @@ class Link:
         self._send: Any = None  # its recv and send (see _connect)
         self._next_reconnect_s = -math.inf
         self._connect()
-        self._peers_s: dict[Any, float] = {}  # udpin peers -> when last heard (monotonic s)
+        self._peers_s: dict[Any, float] = {}  # udpin peers -> when last heard (clock s)
         self.peer_timeout_s = PEER_TIMEOUT_S
         self._next_prune_s = -math.inf
         self.refused_senders = (RefusedSenders() if tell_refused and check is not None
@@ -280,7 +288,7 @@ class Link:
         self._queued = 0  # bytes in _queue
         self._override_turn = True  # overrides and queued packets take turns
         self._blocked = False  # the kernel refused more: wait until writable
-        self._wire_free_s = 0.0  # when what was handed over is on the wire (monotonic s)
+        self._wire_free_s = 0.0  # when what was handed over is on the wire (clock s)
         baud = int(getattr(self.conn, "baud", 0) or 0) if self._kind == _SERIAL else 0
         self.bytes_per_s = baud / 10.0 if baud > 0 else None
         """The wire's capacity (8N1 at the URL's baud rate; None: not known, TCP/UDP)."""
@@ -289,14 +297,15 @@ class Link:
         self._port_fd = self._current_port_fd()  # the descriptor written to (serial, TCP)
 
     next_send_s = math.inf
-    """When :meth:`flush` can hand over more (monotonic s); inf when nothing waits, or
-    while it waits for the descriptor to be writable (:attr:`wants_write`)."""
+    """When :meth:`flush` can hand over more (s, on the link's :attr:`clock`); inf when
+    nothing waits, or while it waits for the descriptor to be writable (:attr:`wants_write`)."""
     superseded = 0
     """Overrides replaced by a newer one before they were sent (stream links)."""
     down_reason: str | None = None
     """Why the link is down (device gone, peer closed), or None while it is up."""
     next_reopen_s = math.inf
-    """When :meth:`reopen` tries next (monotonic s); inf while up or when it needs no timer."""
+    """When :meth:`reopen` tries next (s, on the link's :attr:`clock`); inf while up or when
+    it needs no timer."""
     unsent = 0
     """Packets dropped because the link was down."""
     _connecting: socket.socket | None = None
@@ -392,7 +401,7 @@ class Link:
         the kernel chooses them anew, on the same local port; at most once every
         :data:`REOPEN_PERIOD_S`. If it cannot be made again (no route yet), the link goes on
         unconnected (``sendto``, ``recvfrom``), as pymavlink's own."""
-        now = time.monotonic()
+        now = self.clock()
         if now < self._next_reconnect_s:
             return
         self._next_reconnect_s = now + REOPEN_PERIOD_S
@@ -511,7 +520,7 @@ class Link:
         kind = check.last_rejection
         if (not parsed and check.new_rejections != before and kind is not None
                 and address not in self._peers_s):
-            self.refused_senders.refused(address, kind, time.monotonic())
+            self.refused_senders.refused(address, kind, self.clock())
         return parsed
 
     def _tell_refused(self, heartbeat: Any) -> None:
@@ -521,7 +530,7 @@ class Link:
         packets are refused, and nothing else. Never raises."""
         refused = self.refused_senders
         assert refused is not None
-        due = refused.due(time.monotonic())
+        due = refused.due(self.clock())
         if not due:
             return
         mav = self.conn.mav
@@ -597,7 +606,7 @@ class Link:
         """A valid message came from ``address`` on a ``udpin:`` link: it is a peer (sent
         to); peers silent for :attr:`peer_timeout_s` are dropped, at most :data:`MAX_PEERS`
         kept."""
-        now = time.monotonic()
+        now = self.clock()
         peers = self._peers_s
         known = address in peers
         peers[address] = now
@@ -732,7 +741,7 @@ class Link:
         """Count a failed send; warn at most once a second per link (a dead peer would
         otherwise flood the log at the output rate)."""
         self.send_errors += 1
-        now = time.monotonic()
+        now = self.clock()
         if now - self._warned_s >= SEND_WARNING_PERIOD_S:
             self._warned_s = now
             log.warning("%s: send failed (%d so far): %s", self.name, self.send_errors, exc)
@@ -814,7 +823,7 @@ class Link:
         if self.down_reason is not None:
             self.next_send_s = math.inf
             return
-        now = time.monotonic()
+        now = self.clock()
         while True:
             if self._head and not self._hand_over(self._head, now):
                 self.next_send_s = math.inf  # writable, or reopened, wakes it
@@ -910,7 +919,7 @@ class Link:
         else:  # closed now: a USB serial node still held open keeps its name from the next plug
             with contextlib.suppress(OSError):
                 conn.port.close()
-            self.next_reopen_s = time.monotonic() + REOPEN_PERIOD_S
+            self.next_reopen_s = self.clock() + REOPEN_PERIOD_S
 
     def _came_up(self) -> None:
         log.debug("%s: up again (was down: %s)", self.name, self.down_reason)
@@ -1013,7 +1022,7 @@ class Link:
         """
         with contextlib.suppress(OSError, ValueError):
             if linger_s > 0.0:
-                self._hand_over_rest(time.monotonic() + linger_s)
+                self._hand_over_rest(linger_s)
                 self._flush_out(linger_s)
         self._drop_pending()
         with contextlib.suppress(OSError):
@@ -1022,12 +1031,15 @@ class Link:
             self._connecting.close()
             self._connecting = None
 
-    def _hand_over_rest(self, deadline: float) -> None:
-        """Before closing: flush until nothing waits, the link broke, or ``deadline``."""
+    def _hand_over_rest(self, linger_s: float) -> None:
+        """Before closing: flush until nothing waits, the link broke, or ``linger_s`` has
+        passed, on the link's clock (which paces) or in real time (which the waits take)."""
+        deadline = self.clock() + linger_s
+        real_deadline = time.monotonic() + linger_s
         while self.pending and self.down_reason is None:
             self.flush()
-            now = time.monotonic()
-            if not self.pending or now >= deadline:
+            now = self.clock()
+            if not self.pending or now >= deadline or time.monotonic() >= real_deadline:
                 return
             if self.wants_write:
                 select.select([], [self._port_fd], [], deadline - now)
@@ -1081,10 +1093,13 @@ _READ_WRITE = selectors.EVENT_READ | selectors.EVENT_WRITE
 
 
 def open_link(url: str, *, source_system: int, source_component: int, name: str,
-              signing_key: bytes | None = None, tell_refused: bool = False) -> Link:
-    """Open a :class:`Link`; raises ``OSError``/``ValueError`` with the URL on failure."""
+              signing_key: bytes | None = None, tell_refused: bool = False,
+              clock: Callable[[], float] = time.monotonic) -> Link:
+    """Open a :class:`Link` (``clock``: its timers' time source, see there); raises
+    ``OSError``/``ValueError`` with the URL on failure."""
     try:
         return Link(url, source_system=source_system, source_component=source_component,
-                    name=name, signing_key=signing_key, tell_refused=tell_refused)
+                    name=name, signing_key=signing_key, tell_refused=tell_refused,
+                    clock=clock)
     except (OSError, ValueError) as exc:
         raise type(exc)(f"cannot open {name} link {url!r}: {exc}") from exc
