@@ -83,10 +83,11 @@ class Companion:
             self.core.say(Severity.ERROR, problem)
         self.gcs: Link = open_link(gcs_url, source_system=self.core.identity.sysid,
                                    source_component=COMPANION_COMPID, name="gcs",
-                                   signing_key=gcs_signing_key, tell_refused=True)
+                                   signing_key=gcs_signing_key, tell_refused=True,
+                                   clock=clock)
         self.fc: Link = open_link(fc_url, source_system=self.core.identity.fc_gcs_sysid,
                                   source_component=FC_LINK_COMPID, name="fc",
-                                  signing_key=fc_signing_key)
+                                  signing_key=fc_signing_key, clock=clock)
         if tlog is not None:
             self.gcs.record_to(tlog)
             self.fc.record_to(tlog)
