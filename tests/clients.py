@@ -28,7 +28,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from conftest import wait_until
+from support import wait_until
 
 from mecanum_mav.config.params import SCHEMA
 from mecanum_mav.io.tlog import read_tlog

@@ -26,7 +26,8 @@ from collections.abc import Callable
 from itertools import pairwise
 
 import pytest
-from conftest import lockstep, wait_until
+from conftest import lockstep
+from support import wait_until
 
 from mecanum_mav.app.companion import Companion
 from mecanum_mav.config.params import Params

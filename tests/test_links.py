@@ -11,7 +11,7 @@ import threading
 import time
 
 import pytest
-from conftest import wait_until
+from support import wait_until
 
 from mecanum_mav.config.params import Params
 from mecanum_mav.control.core import LinkCounts, RoverCore

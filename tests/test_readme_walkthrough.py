@@ -29,8 +29,8 @@ from typing import Any
 
 import pytest
 import readme_plan as plan
-from conftest import wait_until
 from sitl import Rig, Sitl, find_sitl
+from support import wait_until
 
 from mecanum_mav.config.views import InputConfig
 from mecanum_mav.control.chain import manual_output
