@@ -74,6 +74,22 @@ def wait_until(condition: Callable[[], T], timeout_s: float, *,
             pump(min(pump_s, left))
 
 
+def at_most_every(period_s: float, action: Callable[[], object]) -> Callable[[], None]:
+    """A function that runs ``action`` when called, at most once per ``period_s`` of
+    wall-clock time (the first call runs it): a stick stream or a heartbeat in a
+    :func:`wait_until` pump. Late calls do not catch up with a burst."""
+    next_s = -math.inf
+
+    def call() -> None:
+        nonlocal next_s
+        now = time.monotonic()
+        if now >= next_s:
+            next_s = now + period_s
+            action()
+
+    return call
+
+
 # --------------------------------------------------------------------------- messages
 
 
