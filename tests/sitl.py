@@ -24,7 +24,6 @@ import sys
 import tempfile
 import threading
 import time
-import tty
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -32,6 +31,7 @@ from types import TracebackType
 from typing import TYPE_CHECKING, Any
 
 from pymavlink import mavutil
+from support import RawPty
 
 from mecanum_mav.sim.process import CompanionProcess, free_port  # (tests import them here)
 
@@ -252,12 +252,12 @@ class PtyCable:
     """
 
     def __init__(self) -> None:
+        self._ptys: list[RawPty] = []
         self._fds: list[int] = []
         try:
-            self._a, a_slave = self._open()
-            self._b, b_slave = self._open()
-            self.fc_path = os.ttyname(a_slave)
-            self.companion_path = os.ttyname(b_slave)
+            self._ptys += [RawPty(), RawPty()]
+            self._a, self._b = (end.master for end in self._ptys)
+            self.fc_path, self.companion_path = (end.path for end in self._ptys)
             self._stop_r, self._stop_w = os.pipe()
             self._fds += [self._stop_r, self._stop_w]
         except BaseException:
@@ -265,13 +265,6 @@ class PtyCable:
             raise
         self._thread = threading.Thread(target=self._run, name="pty-cable", daemon=True)
         self._thread.start()
-
-    def _open(self) -> tuple[int, int]:
-        master, slave = os.openpty()
-        self._fds += [master, slave]
-        tty.setraw(slave)  # no echo, no line editing, no CR/LF translation
-        os.set_blocking(master, False)
-        return master, slave
 
     def _run(self) -> None:
         peer = {self._a: self._b, self._b: self._a}
@@ -305,6 +298,8 @@ class PtyCable:
         if hasattr(self, "_thread"):
             os.write(self._stop_w, b"x")
             self._thread.join(timeout=2)
+        for end in self._ptys:
+            end.close()
         for fd in self._fds:
             with contextlib.suppress(OSError):
                 os.close(fd)

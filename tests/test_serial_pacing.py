@@ -23,7 +23,6 @@ import sys
 import termios
 import threading
 import time
-import tty
 from collections import defaultdict
 from collections.abc import Iterator
 from pathlib import Path
@@ -32,6 +31,7 @@ from typing import Any
 
 import numpy as np
 from sitl import CompanionProcess
+from support import RawPty, fc_heartbeat
 
 from mecanum_mav.config.params import Params
 from mecanum_mav.io import links
@@ -67,10 +67,8 @@ class SlowWireBoard:
     (monotonic s) with its channel 1, and how many bytes waited in the pty at each read."""
 
     def __init__(self) -> None:
-        self.master, self.slave = os.openpty()
-        tty.setraw(self.slave)  # no echo, no CR/LF translation
-        os.set_blocking(self.master, False)
-        self.path = os.ttyname(self.slave)
+        self.pty = RawPty()
+        self.master, self.path = self.pty.master, self.pty.path
         self.mav = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
         self.mav.robust_parsing = True
         self.overrides: list[tuple[float, int]] = []  # (read at, chan1_raw)
@@ -87,9 +85,7 @@ class SlowWireBoard:
         while not self._stop.wait(max(0.0, next_read - time.monotonic())):
             now = time.monotonic()
             if now >= next_beat:
-                os.write(self.master, self.mav.heartbeat_encode(
-                    mavlink.MAV_TYPE_GROUND_ROVER, mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA, 0, 0,
-                    mavlink.MAV_STATE_STANDBY).pack(self.mav))
+                os.write(self.master, fc_heartbeat(self.mav).pack(self.mav))
                 next_beat += FC_BEAT_PERIOD_S
             allowance = min(allowance + per_read, per_read + 1.0)  # (a fraction carries)
             next_read += READ_PERIOD_S
@@ -106,8 +102,7 @@ class SlowWireBoard:
     def close(self) -> None:
         self._stop.set()
         self._thread.join(2.0)
-        os.close(self.master)
-        os.close(self.slave)
+        self.pty.close()
 
 
 def test_at_57600_baud_1khz_sticks_reach_the_board_at_most_20ms_old_and_heartbeats_keep_time(
@@ -178,10 +173,8 @@ class UnreadPty:
     """A pty whose far side reads only when asked: what the link handed to the kernel."""
 
     def __init__(self) -> None:
-        self.master, self.slave = os.openpty()
-        tty.setraw(self.slave)
-        os.set_blocking(self.master, False)
-        self.path = os.ttyname(self.slave)
+        self.pty = RawPty()
+        self.master, self.path = self.pty.master, self.pty.path
         self.mav = mavlink.MAVLink(None)
         self.mav.robust_parsing = True
 
@@ -200,8 +193,7 @@ class UnreadPty:
         return out
 
     def close(self) -> None:
-        os.close(self.master)
-        os.close(self.slave)
+        self.pty.close()
 
 
 def hand_over_all(link: Link, timeout_s: float = 2.0) -> None:
