@@ -28,7 +28,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from support import wait_until
+from support import wait_until, write_key_file
 
 from mecanum_mav.config.params import SCHEMA
 from mecanum_mav.io.tlog import read_tlog
@@ -79,10 +79,7 @@ def tlog_path(workdir: Path) -> Path:
 
 def key_file(workdir: Path, passphrase: str) -> Path:
     """A private file holding ``passphrase``, for ``--signing-key``."""
-    path = workdir / "signing.key"
-    path.write_text(passphrase + "\n")
-    path.chmod(0o600)
-    return path
+    return write_key_file(workdir / "signing.key", passphrase + "\n")
 
 
 _PROMPT = re.compile(r"^(?:\S+> )+")

@@ -15,16 +15,11 @@ The loop wakes for the failsafe deadlines themselves (:meth:`RoverCore.next_due_
 
 from __future__ import annotations
 
-import selectors
 import time
-from collections.abc import Callable
 from pathlib import Path
 
 from sitl import CompanionProcess
-
-from mecanum_mav.io.links import Link, open_link
-from mecanum_mav.protocol.dialect import mavlink
-from mecanum_mav.protocol.heartbeat import send_gcs_heartbeat
+from support import PeerPump
 
 TRIALS = 30
 TIMEOUT_S = 0.5
@@ -36,77 +31,12 @@ GCS_LOST, FC_LOST = "GCS link lost", "Flight controller link lost"
 GCS_BACK, FC_BACK = "GCS link regained", "Flight controller link up"
 
 
-class Peers:
-    """The ground station and the flight controller around the companion, on UDP loopback.
-
-    :meth:`run_until` sends each peer's HEARTBEAT every ``BEAT_PERIOD_S`` while it is beating
-    (``gcs_beating``, ``fc_beating``), remembers when each was last sent, and records every
-    STATUSTEXT the ground station receives with its arrival time (monotonic s).
-    """
-
-    def __init__(self) -> None:
-        self.gcs: Link = open_link("udpin:127.0.0.1:0", source_system=255,
-                                   source_component=mavlink.MAV_COMP_ID_MISSIONPLANNER,
-                                   name="test-gcs")
-        self.fc: Link = open_link("udpin:127.0.0.1:0", source_system=1, source_component=1,
-                                  name="test-fc")
-        self.selector = selectors.DefaultSelector()
-        self.selector.register(self.gcs.fileno(), selectors.EVENT_READ, self.gcs)
-        self.selector.register(self.fc.fileno(), selectors.EVENT_READ, self.fc)
-        self.gcs_beating = self.fc_beating = True
-        self.gcs_beat_s = self.fc_beat_s = -1.0
-        self.texts: list[tuple[float, str]] = []
-        self._heard: set[str] = set()
-
-    def url(self, link: Link) -> str:
-        return f"udpout:127.0.0.1:{link.local_port}"
-
-    def _beat(self, now: float) -> None:
-        # udpin answers the address it last heard: nothing to send to before that
-        if self.gcs_beating and "gcs" in self._heard and now - self.gcs_beat_s >= BEAT_PERIOD_S:
-            self.gcs_beat_s = time.monotonic()
-            send_gcs_heartbeat(self.gcs.mav)
-        if self.fc_beating and "fc" in self._heard and now - self.fc_beat_s >= BEAT_PERIOD_S:
-            self.fc_beat_s = time.monotonic()
-            self.fc.mav.heartbeat_send(mavlink.MAV_TYPE_GROUND_ROVER,
-                                       mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA, 0, 0,
-                                       mavlink.MAV_STATE_STANDBY)
-
-    def run_until(self, done: Callable[[], bool], timeout_s: float) -> bool:
-        """Pump both links (and beat) until ``done()`` or the deadline; whether it is done."""
-        deadline = time.monotonic() + timeout_s
-        while not done():
-            now = time.monotonic()
-            if now > deadline:
-                return False
-            self._beat(now)
-            wait = min(BEAT_PERIOD_S / 4, deadline - now)
-            for key, _ in self.selector.select(max(0.0, wait)):
-                link: Link = key.data
-                messages = link.read()
-                arrived = time.monotonic()
-                self._heard.add("gcs" if link is self.gcs else "fc")
-                for msg in messages if link is self.gcs else ():
-                    if msg.get_type() == "STATUSTEXT":
-                        self.texts.append((arrived, msg.text))
-        return True
-
-    def said_since(self, text: str, since_s: float) -> float | None:
-        """When ``text`` first arrived at or after ``since_s``, or None."""
-        return next((t for t, said in self.texts if t >= since_s and text in said), None)
-
-    def close(self) -> None:
-        self.selector.close()
-        self.gcs.close()
-        self.fc.close()
-
-
 def test_gcs_and_fc_failsafes_fire_within_the_timeout_plus_0_3_s_in_30_of_30_trials(
         tmp_path: Path) -> None:
-    peers = Peers()
+    peers = PeerPump(gcs_beat_period_s=BEAT_PERIOD_S, fc_beat_period_s=BEAT_PERIOD_S)
     settings = ["--set", f"FS_GCS_TMO={TIMEOUT_S}", "--set", f"FS_FC_TMO={TIMEOUT_S}"]
     try:
-        with CompanionProcess(peers.url(peers.gcs), peers.url(peers.fc), tmp_path,
+        with CompanionProcess(peers.gcs_url, peers.fc_url, tmp_path,
                               *settings) as companion:
             start = time.monotonic()
             assert peers.run_until(lambda: peers.said_since(FC_BACK, start) is not None, 15.0), (

@@ -6,6 +6,7 @@ import hashlib
 
 import pytest
 from conftest import lockstep
+from support import write_key_file
 
 from mecanum_mav.control.refusals import Refusal
 from mecanum_mav.io.keyfile import KeyFileError, load_signing_key
@@ -155,10 +156,7 @@ def test_a_key_of_the_wrong_length_is_a_programming_error():
 
 
 def key_file(tmp_path, text: str | bytes, mode: int = 0o600):
-    path = tmp_path / "rover.key"
-    path.write_bytes(text.encode() if isinstance(text, str) else text)
-    path.chmod(mode)
-    return path
+    return write_key_file(tmp_path / "rover.key", text, mode)
 
 
 def test_a_private_key_file_gives_its_key(tmp_path):

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import pytest
 from sitl import CompanionProcess, Rig, Sitl, find_sitl
+from support import write_key_file
 
 from mecanum_mav.protocol.dialect import mavlink
 from mecanum_mav.protocol.signing import key_from_text, ticks_from_unix
@@ -38,10 +39,7 @@ within a few hundred ms even on a loaded machine."""
 
 
 def key_file(tmp_path: Path) -> Path:
-    path = tmp_path / "fc.key"
-    path.write_text(PASSPHRASE + "\n")
-    path.chmod(0o600)
-    return path
+    return write_key_file(tmp_path / "fc.key", PASSPHRASE + "\n")
 
 
 @pytest.fixture
