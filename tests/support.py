@@ -29,7 +29,7 @@ import socket
 import threading
 import time
 import tty
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NamedTuple, TypeVar
 
@@ -88,6 +88,28 @@ def at_most_every(period_s: float, action: Callable[[], object]) -> Callable[[],
             action()
 
     return call
+
+
+def read_for(fileno: int, read: Callable[[], Sequence[T]], timeout_s: float, *,
+             enough: int = 1, settle_s: float = math.inf) -> list[T]:
+    """Everything ``read()`` gives each time ``fileno`` has input, for up to ``timeout_s`` of
+    wall-clock time; once ``enough`` items have come, ``settle_s`` more at the most (the rest
+    of a burst). What nothing more arrives for until the deadline ends it too."""
+    out: list[T] = []
+    deadline = time.monotonic() + timeout_s
+    while (left := deadline - time.monotonic()) > 0 and select.select([fileno], [], [], left)[0]:
+        out += read()
+        if len(out) >= enough:
+            deadline = min(deadline, time.monotonic() + settle_s)
+    return out
+
+
+def deliver(link: Link, sock: socket.socket, data: bytes) -> list[Any]:
+    """Send ``data`` from ``sock`` to ``link`` (on 127.0.0.1) and read it there once it has
+    arrived: what the link kept."""
+    sock.sendto(data, ("127.0.0.1", link.local_port))
+    assert select.select([link.fileno()], [], [], 2.0)[0], "the datagram never arrived"
+    return link.read()
 
 
 # --------------------------------------------------------------------------- messages

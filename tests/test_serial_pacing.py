@@ -31,7 +31,7 @@ from typing import Any
 
 import numpy as np
 from sitl import CompanionProcess
-from support import RawPty, fc_heartbeat
+from support import RawPty, fc_heartbeat, read_for, wait_until
 
 from mecanum_mav.config.params import Params
 from mecanum_mav.io import links
@@ -181,16 +181,9 @@ class UnreadPty:
     def messages(self, count: int, timeout_s: float = 1.0) -> list[Any]:
         """Read until ``count`` messages came (a pty passes bytes on a moment after they
         were written) or ``timeout_s`` passed, and 50 ms more for any extra."""
-        out: list[Any] = []
-        deadline = time.monotonic() + timeout_s
-        while (now := time.monotonic()) < deadline:
-            if not select.select([self.master], [], [], deadline - now)[0]:
-                break
-            data = os.read(self.master, 65536)
-            out += [m for m in self.mav.parse_buffer(data) or () if m.get_type() != "BAD_DATA"]
-            if len(out) >= count:
-                deadline = min(deadline, time.monotonic() + 0.05)
-        return out
+        return read_for(self.master, lambda: [
+            m for m in self.mav.parse_buffer(os.read(self.master, 65536)) or ()
+            if m.get_type() != "BAD_DATA"], timeout_s, enough=count, settle_s=0.05)
 
     def close(self) -> None:
         self.pty.close()
@@ -198,10 +191,12 @@ class UnreadPty:
 
 def hand_over_all(link: Link, timeout_s: float = 2.0) -> None:
     """Flush ``link`` on its pacing timer until nothing waits in it."""
-    deadline = time.monotonic() + timeout_s
-    while link.pending and time.monotonic() < deadline:
-        threading.Event().wait(max(0.0, min(link.next_send_s, deadline) - time.monotonic()))
+
+    def flush_when_due(wait_s: float) -> None:
+        threading.Event().wait(max(0.0, min(link.next_send_s - time.monotonic(), wait_s)))
         link.flush()
+
+    wait_until(lambda: not link.pending, timeout_s, pump=flush_when_due)
     assert not link.pending
 
 
