@@ -28,7 +28,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from support import wait_until, write_key_file
+from support import at_most_every, wait_until, write_key_file
 
 from mecanum_mav.config.params import SCHEMA
 from mecanum_mav.io.tlog import read_tlog
@@ -130,12 +130,13 @@ class MavProxy:
         """``arm throttle`` as a pilot does it: again every 3 s until MAVProxy prints a line
         that is exactly "ARMED" (the rover refuses while it still checks its flight
         controller's setup)."""
-        deadline = time.monotonic() + timeout_s
-        while time.monotonic() < deadline:
-            self.send("arm throttle")
-            if self.saw("ARMED", since, 3.0):
-                return True
-        return False
+        again = at_most_every(3.0, lambda: self.send("arm throttle"))
+
+        def armed() -> bool:
+            again()
+            return self.find("ARMED", since) is not None
+
+        return bool(wait_until(armed, timeout_s))
 
     def set_param(self, name: str, value: float, observer: Observer,
                   timeout_s: float = 20.0) -> bool:

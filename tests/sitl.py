@@ -31,7 +31,7 @@ from types import TracebackType
 from typing import TYPE_CHECKING, Any
 
 from pymavlink import mavutil
-from support import RawPty
+from support import RawPty, at_most_every, wait_until
 
 from mecanum_mav.sim.process import CompanionProcess, free_port  # (tests import them here)
 
@@ -141,21 +141,18 @@ class Monitor:
                   tick: Callable[[], None] | None = None, period_s: float = 0.05) -> Any:
         """``ready()`` (called under the lock) once it is truthy, or None at the deadline;
         ``tick()`` runs every ``period_s`` meanwhile (outside the lock)."""
-        deadline = time.monotonic() + timeout_s
-        next_tick = time.monotonic()
-        while True:
-            now = time.monotonic()
-            if tick is not None and now >= next_tick:
-                tick()
-                next_tick = now + period_s
+        due = at_most_every(period_s, tick or (lambda: None))
+
+        def ready_now() -> Any:
+            due()
             with self._cond:
-                if result := ready():
-                    return result
-                now = time.monotonic()
-                if now >= deadline:
-                    return None
-                wake = deadline if tick is None else min(deadline, next_tick)
-                self._cond.wait(max(0.0, wake - now))
+                return ready()
+
+        def sleep(wait_s: float) -> None:  # until a message arrives (notify_all) at the most
+            with self._cond:
+                self._cond.wait(wait_s)
+
+        return wait_until(ready_now, timeout_s, pump=sleep, pump_s=min(period_s, 0.05))
 
     def wait_heartbeat(self, timeout_s: float) -> bool:
         """Whether the firmware's HEARTBEAT came within ``timeout_s``."""
@@ -186,7 +183,6 @@ class Monitor:
         Raises:
             TimeoutError: not within ``timeout_s``.
         """
-        deadline = time.monotonic() + timeout_s
         accepted = False
 
         def ask() -> None:
@@ -200,7 +196,7 @@ class Monitor:
                                        for a in self._acks)
             return accepted and len(self.samples) > 0
 
-        if not self._wait_for(done, deadline - time.monotonic(), tick=ask, period_s=0.3):
+        if not self._wait_for(done, timeout_s, tick=ask, period_s=0.3):
             raise TimeoutError(f"SERVO_OUTPUT_RAW never streamed (accepted={accepted}, "
                                f"acks={[a.result for a in self._acks]})")
 
@@ -285,14 +281,20 @@ class PtyCable:
                 self._write(peer[src], data)
 
     def _write(self, fd: int, data: bytes) -> None:
-        deadline = time.monotonic() + 0.1
-        while data and time.monotonic() < deadline:
+        """Write ``data`` to ``fd`` as it takes it, for 0.1 s at the most."""
+
+        def written() -> bool:
+            nonlocal data
             try:
                 data = data[os.write(fd, data):]
             except (BlockingIOError, InterruptedError):
-                select.select([], [fd], [], 0.01)
+                return False
             except OSError:
-                return
+                return True  # the end is gone: drop it, like a wire
+            return not data
+
+        wait_until(written, 0.1, pump=lambda wait_s: select.select([], [fd], [], wait_s),
+                   pump_s=0.01)
 
     def close(self) -> None:
         if hasattr(self, "_thread"):
