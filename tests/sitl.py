@@ -24,15 +24,16 @@ import sys
 import tempfile
 import threading
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from types import TracebackType
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypeVar
 
 from pymavlink import mavutil
 from support import RawPty, at_most_every, wait_until
 
+from mecanum_mav.sim.groundstation import udp_ground_station
 from mecanum_mav.sim.process import CompanionProcess, free_port  # (tests import them here)
 
 if TYPE_CHECKING:
@@ -40,6 +41,9 @@ if TYPE_CHECKING:
 
 __all__ = ["CompanionProcess", "Monitor", "PtyCable", "Rig", "Sample", "Sitl", "find_sitl",
            "free_port"]
+
+R = TypeVar("R", bound="Rig")
+T = TypeVar("T")
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
 DEFAULT_BINARY = REPO_ROOT.parent / "shared" / "ardupilot-sitl" / "ardurover"
@@ -137,13 +141,13 @@ class Monitor:
                         self._acks.append(msg)
                 self._cond.notify_all()
 
-    def _wait_for(self, ready: Callable[[], Any], timeout_s: float,
-                  tick: Callable[[], None] | None = None, period_s: float = 0.05) -> Any:
+    def _wait_for(self, ready: Callable[[], T], timeout_s: float,
+                  tick: Callable[[], object] | None = None, period_s: float = 0.05) -> T | None:
         """``ready()`` (called under the lock) once it is truthy, or None at the deadline;
         ``tick()`` runs every ``period_s`` meanwhile (outside the lock)."""
         due = at_most_every(period_s, tick or (lambda: None))
 
-        def ready_now() -> Any:
+        def ready_now() -> T:
             due()
             with self._cond:
                 return ready()
@@ -207,7 +211,7 @@ class Monitor:
 
     def wait_servos(self, predicate: Callable[[tuple[int, int, int, int]], bool],
                     timeout_s: float, *, since: int | None = None,
-                    tick: Callable[[], None] | None = None,
+                    tick: Callable[[], object] | None = None,
                     period_s: float = 0.05) -> Sample | None:
         """The first sample from index ``since`` (default: from now on) whose SERVO1..4
         satisfy ``predicate``, or None after ``timeout_s``; ``tick()`` runs every
@@ -497,6 +501,18 @@ class Rig:
         self.companion = companion
         assert fc.monitor is not None
         self.monitor = fc.monitor
+
+    @classmethod
+    @contextlib.contextmanager
+    def on(cls: type[R], fc: Sitl, workdir: Path, *options: str) -> Iterator[R]:
+        """A companion process on ``fc`` (``mecanum-mav run --fc fc.fc_url *options``, its
+        files in ``workdir``) and a scripted ground station on UDP: the three, as ``cls``."""
+        gcs, port = udp_ground_station()
+        try:
+            with CompanionProcess(port.url, fc.fc_url, workdir, *options) as process:
+                yield cls(fc, gcs, process)
+        finally:
+            port.close()
 
     def why(self) -> str:
         return (f"last SERVO1..4: {self.monitor.last()}\ncompanion: {self.companion.log()}"

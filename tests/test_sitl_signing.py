@@ -14,12 +14,11 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from sitl import CompanionProcess, Rig, Sitl, find_sitl
+from sitl import Rig, Sitl, find_sitl
 from support import write_key_file
 
 from mecanum_mav.protocol.dialect import mavlink
 from mecanum_mav.protocol.signing import key_from_text, ticks_from_unix
-from mecanum_mav.sim.groundstation import udp_ground_station
 
 BINARY, WHY_NOT = find_sitl()
 if BINARY is None:
@@ -85,12 +84,8 @@ class Companion(Rig):
 
 @contextlib.contextmanager
 def run_companion(fc: Sitl, workdir: Path, *extra: str) -> Iterator[Companion]:
-    gcs, port = udp_ground_station()
-    try:
-        with CompanionProcess(port.url, fc.fc_url, workdir, *extra) as process:
-            yield Companion(fc, gcs, process)
-    finally:
-        port.close()
+    with Companion.on(fc, workdir, *extra) as companion:
+        yield companion
 
 
 def test_a_board_that_requires_signing_obeys_the_companion_only_with_fc_signing_key(
