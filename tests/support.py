@@ -12,8 +12,9 @@ waiting on a condition with a deadline.
   :class:`RawPty` (a pseudo-terminal a device path leads to).
 - :class:`PeerPump`: a ground station and a flight controller around a companion on UDP
   loopback, pumped together.
-- :func:`status_texts`, :func:`override_channels`, :func:`write_key_file`,
-  :func:`junk_packets`.
+- :func:`status_texts`, :func:`override_channels`, :func:`mavlink_sender`,
+  :func:`write_key_file`, :func:`junk_packets`, and on sockets :func:`deliver` and
+  :func:`read_for`.
 
 Sockets bind port 0 on 127.0.0.1; every wait has a deadline (no blind sleeps).
 """
@@ -36,6 +37,7 @@ from typing import TYPE_CHECKING, Any, NamedTuple, TypeVar
 from mecanum_mav.io.links import Link, mavlink, open_link
 from mecanum_mav.protocol.dialect import mavutil
 from mecanum_mav.protocol.heartbeat import send_gcs_heartbeat
+from mecanum_mav.protocol.signing import ticks_from_unix
 from mecanum_mav.sim.lockstep import Lockstep
 
 if TYPE_CHECKING:
@@ -121,6 +123,19 @@ def status_texts(h: Lockstep | ScriptedGroundStation, since: int = 0) -> list[st
     gcs = h.gcs if isinstance(h, Lockstep) else h
     gcs.mark()  # collect what has arrived (a real port; the harness delivers by itself)
     return [m.text for m in gcs.received("STATUSTEXT", since)]
+
+
+def mavlink_sender(key: bytes | None = None, *, sysid: int = 255, compid: int = 190,
+                   link_id: int = 0, timestamp: int | None = None) -> Any:
+    """A pymavlink ``MAVLink`` that packs as ``sysid``/``compid`` (a ground station's by
+    default): unsigned, or signing with ``key`` on link ``link_id`` from ``timestamp`` (10 us
+    ticks since 2015; default now), as MAVProxy's ``signing key`` sets one up."""
+    mav = mavlink.MAVLink(None, srcSystem=sysid, srcComponent=compid)
+    if key is not None:
+        mav.signing.secret_key, mav.signing.sign_outgoing = key, True
+        mav.signing.link_id = link_id
+        mav.signing.timestamp = ticks_from_unix(time.time()) if timestamp is None else timestamp
+    return mav
 
 
 def override_channels(msg: Any) -> list[int]:

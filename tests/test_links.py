@@ -11,7 +11,7 @@ import threading
 import time
 
 import pytest
-from support import read_for, wait_until
+from support import mavlink_sender, read_for, wait_until
 
 from mecanum_mav.config.params import Params
 from mecanum_mav.control.core import LinkCounts, RoverCore
@@ -131,9 +131,7 @@ def test_a_signing_link_signs_no_earlier_than_the_newest_verified_packet_it_rece
     board.settimeout(5.0)
     try:
         def beat(secret: bytes, timestamp: int) -> bytes:
-            mav = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
-            mav.signing.secret_key, mav.signing.sign_outgoing = secret, True
-            mav.signing.link_id, mav.signing.timestamp = 1, timestamp
+            mav = mavlink_sender(secret, sysid=1, compid=1, link_id=1, timestamp=timestamp)
             return bytes(mavlink.MAVLink_heartbeat_message(10, 3, 0, 0, 3, 3).pack(mav))
 
         def sent_timestamps() -> list[int]:

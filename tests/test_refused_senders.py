@@ -12,7 +12,7 @@ import time
 from typing import Any
 
 import pytest
-from support import deliver, read_for
+from support import deliver, mavlink_sender, read_for
 
 from mecanum_mav.io.links import Link, open_link
 from mecanum_mav.protocol.dialect import mavlink
@@ -78,11 +78,7 @@ def signed_udpin() -> Link:
 
 def sender(key: bytes | None = None) -> mavlink.MAVLink:
     """A ground station's packer: unsigned, or signing with ``key`` (as MAVProxy does)."""
-    mav = mavlink.MAVLink(None, srcSystem=255, srcComponent=190)
-    if key is not None:
-        mav.signing.secret_key, mav.signing.sign_outgoing = key, True
-        mav.signing.timestamp = ticks_from_unix(time.time())
-    return mav
+    return mavlink_sender(key)
 
 
 def gcs_heartbeat(mav: mavlink.MAVLink) -> bytes:
