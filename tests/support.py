@@ -2,9 +2,11 @@
 waiting on a condition with a deadline.
 
 - Waiting: :func:`wait_until` (wall-clock time, for real processes, threads and sockets;
-  virtual time has :meth:`mecanum_mav.sim.lockstep.Lockstep.run_until`). Its home is here,
-  not in conftest.py: the rigs (sitl.py, clients.py) and tools import it as plain code, and
-  conftest.py, which pytest loads by itself, only re-exports it for older imports.
+  virtual time has :meth:`mecanum_mav.sim.lockstep.Lockstep.run_until`), and
+  :func:`at_most_every` for what a wait sends meanwhile. Its home is here, not in
+  conftest.py: the rigs (sitl.py, clients.py) import it as plain code, which conftest.py (a
+  file pytest loads by itself, for fixtures) is not meant to be; conftest.py only re-exports
+  it for older imports.
 - The flight controller played by the test: :func:`fc_heartbeat` (ArduPilot Rover's
   HEARTBEAT), :class:`FlightControllerEnd` (one connection's end: a socket or a pty master),
   :class:`PtyFlightController` (a board on a serial pty, which can be unplugged),
@@ -95,8 +97,8 @@ def at_most_every(period_s: float, action: Callable[[], object]) -> Callable[[],
 def read_for(fileno: int, read: Callable[[], Sequence[T]], timeout_s: float, *,
              enough: int = 1, settle_s: float = math.inf) -> list[T]:
     """Everything ``read()`` gives each time ``fileno`` has input, for up to ``timeout_s`` of
-    wall-clock time; once ``enough`` items have come, ``settle_s`` more at the most (the rest
-    of a burst). What nothing more arrives for until the deadline ends it too."""
+    wall-clock time, or until ``settle_s`` after the ``enough``-th item (the rest of a
+    burst)."""
     out: list[T] = []
     deadline = time.monotonic() + timeout_s
     while (left := deadline - time.monotonic()) > 0 and select.select([fileno], [], [], left)[0]:
