@@ -28,7 +28,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from conftest import wait_until
+from support import at_most_every, wait_until, write_key_file
 
 from mecanum_mav.config.params import SCHEMA
 from mecanum_mav.io.tlog import read_tlog
@@ -79,10 +79,7 @@ def tlog_path(workdir: Path) -> Path:
 
 def key_file(workdir: Path, passphrase: str) -> Path:
     """A private file holding ``passphrase``, for ``--signing-key``."""
-    path = workdir / "signing.key"
-    path.write_text(passphrase + "\n")
-    path.chmod(0o600)
-    return path
+    return write_key_file(workdir / "signing.key", passphrase + "\n")
 
 
 _PROMPT = re.compile(r"^(?:\S+> )+")
@@ -133,12 +130,13 @@ class MavProxy:
         """``arm throttle`` as a pilot does it: again every 3 s until MAVProxy prints a line
         that is exactly "ARMED" (the rover refuses while it still checks its flight
         controller's setup)."""
-        deadline = time.monotonic() + timeout_s
-        while time.monotonic() < deadline:
-            self.send("arm throttle")
-            if self.saw("ARMED", since, 3.0):
-                return True
-        return False
+        again = at_most_every(3.0, lambda: self.send("arm throttle"))
+
+        def armed() -> bool:
+            again()
+            return self.find("ARMED", since) is not None
+
+        return bool(wait_until(armed, timeout_s))
 
     def set_param(self, name: str, value: float, observer: Observer,
                   timeout_s: float = 20.0) -> bool:

@@ -1,15 +1,17 @@
 """Shared fixtures: the lockstep harness (the rover core, the simulated board and the scripted
-ground station in virtual time). Real-socket tests build their own links on port 0."""
+ground station in virtual time). Real-socket tests build their own links on port 0.
+
+Shared helpers that are not fixtures live in support.py (plain code the rigs import too);
+:func:`wait_until` is re-exported here for older ``from conftest import wait_until``."""
 
 from __future__ import annotations
 
 import os
 import re
-import threading
-import time
-from collections.abc import Callable, Generator, Iterator
+from collections.abc import Generator, Iterator
 
 import pytest
+from support import wait_until as wait_until
 
 from mecanum_mav.config.params import Params
 from mecanum_mav.control.fccheck import FcCheckState
@@ -34,18 +36,6 @@ def lockstep(params: Params | dict | None = None, **options) -> Lockstep:
 def harness(request) -> Lockstep:
     """A lockstep harness; parametrize indirectly with a dict of parameter values."""
     return lockstep(getattr(request, "param", None))
-
-
-def wait_until(condition: Callable[[], object], timeout_s: float) -> object:
-    """Poll ``condition`` (which another thread or process makes true) every 10 ms until it
-    returns something true, and return that; None at the deadline."""
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        result = condition()
-        if result:
-            return result
-        threading.Event().wait(0.01)
-    return None
 
 
 @pytest.fixture(autouse=True, scope="session")

@@ -24,15 +24,16 @@ import sys
 import tempfile
 import threading
 import time
-import tty
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from types import TracebackType
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypeVar
 
 from pymavlink import mavutil
+from support import RawPty, at_most_every, wait_until
 
+from mecanum_mav.sim.groundstation import udp_ground_station
 from mecanum_mav.sim.process import CompanionProcess, free_port  # (tests import them here)
 
 if TYPE_CHECKING:
@@ -40,6 +41,9 @@ if TYPE_CHECKING:
 
 __all__ = ["CompanionProcess", "Monitor", "PtyCable", "Rig", "Sample", "Sitl", "find_sitl",
            "free_port"]
+
+R = TypeVar("R", bound="Rig")
+T = TypeVar("T")
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
 DEFAULT_BINARY = REPO_ROOT.parent / "shared" / "ardupilot-sitl" / "ardurover"
@@ -137,25 +141,22 @@ class Monitor:
                         self._acks.append(msg)
                 self._cond.notify_all()
 
-    def _wait_for(self, ready: Callable[[], Any], timeout_s: float,
-                  tick: Callable[[], None] | None = None, period_s: float = 0.05) -> Any:
+    def _wait_for(self, ready: Callable[[], T], timeout_s: float,
+                  tick: Callable[[], object] | None = None, period_s: float = 0.05) -> T | None:
         """``ready()`` (called under the lock) once it is truthy, or None at the deadline;
         ``tick()`` runs every ``period_s`` meanwhile (outside the lock)."""
-        deadline = time.monotonic() + timeout_s
-        next_tick = time.monotonic()
-        while True:
-            now = time.monotonic()
-            if tick is not None and now >= next_tick:
-                tick()
-                next_tick = now + period_s
+        due = at_most_every(period_s, tick or (lambda: None))
+
+        def ready_now() -> T:
+            due()
             with self._cond:
-                if result := ready():
-                    return result
-                now = time.monotonic()
-                if now >= deadline:
-                    return None
-                wake = deadline if tick is None else min(deadline, next_tick)
-                self._cond.wait(max(0.0, wake - now))
+                return ready()
+
+        def sleep(wait_s: float) -> None:  # until a message arrives (notify_all) at the most
+            with self._cond:
+                self._cond.wait(wait_s)
+
+        return wait_until(ready_now, timeout_s, pump=sleep, pump_s=min(period_s, 0.05))
 
     def wait_heartbeat(self, timeout_s: float) -> bool:
         """Whether the firmware's HEARTBEAT came within ``timeout_s``."""
@@ -186,7 +187,6 @@ class Monitor:
         Raises:
             TimeoutError: not within ``timeout_s``.
         """
-        deadline = time.monotonic() + timeout_s
         accepted = False
 
         def ask() -> None:
@@ -200,7 +200,7 @@ class Monitor:
                                        for a in self._acks)
             return accepted and len(self.samples) > 0
 
-        if not self._wait_for(done, deadline - time.monotonic(), tick=ask, period_s=0.3):
+        if not self._wait_for(done, timeout_s, tick=ask, period_s=0.3):
             raise TimeoutError(f"SERVO_OUTPUT_RAW never streamed (accepted={accepted}, "
                                f"acks={[a.result for a in self._acks]})")
 
@@ -211,7 +211,7 @@ class Monitor:
 
     def wait_servos(self, predicate: Callable[[tuple[int, int, int, int]], bool],
                     timeout_s: float, *, since: int | None = None,
-                    tick: Callable[[], None] | None = None,
+                    tick: Callable[[], object] | None = None,
                     period_s: float = 0.05) -> Sample | None:
         """The first sample from index ``since`` (default: from now on) whose SERVO1..4
         satisfy ``predicate``, or None after ``timeout_s``; ``tick()`` runs every
@@ -252,12 +252,12 @@ class PtyCable:
     """
 
     def __init__(self) -> None:
+        self._ptys: list[RawPty] = []
         self._fds: list[int] = []
         try:
-            self._a, a_slave = self._open()
-            self._b, b_slave = self._open()
-            self.fc_path = os.ttyname(a_slave)
-            self.companion_path = os.ttyname(b_slave)
+            self._ptys += [RawPty(), RawPty()]
+            self._a, self._b = (end.master for end in self._ptys)
+            self.fc_path, self.companion_path = (end.path for end in self._ptys)
             self._stop_r, self._stop_w = os.pipe()
             self._fds += [self._stop_r, self._stop_w]
         except BaseException:
@@ -265,13 +265,6 @@ class PtyCable:
             raise
         self._thread = threading.Thread(target=self._run, name="pty-cable", daemon=True)
         self._thread.start()
-
-    def _open(self) -> tuple[int, int]:
-        master, slave = os.openpty()
-        self._fds += [master, slave]
-        tty.setraw(slave)  # no echo, no line editing, no CR/LF translation
-        os.set_blocking(master, False)
-        return master, slave
 
     def _run(self) -> None:
         peer = {self._a: self._b, self._b: self._a}
@@ -292,19 +285,27 @@ class PtyCable:
                 self._write(peer[src], data)
 
     def _write(self, fd: int, data: bytes) -> None:
-        deadline = time.monotonic() + 0.1
-        while data and time.monotonic() < deadline:
+        """Write ``data`` to ``fd`` as it takes it, for 0.1 s at the most."""
+
+        def written() -> bool:
+            nonlocal data
             try:
                 data = data[os.write(fd, data):]
             except (BlockingIOError, InterruptedError):
-                select.select([], [fd], [], 0.01)
+                return False
             except OSError:
-                return
+                return True  # the end is gone: drop it, like a wire
+            return not data
+
+        wait_until(written, 0.1, pump=lambda wait_s: select.select([], [fd], [], wait_s),
+                   pump_s=0.01)
 
     def close(self) -> None:
         if hasattr(self, "_thread"):
             os.write(self._stop_w, b"x")
             self._thread.join(timeout=2)
+        for end in self._ptys:
+            end.close()
         for fd in self._fds:
             with contextlib.suppress(OSError):
                 os.close(fd)
@@ -500,6 +501,20 @@ class Rig:
         self.companion = companion
         assert fc.monitor is not None
         self.monitor = fc.monitor
+
+    @classmethod
+    @contextlib.contextmanager
+    def on(cls: type[R], fc: Sitl, workdir: Path, *options: str,
+           fc_url: str | None = None) -> Iterator[R]:
+        """A companion process on ``fc`` (``mecanum-mav run --fc fc.fc_url *options``, its
+        files in ``workdir``; ``fc_url`` instead of the board's own, e.g. a relay in the
+        link) and a scripted ground station on UDP: the three, as ``cls``."""
+        gcs, port = udp_ground_station()
+        try:
+            with CompanionProcess(port.url, fc_url or fc.fc_url, workdir, *options) as process:
+                yield cls(fc, gcs, process)
+        finally:
+            port.close()
 
     def why(self) -> str:
         return (f"last SERVO1..4: {self.monitor.last()}\ncompanion: {self.companion.log()}"

@@ -10,7 +10,7 @@ import signal
 from pathlib import Path
 
 import pytest
-from conftest import wait_until
+from support import wait_until
 
 from mecanum_mav.io.claims import InUseError, claim_ground_station
 from mecanum_mav.sim.process import CliProcess, free_port

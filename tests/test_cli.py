@@ -9,10 +9,10 @@ import signal
 import socket
 import subprocess
 import sys
-import time
 
 import pytest
 from sitl import CompanionProcess
+from support import wait_until
 
 from mecanum_mav.app import cli
 from mecanum_mav.app.cli import main, run_batch
@@ -198,10 +198,7 @@ def test_run_prints_its_refusal_counts_on_sigusr1_and_at_exit(tmp_path):
                 return [line for line in companion.log().splitlines() if "refused " in line]
 
             companion.proc.send_signal(signal.SIGUSR1)
-            deadline = time.monotonic() + 5.0
-            while not status_lines() and time.monotonic() < deadline:
-                gcs.pump(0.05)
-            assert status_lines(), companion.log()
+            assert wait_until(status_lines, 5.0, pump=gcs.pump), companion.log()
             assert status_lines()[0].endswith("refused 2 (stick 1, param 1)")
             companion.terminate()
             assert companion.wait(10.0) == 0, companion.log()

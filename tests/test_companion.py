@@ -21,12 +21,12 @@ from __future__ import annotations
 
 import math
 import threading
-import time
 from collections.abc import Callable
 from itertools import pairwise
 
 import pytest
-from conftest import lockstep, wait_until
+from conftest import lockstep
+from support import junk_packets, status_texts, wait_until
 
 from mecanum_mav.app.companion import Companion
 from mecanum_mav.config.params import Params
@@ -123,12 +123,6 @@ def command(h: Lockstep, cmd: int, *params: float, target: tuple[int, int] = (1,
     return since
 
 
-def texts(h: Lockstep, since: int) -> list[str]:
-    """The STATUSTEXTs received from index ``since`` until now."""
-    h.gcs.mark()
-    return [m.text for m in h.gcs.received("STATUSTEXT", since)]
-
-
 def statustext(h: Lockstep, fragment: str, since: int, timeout_s: float = 1.0):
     """The first STATUSTEXT containing ``fragment`` from index ``since``, waiting up to
     ``timeout_s``; ``h.now_s`` is then the step it arrived in (if it arrived while waiting)."""
@@ -150,9 +144,7 @@ def armed(h: Lockstep) -> Lockstep:
 def junk(h: Lockstep) -> list[bytes]:
     """Random bytes and truncated packets (one datagram each), as a broken radio delivers."""
     good = h.gcs.mav.command_long_encode(1, 1, ARM, 0, 1, 0, 0, 0, 0, 0, 0)
-    packet = bytes(good.pack(h.gcs.mav))
-    return [bytes(range(256)), b"\xfd" * 300, packet[:7], packet[:-3], b"\xfd\x09\x00\x00",
-            packet[:10] + b"\x00" * 50] * JUNK_SETS
+    return junk_packets(bytes(good.pack(h.gcs.mav))) * JUNK_SETS
 
 
 def full(pulses: list[int]) -> list[int]:
@@ -197,7 +189,7 @@ def test_arm_is_acknowledged_in_the_step_it_arrives_and_reported(harness):
     ack = acks[0]
     assert (ack.command, ack.result) == (ARM, ACCEPTED)
     assert (ack.target_system, ack.target_component) == (255, 190)
-    assert any(t.startswith("Armed") for t in texts(h, since))  # reported in the same step
+    assert any(t.startswith("Armed") for t in status_texts(h, since))  # reported in the same step
     hb = heartbeat(h, lambda m: m.base_mode & ARMED_FLAG)
     assert hb.system_status == mavlink.MAV_STATE_ACTIVE
     assert hb.base_mode & mavlink.MAV_MODE_FLAG_MANUAL_INPUT_ENABLED
@@ -262,7 +254,7 @@ def test_auto_without_a_mission_and_unknown_modes_are_denied_with_a_reason(harne
     h = harness
     since = h.gcs.mark()
     assert h.gcs.command(SET_MODE, CUSTOM, mode).result == DENIED
-    assert any(name in t for t in texts(h, since))
+    assert any(name in t for t in status_texts(h, since))
     assert h.core.vehicle.mode is Mode.MANUAL
 
 
@@ -390,7 +382,7 @@ def test_out_of_range_stick_is_rejected_and_never_moves_the_robot(harness):
     _, stop = stream(h, 1500)
     h.run_for(1.0)
     stop()
-    said = texts(h, since)
+    said = status_texts(h, since)
     assert said.count("Rejected: MANUAL_CONTROL x=1500 not in +-1000") == 1  # once a second
     seen = h.overrides_since(t0)
     assert seen and all(wheels(o) == NEUTRAL for o in seen)
@@ -447,7 +439,7 @@ def test_ground_station_rc_override_with_an_absurd_pulse_is_rejected(harness):
     h.gcs.mav.rc_channels_override_send(1, 1, 65535, 65535, 40000, 65535, 65535, 65535,
                                         65535, 65535)
     h.step()
-    assert texts(h, since) == ["Rejected: RC ch3=40000 not in 800..2200 us"]
+    assert status_texts(h, since) == ["Rejected: RC ch3=40000 not in 800..2200 us"]
     assert answer_at(h, t0) is None  # nothing applied
     h.run_for(0.5)
     assert all(wheels(o) == NEUTRAL for o in h.overrides_since(t0))
@@ -514,7 +506,7 @@ def test_stale_manual_control_returns_wheels_to_neutral_at_the_timeout_and_resum
     assert lost is not None and lost.severity == Severity.WARNING
     resumed = drive(h, 1000)
     assert resumed is not None and wheels(resumed) == FORWARD
-    assert "Manual input resumed" in texts(h, since)
+    assert "Manual input resumed" in status_texts(h, since)
 
 
 @pytest.mark.parametrize(("action", "armed_after"), [(0, True), (1, False)])
@@ -559,12 +551,12 @@ def test_flight_controller_loss_disarms_reports_and_refuses_to_arm():
     assert statustext(h, "Flight controller link lost", since, 3.0)
     fired = h.now_s
     assert timeout_s < fired - last_beat <= timeout_s + h.dt_s + EPS
-    assert "Disarmed: flight controller link lost" in texts(h, since)  # in the same step
+    assert "Disarmed: flight controller link lost" in status_texts(h, since)  # in the same step
     assert not h.core.vehicle.armed
     assert heartbeat(h).system_status == mavlink.MAV_STATE_CRITICAL
     since = h.gcs.mark()
     assert h.gcs.command(ARM, 1).result == DENIED
-    assert any("flight controller link down" in t for t in texts(h, since))
+    assert any("flight controller link down" in t for t in status_texts(h, since))
     h.board.beating = True
     assert statustext(h, "Flight controller link up", since, 1.0 + 2 * h.dt_s)
     # the board is read again (it may have rebooted with other settings): arm once it was
@@ -704,14 +696,15 @@ def test_a_flood_of_distinct_bad_sticks_is_said_once_a_second_and_counted_whole(
         if x % 10 == 0:
             h.step()
     h.step()
-    assert [t for t in texts(h, since) if t.startswith("Rejected")] == [
+    assert [t for t in status_texts(h, since) if t.startswith("Rejected")] == [
         "Rejected: MANUAL_CONTROL x=1001 not in +-1000"]
     assert h.core.refusals.counts[Refusal.STICK] == len(xs)
     h.run_for(REFUSAL_REPEAT_S)
     since = h.gcs.mark()
     h.gcs.mav.manual_control_send(1, 1300, 0, 500, 0, 0)
     h.step()
-    assert texts(h, since) == ["Rejected: MANUAL_CONTROL x=1300 not in +-1000"]  # a second on
+    # a second on
+    assert status_texts(h, since) == ["Rejected: MANUAL_CONTROL x=1300 not in +-1000"]
 
 
 def test_each_kind_of_refusal_is_said_on_its_own_clock_and_named_in_the_status_line():
@@ -722,7 +715,7 @@ def test_each_kind_of_refusal_is_said_on_its_own_clock_and_named_in_the_status_l
     h.gcs.mav.command_long_send(1, 1, ARM, 0, 7, 0, 0, 0, 0, 0, 0)
     h.gcs.mav.set_mode_send(1, mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 99)
     h.run_for(0.1)
-    said = texts(h, since)
+    said = status_texts(h, since)
     assert said[:1] == ["Rejected: MANUAL_CONTROL x=2000 not in +-1000"]
     assert any(t.startswith("Param refused: OUT_RATE") for t in said), said
     assert "Arm/disarm: param1 must be 0 or 1, got 7.0" in said
@@ -785,18 +778,15 @@ def test_the_companion_shell_counts_junk_datagrams_per_link_and_keeps_driving():
     try:
         assert gcs.wait("STATUSTEXT", lambda m: "Flight controller link up" in m.text, 5.0)
         good = gcs.mav.command_long_encode(1, 1, ARM, 0, 1, 0, 0, 0, 0, 0, 0)
-        packet = bytes(good.pack(mavlink.MAVLink(None, 255, 190)))
-        blobs = [bytes(range(256)), b"\xfd" * 300, packet[:7], packet[:-3], b"\xfd\x09\x00\x00",
-                 packet[:10] + b"\x00" * 50] * JUNK_SETS
+        blobs = junk_packets(bytes(good.pack(mavlink.MAVLink(None, 255, 190)))) * JUNK_SETS
         # From each peer's own socket: a udpout link's socket is connected to its peer, and
         # the kernel drops a stranger's datagrams (tests/test_links.py).
         for peer, link in ((port.link, companion.gcs), (sim._link, companion.fc)):
             for blob in blobs:
                 peer.conn.port.sendto(blob, ("127.0.0.1", link.local_port))
         c = companion
-        deadline = time.monotonic() + 5.0
-        while (c.gcs.bad < len(blobs) or c.fc.bad < len(blobs)) and time.monotonic() < deadline:
-            gcs.pump(0.05)
+        wait_until(lambda: c.gcs.bad >= len(blobs) and c.fc.bad >= len(blobs), 5.0,
+                   pump=gcs.pump)
         assert c.gcs.bad >= len(blobs) and c.fc.bad >= len(blobs), (c.gcs.bad, c.fc.bad)
         since = gcs.mark()
         ack = gcs.command(mavlink.MAV_CMD_REQUEST_MESSAGE, mavlink.MAVLINK_MSG_ID_SYS_STATUS)
@@ -805,13 +795,13 @@ def test_the_companion_shell_counts_junk_datagrams_per_link_and_keeps_driving():
         # both links' counters, through the shell's link_errors
         assert status.errors_comm == c.gcs.bad + c.fc.bad + c.gcs.send_errors + c.fc.send_errors
         gcs.arm()
-        forward = None
-        deadline = time.monotonic() + 2.0
-        while forward is None and time.monotonic() < deadline:
+
+        def forward() -> object:
             gcs.sticks(1000)
-            forward = sim.wait_for(lambda s: [s.channel_pwm.get(ch) for ch in (1, 2, 3, 4)]
-                                   == FORWARD, 0.1)
-        assert forward is not None
+            return sim.wait_for(lambda s: [s.channel_pwm.get(ch) for ch in (1, 2, 3, 4)]
+                                == FORWARD, 0.1)
+
+        assert wait_until(forward, 2.0) is not None
     finally:
         companion.close()
         sim.stop()

@@ -9,8 +9,6 @@ companion's tlog or relayed by its odometry.
 
 from __future__ import annotations
 
-import os
-import select
 import signal
 import struct
 import subprocess
@@ -21,6 +19,8 @@ from pathlib import Path
 from typing import Any, TypeVar
 
 import pytest
+from support import PtyFlightController, at_most_every, wait_until
+from support import override_channels as channels
 
 from mecanum_mav.app.companion import Companion
 from mecanum_mav.config.params import Params
@@ -44,11 +44,6 @@ def fc_link_up(gcs: ScriptedGroundStation, timeout_s: float = 5.0) -> bool:
     on): it accepts arming only then."""
     return gcs.wait("STATUSTEXT", lambda m: m.text == "Flight controller link up", timeout_s,
                     since=0) is not None
-
-
-def channels(msg: Any) -> list[int]:
-    """The 18 chanN_raw fields of an RC_CHANNELS_OVERRIDE."""
-    return [getattr(msg, f"chan{i}_raw") for i in range(1, 19)]
 
 
 # --------------------------------------------------------------------------- virtual time
@@ -125,18 +120,13 @@ def stream_real(gcs: ScriptedGroundStation, until: Callable[[], T], x: int = 0, 
                 r: int = 0, timeout_s: float = 5.0) -> T | None:
     """MANUAL_CONTROL at 50 Hz of wall-clock time on a real link until ``until()`` returns
     something truthy (returned), or None after ``timeout_s``."""
-    now = time.monotonic()
-    deadline, next_s = now + timeout_s, now
-    while now < deadline:
-        if now >= next_s:
-            gcs.mav.manual_control_send(1, x, y, 500, r, 0)
-            next_s += STICK_PERIOD_S
-        gcs.pump(max(0.0, min(next_s, deadline) - now))
-        result = until()
-        if result:
-            return result
-        now = time.monotonic()
-    return None
+    stick = at_most_every(STICK_PERIOD_S, lambda: gcs.mav.manual_control_send(1, x, y, 500, r, 0))
+
+    def pump(wait_s: float) -> None:
+        stick()
+        gcs.pump(wait_s)
+
+    return wait_until(until, timeout_s, pump=pump, pump_s=STICK_PERIOD_S)
 
 
 def read_tlog(path: Path) -> list:
@@ -221,54 +211,28 @@ def test_simfc_runs_as_its_own_process_behind_a_real_udp_link():
     assert proc.returncode == 0
 
 
-class SerialFlightController:
-    """A flight controller on the master side of a pseudo-terminal (the USB cable)."""
-
-    def __init__(self) -> None:
-        self.master, self.slave = os.openpty()
-        self.path = os.ttyname(self.slave)
-        self.mav = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
-        self.mav.robust_parsing = True
-        self.messages: list = []
-
-    def heartbeat(self) -> None:
-        msg = self.mav.heartbeat_encode(mavlink.MAV_TYPE_GROUND_ROVER,
-                                        mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA, 0, 0, 3)
-        os.write(self.master, msg.pack(self.mav))
-
-    def pump(self, timeout_s: float) -> None:
-        if select.select([self.master], [], [], timeout_s)[0]:
-            data = os.read(self.master, 4096)
-            self.messages += [m for m in self.mav.parse_buffer(data) or []
-                              if m.get_type() != "BAD_DATA"]
-
-    def close(self) -> None:
-        os.close(self.master)
-        os.close(self.slave)
-
-
 def test_flight_controller_link_works_over_a_serial_device():
-    fc = SerialFlightController()
+    fc = PtyFlightController()  # a flight controller on the master side of a pty (the cable)
     gcs, port = udp_ground_station()
     companion = Companion(Params(), port.url, f"{fc.path},115200")
     companion.start()
     try:
         assert gcs.wait("HEARTBEAT", timeout_s=3.0)
-        deadline = time.monotonic() + 5.0
-        armed = False
-        while not armed and time.monotonic() < deadline:
-            fc.heartbeat()
+
+        def armed() -> bool:
             fc.pump(0.05)
             ack = gcs.command(ARM, 1, timeout_s=0.2)
-            armed = ack is not None and ack.result == 0
-        assert armed, "no arming: the companion never heard the serial heartbeat"
-        seen = None
-        while seen is None and time.monotonic() < deadline:
+            return ack is not None and ack.result == 0
+
+        assert wait_until(armed, 5.0), "no arming: the companion never heard the serial heartbeat"
+
+        def strafing() -> Any:
             gcs.mav.manual_control_send(1, 0, 1000, 500, 0, 0)
-            fc.heartbeat()
             fc.pump(0.05)
-            seen = next((m for m in fc.messages if m.get_type() == "RC_CHANNELS_OVERRIDE"
+            return next((m for m in fc.messages if m.get_type() == "RC_CHANNELS_OVERRIDE"
                          and channels(m)[:4] == [2000, 1000, 1000, 2000]), None)
+
+        seen = wait_until(strafing, 5.0)
         assert seen is not None and seen.get_srcSystem() == 255
         assert struct.unpack("<B", seen.get_msgbuf()[:1])[0] == 0xFD
     finally:

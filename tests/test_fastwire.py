@@ -10,6 +10,7 @@ import struct
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from support import mavlink_sender
 
 from mecanum_mav.io.links import open_link
 from mecanum_mav.io.tlog import tlog_record
@@ -79,13 +80,9 @@ def messages(draw, cls):
 
 def link_mav(signed: bool, seq: int = 0, timestamp: int = 10**12, system: int = 1,
              component: int = 1):
-    mav = mavlink.MAVLink(None, srcSystem=system, srcComponent=component)
+    mav = mavlink_sender(KEY if signed else None, sysid=system, compid=component, link_id=3,
+                         timestamp=timestamp)
     mav.seq = seq
-    if signed:
-        mav.signing.secret_key = KEY
-        mav.signing.link_id = 3
-        mav.signing.timestamp = timestamp
-        mav.signing.sign_outgoing = True
     return mav
 
 

@@ -9,6 +9,7 @@ import math
 
 import pytest
 from conftest import lockstep
+from support import status_texts
 
 from mecanum_mav.control.guided import SetpointError, decode_setpoint
 from mecanum_mav.io.links import mavlink
@@ -42,12 +43,6 @@ def stream(h: Lockstep, seconds: float, **kwargs) -> list[float]:
     h.run_for(seconds)
     stop()
     return sent
-
-
-def texts(h: Lockstep, since: int) -> list[str]:
-    """The STATUSTEXTs received from index ``since`` until now."""
-    h.gcs.mark()  # collect what has arrived
-    return [m.text for m in h.gcs.received("STATUSTEXT", since)]
 
 
 def moved_m(h: Lockstep) -> float:
@@ -176,7 +171,7 @@ def test_bad_setpoints_are_rejected_with_a_reason_and_never_move_it(rover, field
     since, start_s = h.gcs.mark(), h.now_s
     stream(h, 0.4, **{"vx": 0.5, **fields})
     # Nine setpoints rejected, said once (the same rejection at most once a second).
-    said = texts(h, since)
+    said = status_texts(h, since)
     assert said[0].startswith("Rejected: setpoint: ")
     assert sum(reason in t for t in said) == 1
     assert moved_m(h) == 0.0
@@ -188,7 +183,7 @@ def test_setpoints_outside_guided_are_refused_with_a_reason():
     h.gcs.arm()
     since, start_s = h.gcs.mark(), h.now_s
     stream(h, 0.3, vx=0.5)
-    assert texts(h, since) == ["Rejected: setpoint: not in GUIDED"]  # said once
+    assert status_texts(h, since) == ["Rejected: setpoint: not in GUIDED"]  # said once
     assert moved_m(h) == 0.0
     assert all(o.channels[:4] == [1500] * 4 for o in h.overrides_since(start_s))
 

@@ -13,9 +13,8 @@ import time
 from pathlib import Path
 
 import pytest
-from conftest import wait_until
-from fakefc import FakeFlightController, Override
 from sitl import CompanionProcess
+from support import FakeFlightController, Override, wait_until
 
 from mecanum_mav.sim.groundstation import udp_ground_station
 

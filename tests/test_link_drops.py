@@ -8,6 +8,7 @@ The I/O itself (ptys, sockets, the process's CPU) is tested in test_link_reconne
 
 from __future__ import annotations
 
+from support import status_texts
 from test_end_to_end import NEUTRAL, WHEELS, stream_sticks
 
 from mecanum_mav.protocol.modes import Mode
@@ -15,10 +16,6 @@ from mecanum_mav.protocol.rcoverride import override_fields
 from mecanum_mav.sim.lockstep import Lockstep
 
 FORWARD = override_fields(WHEELS, [2000] * 4)
-
-
-def texts(h: Lockstep, since: int = 0) -> list[str]:
-    return [m.text for m in h.gcs.received("STATUSTEXT", since)]
 
 
 def drive_forward(h: Lockstep) -> None:
@@ -34,7 +31,7 @@ def test_an_unplugged_flight_controller_is_reported_once_and_disarms_at_once(har
     unplugged_s = h.now_s
     # the pilot keeps pushing the stick for 5 s (longer than FS_FC_TMO, 3 s)
     stream_sticks(h, lambda: None, 1000, timeout_s=5.0)
-    said = texts(h, since)
+    said = status_texts(h, since)
     assert said.count("FC link down: device gone; reconnecting") == 1
     assert said.count("Flight controller link lost") == 1
     assert said.count("Disarmed: flight controller link lost") == 1
@@ -59,8 +56,8 @@ def test_after_replugging_the_first_override_is_neutral_and_driving_needs_arming
     stream_sticks(h, lambda: None, 1000, timeout_s=1.0)
     after = h.overrides_since(replugged_s)
     assert after and all(o.channels == NEUTRAL for o in after)
-    assert "FC link reconnected" in texts(h, since)
-    assert "Flight controller link up" in texts(h, since)
+    assert "FC link reconnected" in status_texts(h, since)
+    assert "Flight controller link up" in status_texts(h, since)
     h.gcs.arm()
     assert stream_sticks(h, lambda: h.overrides[-1].channels == FORWARD, 1000, timeout_s=1.0)
 
@@ -74,6 +71,6 @@ def test_a_broken_ground_station_link_brings_the_wheels_to_neutral_at_once_and_h
     h.step()
     assert [o.channels for o in h.overrides if o.time_s > broken_s] == [NEUTRAL]
     assert h.core.vehicle.mode is Mode.HOLD  # FS_GCS_ACTION 0: HOLD, as a lost heartbeat
-    said = texts(h, since)
+    said = status_texts(h, since)
     assert said[0] == "GCS link down: closed by the peer; reconnecting"
     assert "GCS link lost: failsafe" in said

@@ -13,15 +13,14 @@ CPU is tools/bench_link_down.py's figure.
 from __future__ import annotations
 
 import contextlib
-import os
 import socket
 import time
-import tty
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
 from sitl import CompanionProcess, free_port
+from support import FlightControllerEnd, PtyFlightController, at_most_every, wait_until
 from test_end_to_end import ARM, NEUTRAL, STICK_PERIOD_S, WHEELS, channels
 
 from mecanum_mav.app.companion import Companion
@@ -40,68 +39,6 @@ ANSWER_DEADLINE_S = PEER_TIMEOUT_S / 2
 forgotten (a peer silent for PEER_TIMEOUT_S)."""
 
 
-class FcEnd:
-    """The flight controller's end of one connection (a pty master or a socket): sends
-    HEARTBEAT every ``BEAT_PERIOD_S`` when pumped, parses what the companion sends."""
-
-    def __init__(self, read: Callable[[], bytes], write: Callable[[bytes], Any],
-                 close: Callable[[], None]) -> None:
-        self._read, self._write, self.close = read, write, close
-        self.mav = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
-        self.mav.robust_parsing = True
-        self.messages: list[Any] = []
-        self.first_byte_s: float | None = None
-        self._beat_s = -1.0
-
-    @classmethod
-    def on_socket(cls, sock: socket.socket) -> FcEnd:
-        sock.setblocking(False)
-        return cls(lambda: sock.recv(4096), sock.send, sock.close)
-
-    def pump(self) -> None:
-        now = time.monotonic()
-        if now - self._beat_s >= BEAT_PERIOD_S:
-            self._beat_s = now
-            self._write(self.mav.heartbeat_encode(
-                mavlink.MAV_TYPE_GROUND_ROVER, mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA, 0, 0,
-                mavlink.MAV_STATE_STANDBY).pack(self.mav))
-        while True:
-            try:
-                data = self._read()
-            except (BlockingIOError, InterruptedError):
-                return
-            if not data:
-                return
-            if self.first_byte_s is None:
-                self.first_byte_s = time.monotonic()
-            self.messages += [m for m in self.mav.parse_buffer(data) or []
-                              if m.get_type() != "BAD_DATA"]
-
-    def overrides(self) -> list[list[int]]:
-        return [channels(m) for m in self.messages if m.get_type() == "RC_CHANNELS_OVERRIDE"]
-
-
-class PtyCable:
-    """A pseudo-terminal behind ``path`` (a symlink): the companion opens the path."""
-
-    def __init__(self, path: Path) -> None:
-        self.path = path
-        master, slave = os.openpty()
-        tty.setraw(slave)  # no echo, no CR/LF translation
-        os.set_blocking(master, False)
-        path.symlink_to(os.ttyname(slave))
-        self.fds = (master, slave)  # the slave stays open here: no EIO before the companion
-        self.fc = FcEnd(lambda: os.read(master, 4096), lambda b: os.write(master, b),
-                        self.unplug)
-
-    def unplug(self) -> None:
-        """The USB cable is pulled: the device node vanishes, the companion's end reads EIO."""
-        self.path.unlink(missing_ok=True)
-        for fd in self.fds:
-            os.close(fd)
-        self.fds = ()
-
-
 class Pilot:
     """The test's loop: the ground station (pumped, sticks at 50 Hz while ``stick`` is set)
     and the flight controller's end (``fc``, pumped when set)."""
@@ -110,24 +47,24 @@ class Pilot:
         self.gcs = gcs
         self.fc_link = fc_link
         """The companion's own flight-controller link, when it runs in this process."""
-        self.fc: FcEnd | None = None
+        self.fc: FlightControllerEnd | None = None
         self.stick: tuple[int, int, int] | None = None
-        self._stick_s = 0.0
+        self._send_stick = at_most_every(STICK_PERIOD_S, self._stick)
 
     def run_until(self, done: Callable[[], Any], timeout_s: float) -> Any:
-        deadline = time.monotonic() + timeout_s
-        while True:
-            if self.fc is not None:
-                self.fc.pump()
-            result = done()
-            now = time.monotonic()
-            if result or now > deadline:
-                return result
-            if self.stick is not None and now - self._stick_s >= STICK_PERIOD_S:
-                self._stick_s = now
-                x, y, r = self.stick
-                self.gcs.mav.manual_control_send(1, x, y, 500, r, 0)
-            self.gcs.pump(0.01)
+        return wait_until(done, timeout_s, pump=self._pump, pump_s=0.01)
+
+    def _pump(self, wait_s: float) -> None:
+        if self.fc is not None:
+            self.fc.pump()
+        if self.stick is not None:
+            self._send_stick()
+        self.gcs.pump(wait_s)
+
+    def _stick(self) -> None:
+        assert self.stick is not None
+        x, y, r = self.stick
+        self.gcs.mav.manual_control_send(1, x, y, 500, r, 0)
 
     def reopen_tries(self, count: int) -> bool:
         """Wait until the companion's flight-controller link has tried to reopen ``count``
@@ -170,10 +107,10 @@ class Pilot:
 def test_an_unplugged_serial_flight_controller_is_reported_once_and_reopened_on_its_path(
         tmp_path: Path) -> None:
     device = tmp_path / "ttyFC"
-    cable = PtyCable(device)
+    cable = PtyFlightController(device)
     gcs, port = udp_ground_station()
     pilot = Pilot(gcs)
-    pilot.fc = cable.fc
+    pilot.fc = cable
     try:
         with CompanionProcess(port.url, f"{device},57600", tmp_path) as companion:
             assert pilot.run_until(lambda: pilot.said("Flight controller link up"), 15.0), (
@@ -186,10 +123,10 @@ def test_an_unplugged_serial_flight_controller_is_reported_once_and_reopened_on_
             assert pilot.run_until(lambda: pilot.said(FC_DOWN, since), DEADLINE_S), (
                 companion.log())
             # plug it back in: the same path, a new pty
-            cable = PtyCable(device)
-            pilot.fc = cable.fc
+            cable = PtyFlightController(device)
+            pilot.fc = cable
             plugged = time.monotonic()
-            fc = cable.fc
+            fc = cable
             assert pilot.run_until(lambda: fc.messages, DEADLINE_S), companion.log()
             reopened_s = (fc.first_byte_s or plugged) - plugged
             first = fc.messages[0]
@@ -234,7 +171,7 @@ def test_a_tcp_flight_controller_that_closes_is_reported_once_and_reconnected(
     with contextlib.ExitStack() as cleanup, companion_with_fc(
             f"tcp:{address[0]}:{address[1]}") as pilot:
         cleanup.callback(lambda: [s.close() for s in servers])
-        pilot.fc = FcEnd.on_socket(server.accept()[0])
+        pilot.fc = FlightControllerEnd.on_socket(server.accept()[0])
         assert pilot.run_until(lambda: pilot.said("Flight controller link up"), DEADLINE_S)
         assert pilot.arm() and pilot.drive()
         # the flight controller goes away altogether: its connection and its server
@@ -259,7 +196,7 @@ def test_a_tcp_flight_controller_that_closes_is_reported_once_and_reconnected(
         sock = pilot.run_until(accepted, DEADLINE_S)
         assert sock is not None
         reconnect_s = time.monotonic() - back
-        pilot.fc = fc = FcEnd.on_socket(sock)
+        pilot.fc = fc = FlightControllerEnd.on_socket(sock)
         assert pilot.run_until(lambda: fc.messages, DEADLINE_S)
         assert fc.overrides()[:1] == [NEUTRAL] and fc.messages[0].get_type() == (
             "RC_CHANNELS_OVERRIDE")
@@ -276,7 +213,7 @@ def test_a_tcpin_flight_controller_client_that_leaves_is_reported_once_and_a_new
         ) -> None:
     tcp_port = free_port(socket.SOCK_STREAM)
     with companion_with_fc(f"tcpin:127.0.0.1:{tcp_port}") as pilot:
-        pilot.fc = FcEnd.on_socket(socket.create_connection(("127.0.0.1", tcp_port)))
+        pilot.fc = FlightControllerEnd.on_socket(socket.create_connection(("127.0.0.1", tcp_port)))
         assert pilot.run_until(lambda: pilot.said("Flight controller link up"),
                                DEADLINE_S)
         since = pilot.gcs.mark()
@@ -284,7 +221,8 @@ def test_a_tcpin_flight_controller_client_that_leaves_is_reported_once_and_a_new
         pilot.fc = None
         assert pilot.run_until(lambda: pilot.said(FC_DOWN, since), DEADLINE_S)
         start = time.monotonic()
-        pilot.fc = fc = FcEnd.on_socket(socket.create_connection(("127.0.0.1", tcp_port)))
+        pilot.fc = fc = FlightControllerEnd.on_socket(
+            socket.create_connection(("127.0.0.1", tcp_port)))
         assert pilot.run_until(lambda: pilot.said("FC link reconnected", since),
                                DEADLINE_S)
         heard_s = time.monotonic() - start

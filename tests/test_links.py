@@ -11,7 +11,7 @@ import threading
 import time
 
 import pytest
-from conftest import wait_until
+from support import mavlink_sender, read_for, wait_until
 
 from mecanum_mav.config.params import Params
 from mecanum_mav.control.core import LinkCounts, RoverCore
@@ -130,9 +130,7 @@ def test_a_signing_link_signs_no_earlier_than_the_newest_verified_packet_it_rece
     board.settimeout(5.0)
     try:
         def beat(secret: bytes, timestamp: int) -> bytes:
-            mav = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
-            mav.signing.secret_key, mav.signing.sign_outgoing = secret, True
-            mav.signing.link_id, mav.signing.timestamp = 1, timestamp
+            mav = mavlink_sender(secret, sysid=1, compid=1, link_id=1, timestamp=timestamp)
             return bytes(mavlink.MAVLink_heartbeat_message(10, 3, 0, 0, 3, 3).pack(mav))
 
         def sent_timestamps() -> list[int]:
@@ -144,10 +142,10 @@ def test_a_signing_link_signs_no_earlier_than_the_newest_verified_packet_it_rece
         forged = beat(bytes(32), now + 86_400 * TICKS_PER_S)  # another key, a day ahead
         for packet in (beat(key, ahead), forged):
             board.sendto(packet, ("127.0.0.1", link.local_port))
-            deadline = time.monotonic() + 5.0
-            while not link.read() and link.signature_check.new_rejections == 0:
-                assert time.monotonic() < deadline, "the link never read the packet"
-                select.select([link.fileno()], [], [], 0.05)
+            assert wait_until(
+                lambda: link.read() or link.signature_check.new_rejections, 5.0,
+                pump=lambda wait_s: select.select([link.fileno()], [], [], wait_s)), (
+                "the link never read the packet")
         stamps = sent_timestamps()
         assert ahead <= stamps[0] < stamps[1] < ahead + TICKS_PER_S, stamps
     finally:
@@ -165,12 +163,8 @@ def _peer_socket(address: tuple[str, int] = ("127.0.0.1", 0)) -> socket.socket:
 
 def _datagrams(sock: socket.socket, timeout_s: float = 2.0) -> list[bytes]:
     """Every datagram that reaches ``sock`` within ``timeout_s`` of the first (none: [])."""
-    out: list[bytes] = []
-    deadline = time.monotonic() + timeout_s
-    while (left := deadline - time.monotonic()) > 0 and select.select([sock], [], [], left)[0]:
-        out.append(sock.recv(65536))
-        deadline = min(deadline, time.monotonic() + 0.2)  # the rest follow at once
-    return out
+    return read_for(sock.fileno(), lambda: [sock.recv(65536)], timeout_s,
+                    settle_s=0.2)  # the rest follow at once
 
 
 def test_send_all_on_a_datagram_link_packs_whole_packets_into_few_datagrams():

@@ -9,6 +9,7 @@ from collections.abc import Sequence
 import numpy as np
 import pytest
 from conftest import lockstep
+from support import status_texts
 
 from mecanum_mav.config.params import Params
 from mecanum_mav.io.links import mavlink
@@ -25,11 +26,6 @@ def answers(h: Lockstep, since: int) -> list:
     h.step()
     h.gcs.mark()
     return h.gcs.received("PARAM_VALUE", since)
-
-
-def texts(h: Lockstep, since: int) -> list[str]:
-    h.gcs.mark()
-    return [m.text for m in h.gcs.received("STATUSTEXT", since)]
 
 
 def set_param(h: Lockstep, name: str, value: float, ptype: int = REAL32):
@@ -104,7 +100,7 @@ def test_param_set_out_of_range_answers_the_unchanged_value_and_says_why(harness
     since = h.gcs.mark()
     reply = set_param(h, "WHL_MAX_SPD", 500.0)
     assert reply is not None and reply.param_value == 1.0
-    said = [t for t in texts(h, since) if "WHL_MAX_SPD" in t]  # in the same step
+    said = [t for t in status_texts(h, since) if "WHL_MAX_SPD" in t]  # in the same step
     assert len(said) == 1 and "outside" in said[0]
     assert h.core.params["WHL_MAX_SPD"] == 1.0
 
@@ -131,7 +127,7 @@ def test_an_identity_change_is_stored_and_flagged_for_a_restart(harness):
     since = h.gcs.mark()
     assert set_param(h, "SYSID_THISMAV", 7.0, INT32).param_value == 7.0
     assert h.core.params["SYSID_THISMAV"] == 7
-    assert "SYSID_THISMAV takes effect after a restart" in texts(h, since)
+    assert "SYSID_THISMAV takes effect after a restart" in status_texts(h, since)
     hb = h.gcs.wait("HEARTBEAT", timeout_s=1.1, since=h.gcs.mark())
     assert hb is not None and hb.get_srcSystem() == 1  # the link keeps its id (the harness's)
 
@@ -168,7 +164,7 @@ def test_only_accepted_sets_are_saved_and_a_failed_save_is_reported():
     reply = set_param(h, "INP_EXPO", 0.4)
     assert reply is not None and reply.param_value == pytest.approx(0.4)
     assert h.core.params["INP_EXPO"] == 0.4  # in force, only not kept
-    assert "Param save failed: No space left on device" in texts(h, since)
+    assert "Param save failed: No space left on device" in status_texts(h, since)
 
 
 def test_parameter_messages_for_another_system_are_ignored(harness):
@@ -187,4 +183,4 @@ def test_a_geometry_change_is_stored_and_flagged_for_a_restart(harness):
     since = h.gcs.mark()
     assert set_param(h, "GEO_HALF_LEN", 0.2).param_value == pytest.approx(0.2)
     assert h.core.params["GEO_HALF_LEN"] == pytest.approx(0.2)
-    assert "GEO_HALF_LEN takes effect after a restart" in texts(h, since)
+    assert "GEO_HALF_LEN takes effect after a restart" in status_texts(h, since)

@@ -16,9 +16,9 @@ import threading
 from pathlib import Path
 
 import pytest
-from conftest import lockstep, wait_until
-from fakefc import FakeFlightController
+from conftest import lockstep
 from sitl import CompanionProcess
+from support import FakeFlightController, wait_until
 
 from mecanum_mav.app.cli import build_parser, main
 from mecanum_mav.app.progress import (

@@ -29,8 +29,8 @@ from typing import Any
 
 import pytest
 import readme_plan as plan
-from conftest import wait_until
 from sitl import Rig, Sitl, find_sitl
+from support import wait_until
 
 from mecanum_mav.config.views import InputConfig
 from mecanum_mav.control.chain import manual_output
@@ -130,13 +130,15 @@ class MavProxySession:
              timeout_s: float = 20.0) -> Any | None:
         """The first ``kind`` from now on that satisfies ``predicate`` (positions and yaw are
         tracked meanwhile), or None."""
-        deadline = time.monotonic() + timeout_s
-        while (now := time.monotonic()) < deadline:
-            for msg in self.observer.pump(min(0.1, deadline - now)):
+        found: list[Any] = []
+
+        def track(wait_s: float) -> None:
+            for msg in self.observer.pump(wait_s):
                 self._track(msg)
-                if msg.get_type() == kind and predicate(msg):
-                    return msg
-        return None
+                if not found and msg.get_type() == kind and predicate(msg):
+                    found.append(msg)
+
+        return wait_until(lambda: found and found[0], timeout_s, pump=track, pump_s=0.1)
 
     def _track(self, msg: Any) -> None:
         kind = msg.get_type()
@@ -151,12 +153,8 @@ class MavProxySession:
 
     def settle(self, what: Callable[[], bool], timeout_s: float = 20.0) -> bool:
         """Pump the observer until ``what()`` holds (on the tracked state)."""
-        deadline = time.monotonic() + timeout_s
-        while time.monotonic() < deadline:
-            self.wait("LOCAL_POSITION_NED", timeout_s=0.2)
-            if what():
-                return True
-        return False
+        return bool(wait_until(what, timeout_s, pump=lambda wait_s: self.wait(
+            "LOCAL_POSITION_NED", timeout_s=wait_s), pump_s=0.2))
 
     def speed(self) -> float:
         return math.hypot(*self.velocity)
@@ -433,11 +431,13 @@ def test_readme_fleet_loop_from_an_empty_directory_shows_three_rovers(workdir):
                                 stdout=out, stderr=subprocess.STDOUT, start_new_session=True)
     try:
         seen: set[int] = set()
-        deadline = time.monotonic() + 60.0
-        while seen != {1, 2, 3} and time.monotonic() < deadline:
-            for msg in gcs.pump(0.2):
-                if msg.get_type() == "HEARTBEAT" and msg.type == mavlink.MAV_TYPE_GROUND_ROVER:
-                    seen.add(msg.get_srcSystem())
+
+        def listen(wait_s: float) -> None:
+            seen.update(msg.get_srcSystem() for msg in gcs.pump(wait_s)
+                        if msg.get_type() == "HEARTBEAT"
+                        and msg.type == mavlink.MAV_TYPE_GROUND_ROVER)
+
+        wait_until(lambda: seen == {1, 2, 3}, 60.0, pump=listen, pump_s=0.2)
         assert seen == {1, 2, 3}, log.read_text()
         assert all((workdir / f"rover{i}.tlog").exists() for i in range(3))
     finally:

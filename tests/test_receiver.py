@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import pytest
 from conftest import lockstep
+from support import status_texts as texts
 
 from mecanum_mav.control.chain import manual_output
 from mecanum_mav.control.rcinput import (
@@ -37,10 +38,6 @@ def receiver_harness(**values: float) -> Lockstep:
     assert h.run_until(lambda: not h.core.vehicle.rc_failsafe, 1.0), "receiver never OK"
     h.run_for(0.3)  # the mode switch's first position is read (debounced)
     return h
-
-
-def texts(h: Lockstep) -> list[str]:
-    return [m.text for m in h.gcs.received("STATUSTEXT")]
 
 
 def wheels(h: Lockstep) -> tuple[int, ...]:

@@ -7,12 +7,12 @@ table of refused addresses alone, in its own time."""
 from __future__ import annotations
 
 import hashlib
-import select
 import socket
 import time
 from typing import Any
 
 import pytest
+from support import deliver, mavlink_sender, read_for
 
 from mecanum_mav.io.links import Link, open_link
 from mecanum_mav.protocol.dialect import mavlink
@@ -78,11 +78,7 @@ def signed_udpin() -> Link:
 
 def sender(key: bytes | None = None) -> mavlink.MAVLink:
     """A ground station's packer: unsigned, or signing with ``key`` (as MAVProxy does)."""
-    mav = mavlink.MAVLink(None, srcSystem=255, srcComponent=190)
-    if key is not None:
-        mav.signing.secret_key, mav.signing.sign_outgoing = key, True
-        mav.signing.timestamp = ticks_from_unix(time.time())
-    return mav
+    return mavlink_sender(key)
 
 
 def gcs_heartbeat(mav: mavlink.MAVLink) -> bytes:
@@ -110,21 +106,11 @@ def peer() -> socket.socket:
     return sock
 
 
-def deliver(link: Link, sock: socket.socket, data: bytes) -> list[Any]:
-    """Send ``data`` from ``sock`` to the link and read it there (what the link kept)."""
-    sock.sendto(data, ("127.0.0.1", link.local_port))
-    assert select.select([link.fileno()], [], [], 2.0)[0], "the datagram never arrived"
-    return link.read()
-
-
 def received(sock: socket.socket, timeout_s: float = 0.3) -> list[Any]:
     """Every message reaching ``sock`` within ``timeout_s``, parsed (signed or not)."""
     parser = mavlink.MAVLink(None)
-    messages: list[Any] = []
-    deadline = time.monotonic() + timeout_s
-    while (left := deadline - time.monotonic()) > 0 and select.select([sock], [], [], left)[0]:
-        messages += parser.parse_buffer(sock.recv(65536)) or []
-    return messages
+    return read_for(sock.fileno(), lambda: parser.parse_buffer(sock.recv(65536)) or [],
+                    timeout_s)
 
 
 def kinds(messages: list[Any]) -> list[str]:

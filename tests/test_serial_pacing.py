@@ -16,11 +16,9 @@ from __future__ import annotations
 
 import contextlib
 import os
-import select
 import sys
 import threading
 import time
-import tty
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -28,6 +26,7 @@ from typing import Any
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tools"))
 
 import bench_serial
+from support import RawPty, read_for, wait_until
 
 from mecanum_mav.io import links
 from mecanum_mav.io.links import Link, mavlink, open_link
@@ -57,38 +56,30 @@ class UnreadPty:
     """A pty whose far side reads only when asked: what the link handed to the kernel."""
 
     def __init__(self) -> None:
-        self.master, self.slave = os.openpty()
-        tty.setraw(self.slave)
-        os.set_blocking(self.master, False)
-        self.path = os.ttyname(self.slave)
+        self.pty = RawPty()
+        self.master, self.path = self.pty.master, self.pty.path
         self.mav = mavlink.MAVLink(None)
         self.mav.robust_parsing = True
 
     def messages(self, count: int, timeout_s: float = 1.0) -> list[Any]:
         """Read until ``count`` messages came (a pty passes bytes on a moment after they
         were written) or ``timeout_s`` passed, and 50 ms more for any extra."""
-        out: list[Any] = []
-        deadline = time.monotonic() + timeout_s
-        while (now := time.monotonic()) < deadline:
-            if not select.select([self.master], [], [], deadline - now)[0]:
-                break
-            data = os.read(self.master, 65536)
-            out += [m for m in self.mav.parse_buffer(data) or () if m.get_type() != "BAD_DATA"]
-            if len(out) >= count:
-                deadline = min(deadline, time.monotonic() + 0.05)
-        return out
+        return read_for(self.master, lambda: [
+            m for m in self.mav.parse_buffer(os.read(self.master, 65536)) or ()
+            if m.get_type() != "BAD_DATA"], timeout_s, enough=count, settle_s=0.05)
 
     def close(self) -> None:
-        os.close(self.master)
-        os.close(self.slave)
+        self.pty.close()
 
 
 def hand_over_all(link: Link, timeout_s: float = DEADLINE_S) -> None:
     """Flush ``link`` on its pacing timer until nothing waits in it."""
-    deadline = time.monotonic() + timeout_s
-    while link.pending and time.monotonic() < deadline:
-        threading.Event().wait(max(0.0, min(link.next_send_s, deadline) - time.monotonic()))
+
+    def flush_when_due(wait_s: float) -> None:
+        threading.Event().wait(max(0.0, min(link.next_send_s - time.monotonic(), wait_s)))
         link.flush()
+
+    wait_until(lambda: not link.pending, timeout_s, pump=flush_when_due)
     assert not link.pending
 
 

@@ -6,6 +6,7 @@ import hashlib
 
 import pytest
 from conftest import lockstep
+from support import mavlink_sender, write_key_file
 
 from mecanum_mav.control.refusals import Refusal
 from mecanum_mav.io.keyfile import KeyFileError, load_signing_key
@@ -30,12 +31,7 @@ NOW = ticks_from_unix(1_790_000_000.0)
 def signed_sender(key: bytes = KEY, *, link_id: int = 0, timestamp: int = NOW,
                   sysid: int = 255, compid: int = 190) -> mavlink.MAVLink:
     """A pymavlink sender that signs, as MAVProxy's ``signing key`` sets one up."""
-    mav = mavlink.MAVLink(None, srcSystem=sysid, srcComponent=compid)
-    mav.signing.secret_key = key
-    mav.signing.link_id = link_id
-    mav.signing.timestamp = timestamp
-    mav.signing.sign_outgoing = True
-    return mav
+    return mavlink_sender(key, sysid=sysid, compid=compid, link_id=link_id, timestamp=timestamp)
 
 
 def manual(mav: mavlink.MAVLink, x: int = 500) -> bytes:
@@ -155,10 +151,7 @@ def test_a_key_of_the_wrong_length_is_a_programming_error():
 
 
 def key_file(tmp_path, text: str | bytes, mode: int = 0o600):
-    path = tmp_path / "rover.key"
-    path.write_bytes(text.encode() if isinstance(text, str) else text)
-    path.chmod(mode)
-    return path
+    return write_key_file(tmp_path / "rover.key", text, mode)
 
 
 def test_a_private_key_file_gives_its_key(tmp_path):
@@ -254,11 +247,7 @@ def drive_for(h, seconds: float, x: int = 1000) -> float:
 
 def stranger(key: bytes | None = None, sysid: int = 255, compid: int = 190) -> mavlink.MAVLink:
     """Another sender on the link with the pilot's ids: unsigned, or signing with ``key``."""
-    mav = mavlink.MAVLink(None, srcSystem=sysid, srcComponent=compid)
-    if key is not None:
-        mav.signing.secret_key, mav.signing.sign_outgoing = key, True
-        mav.signing.timestamp = SIGNING_START_TICKS + 1000
-    return mav
+    return mavlink_sender(key, sysid=sysid, compid=compid, timestamp=SIGNING_START_TICKS + 1000)
 
 
 def packets(mav: mavlink.MAVLink) -> dict[str, bytes]:

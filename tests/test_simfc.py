@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 import random
 import re
+import select
 import selectors
 import signal
 import socket
@@ -22,11 +23,13 @@ from collections.abc import Callable, Iterator, Mapping
 from typing import Any
 
 import pytest
+from support import wait_until
 
 from mecanum_mav.app.cli import serve_simfc as main
 from mecanum_mav.config.params import Params
 from mecanum_mav.control.pwm import PwmMap
 from mecanum_mav.io.links import Link, mavlink, open_link
+from mecanum_mav.protocol.heartbeat import send_gcs_heartbeat
 from mecanum_mav.sim.simfc import RcOverrides, SimFlightController, SimState
 
 WAIT_S = 3.0
@@ -58,23 +61,21 @@ class Gcs:
 
     def hello(self) -> None:
         """A GCS heartbeat, so the simulator knows where to send telemetry."""
-        self.link.mav.heartbeat_send(
-            mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID, 0, 0, mavlink.MAV_STATE_ACTIVE
-        )
+        send_gcs_heartbeat(self.link.mav)
 
     def receive(
         self, kind: str, accept: Callable[[Any], bool] = lambda m: True, timeout_s: float = WAIT_S
     ) -> Any:
         """The first ``kind`` message from now on that ``accept`` takes; fails at the deadline."""
-        deadline = time.monotonic() + timeout_s
-        with selectors.DefaultSelector() as selector:
-            selector.register(self.link.fileno(), selectors.EVENT_READ)
-            while (left := deadline - time.monotonic()) > 0:
-                selector.select(left)
-                for msg in self.link.read():
-                    if msg.get_type() == kind and accept(msg):
-                        return msg
-        pytest.fail(f"no matching {kind} within {timeout_s} s")
+        def match() -> Any:
+            return next((m for m in self.link.read() if m.get_type() == kind and accept(m)),
+                        None)
+
+        fd = self.link.fileno()
+        msg = wait_until(match, timeout_s, pump=lambda s: select.select([fd], [], [], s))
+        if msg is None:
+            pytest.fail(f"no matching {kind} within {timeout_s} s")
+        return msg
 
 
 MakeSim = Callable[..., tuple[SimFlightController, Gcs]]
@@ -308,11 +309,12 @@ def test_random_bytes_and_truncated_packets_do_not_stop_it_obeying(simulator):
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as raw:
         for chunk in junk:
             raw.sendto(chunk, ("127.0.0.1", gcs.port))
-    deadline = time.monotonic() + WAIT_S
-    state = None
-    while state is None and time.monotonic() < deadline:  # junk may swallow one packet
+
+    def obeyed() -> SimState | None:  # (junk may swallow one packet: send it again)
         gcs.override(all_four(1650))
-        state = sim.wait_for(lambda s: s.channel_pwm == all_four(1650), 0.2)
+        return sim.wait_for(lambda s: s.channel_pwm == all_four(1650), 0.2)
+
+    state = wait_until(obeyed, WAIT_S)
     assert state is not None and state.wheel_commands == pytest.approx((0.3,) * 4)
     assert sim_thread_alive(sim)
 

@@ -8,13 +8,12 @@ from __future__ import annotations
 from collections.abc import Iterator
 
 import pytest
-from sitl import CompanionProcess, Rig, Sitl, find_sitl
+from sitl import Rig, Sitl, find_sitl
 
 from mecanum_mav.config.params import Params
 from mecanum_mav.config.views import InputConfig
 from mecanum_mav.control.chain import manual_output
 from mecanum_mav.control.pwm import PwmMap
-from mecanum_mav.sim.groundstation import udp_ground_station
 
 BINARY, WHY_NOT = find_sitl()
 pytestmark = [pytest.mark.sitl, pytest.mark.skipif(BINARY is None, reason=WHY_NOT)]
@@ -46,12 +45,8 @@ def rig(tmp_path) -> Iterator[Rig]:
         assert pending.returncode == 3 and "REBOOT PENDING" in pending.stdout, pending.stdout
         assert "set up safely" not in pending.stdout
         fc.set_up("--reboot", *sets)  # the check after the reboot, without --apply
-        gcs, port = udp_ground_station()
-        try:
-            with CompanionProcess(port.url, fc.fc_url, tmp_path, *sets) as companion:
-                yield Rig(fc, gcs, companion)
-        finally:
-            port.close()
+        with Rig.on(fc, tmp_path, *sets) as rig:
+            yield rig
 
 
 def test_receiver_sticks_and_switches_drive_ardupilots_servo9_to_12_and_its_failsafe_stops_them(

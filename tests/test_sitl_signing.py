@@ -19,11 +19,11 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
-from sitl import CompanionProcess, Rig, Sitl, find_sitl, free_port
+from sitl import Rig, Sitl, find_sitl, free_port
+from support import write_key_file
 
 from mecanum_mav.protocol.dialect import mavlink
 from mecanum_mav.protocol.signing import key_from_text, ticks_from_unix
-from mecanum_mav.sim.groundstation import udp_ground_station
 
 BINARY, WHY_NOT = find_sitl()
 pytestmark = [pytest.mark.sitl, pytest.mark.skipif(BINARY is None, reason=WHY_NOT)]
@@ -42,10 +42,7 @@ within a few hundred ms even on a loaded machine."""
 
 
 def key_file(tmp_path: Path) -> Path:
-    path = tmp_path / "fc.key"
-    path.write_text(PASSPHRASE + "\n")
-    path.chmod(0o600)
-    return path
+    return write_key_file(tmp_path / "fc.key", PASSPHRASE + "\n")
 
 
 @pytest.fixture
@@ -93,12 +90,8 @@ class Companion(Rig):
 def run_companion(fc: Sitl, workdir: Path, *extra: str,
                   fc_url: str | None = None) -> Iterator[Companion]:
     """The companion on ``fc`` (on ``fc_url`` instead of the board's own: a :class:`FcTap`)."""
-    gcs, port = udp_ground_station()
-    try:
-        with CompanionProcess(port.url, fc_url or fc.fc_url, workdir, *extra) as process:
-            yield Companion(fc, gcs, process)
-    finally:
-        port.close()
+    with Companion.on(fc, workdir, *extra, fc_url=fc_url) as companion:
+        yield companion
 
 
 @dataclass(frozen=True)

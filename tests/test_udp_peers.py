@@ -11,7 +11,7 @@ import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 
-from conftest import wait_until
+from support import deliver, wait_until
 
 from mecanum_mav.app.companion import Companion
 from mecanum_mav.config.params import Params
@@ -54,15 +54,6 @@ def heartbeat(key: bytes | None = None) -> bytes:
         mav.signing.secret_key, mav.signing.sign_outgoing = KEY, True
         mav.signing.timestamp = ticks_from_unix(time.time())
     return bytes(mavlink.MAVLink_heartbeat_message(6, 8, 0, 0, 4, 3).pack(mav))
-
-
-def deliver(link: Link, sock: socket.socket, data: bytes) -> list:
-    """Send ``data`` from ``sock`` to the link and read it there (waiting for it)."""
-    sock.sendto(data, ("127.0.0.1", link.local_port))
-    with selectors.DefaultSelector() as selector:
-        selector.register(link.fileno(), selectors.EVENT_READ)
-        assert selector.select(2.0), "the datagram never arrived"
-    return link.read()
 
 
 def who_gets_the_next_message(link: Link, socks: list[socket.socket]) -> list[int]:
