@@ -28,7 +28,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from support import at_most_every, wait_until, write_key_file
+from support import ClosedOnExit, at_most_every, wait_until, write_key_file
 
 from mecanum_mav.config.params import SCHEMA
 from mecanum_mav.io.tlog import read_tlog
@@ -168,7 +168,7 @@ class MavProxy:
             self.proc.wait(10)
 
 
-class Observer:
+class Observer(ClosedOnExit):
     """A pymavlink listener on a port of its own (``udpin:127.0.0.1:0``) that keeps the
     rover's messages (system :data:`VEHICLE_SYSID`): give MAVProxy ``--out=`` :attr:`url`.
     It sends nothing. Positions are the rover's own (LOCAL_POSITION_NED, metres north and
@@ -249,12 +249,6 @@ class Observer:
         self._stop.set()
         self._thread.join()
         self._conn.close()
-
-    def __enter__(self) -> Observer:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 
 
 @dataclass(frozen=True)

@@ -14,6 +14,7 @@ waiting on a condition with a deadline.
   :class:`RawPty` (a pseudo-terminal a device path leads to).
 - :class:`PeerPump`: a ground station and a flight controller around a companion on UDP
   loopback, pumped together.
+- :class:`ClosedOnExit`: a helper with a ``close()`` is a context manager that closes it.
 - :func:`status_texts`, :func:`override_channels`, :func:`mavlink_sender`,
   :func:`write_key_file`, :func:`junk_packets`, and on sockets :func:`deliver` and
   :func:`read_for`.
@@ -34,7 +35,7 @@ import time
 import tty
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, NamedTuple, TypeVar
+from typing import TYPE_CHECKING, Any, NamedTuple, Self, TypeVar
 
 from mecanum_mav.io.links import Link, mavlink, open_link
 from mecanum_mav.protocol.dialect import mavutil
@@ -159,6 +160,20 @@ def write_key_file(path: Path, key: str | bytes, mode: int = 0o600) -> Path:
     path.write_bytes(key.encode() if isinstance(key, str) else key)
     path.chmod(mode)
     return path
+
+
+class ClosedOnExit:
+    """A base for the test's peers and relays: ``with Peer(...) as peer:`` calls
+    :meth:`close` at the end, however the block ends."""
+
+    def close(self) -> None:
+        raise NotImplementedError
+
+    def __enter__(self) -> Self:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
 
 
 # --------------------------------------------------------------------------- the board
@@ -291,7 +306,7 @@ class Override(NamedTuple):
     wheels: tuple[int, int, int, int]
 
 
-class FakeFlightController:
+class FakeFlightController(ClosedOnExit):
     """A flight controller on a real socket (127.0.0.1, port 0), in a thread of its own, that
     the companion reaches at :attr:`url`: UDP (``udpout:``) or TCP (it listens, the companion
     connects with ``tcp:``, a stream link as a serial board is). It sends a 5 Hz HEARTBEAT to
@@ -363,12 +378,6 @@ class FakeFlightController:
         if self._conn is not None:
             self._conn.close()
         self.sock.close()
-
-    def __enter__(self) -> FakeFlightController:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 
 
 # --------------------------------------------------------------------------- both peers

@@ -64,7 +64,8 @@ def test_a_skip_that_names_the_firmware_fails_marked_or_not(tmp_path):
     """A test marked ``sitl`` fails whatever its skip says; an unmarked test, or a whole
     module, fails when its skip reason names the firmware (SITL, ardurover, ArduPilot,
     firmware); other skips stay skips."""
-    (tmp_path / "conftest.py").write_text((TESTS / "conftest.py").read_text())
+    for shared in ("conftest.py", "support.py"):  # (conftest imports support)
+        (tmp_path / shared).write_text((TESTS / shared).read_text())
     (tmp_path / "pytest.ini").write_text("[pytest]\nmarkers =\n    sitl: real firmware\n")
     for name, (source, _) in CASES.items():
         (tmp_path / name).write_text("import pytest\n\n" + source)

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import pytest
 from sitl import Rig, Sitl, find_sitl, free_port
-from support import write_key_file
+from support import ClosedOnExit, write_key_file
 
 from mecanum_mav.protocol.dialect import mavlink
 from mecanum_mav.protocol.signing import key_from_text, ticks_from_unix
@@ -105,7 +105,7 @@ class Override:
     channels: tuple[int, int, int, int]
 
 
-class FcTap:
+class FcTap(ClosedOnExit):
     """A UDP relay in the flight-controller link that reads what the companion sends.
 
     The firmware sends to the board's port (``udpclient:``; the tap binds it, where the
@@ -165,12 +165,6 @@ class FcTap:
             os.close(fd)
         self._board_side.close()
         self._companion_side.close()
-
-    def __enter__(self) -> FcTap:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 
 
 def test_a_board_that_requires_signing_obeys_the_companion_only_with_fc_signing_key(
