@@ -185,7 +185,7 @@ MUTATIONS: tuple[Mutation, ...] = (
       PKG + "control/vehicle.py",
       "return self.armed and self.mode in _AUTONOMOUS and not (",
       "return self.mode in _AUTONOMOUS and not (",
-      T + "test_guided.py", T + "test_auto.py"),
+      T + "test_guided_needs_arming.py", T + "test_guided.py"),
     # ---------------------------------------------------------------- failsafes
     M("vehicle-stale-timeout", "FS_INPUT_TMO: no stick for the timeout is stale",
       PKG + "control/vehicle.py",
