@@ -383,6 +383,22 @@ MUTATIONS: tuple[Mutation, ...] = (
       PKG + "protocol/signing.py",
       "if len(body) != 2 * KEY_LEN:", "if len(body) > 2 * KEY_LEN:",
       T + "test_signing.py"),
+    M("link-signed-fast-stick", "a signing link drops an unsigned MANUAL_CONTROL (fast decode)",
+      PKG + "protocol/framing.py",
+      "if check is None or check.check(data) is _ACCEPTED:\n                    return [fast]",
+      "if True:\n                    return [fast]",
+      T + "test_signed_link_checks_every_datagram.py", T + "test_signing_process.py"),
+    M("link-signed-messages", "a signing link keeps only correctly signed, fresh messages",
+      PKG + "protocol/framing.py",
+      "return [m for m in messages if check.check(m.get_msgbuf()) is _ACCEPTED]",
+      "return messages",
+      T + "test_signing_process.py", T + "test_signing.py"),
+    M("link-signed-no-lane", "a signing link never hands datagrams to the unchecked stick lane",
+      PKG + "io/links.py",
+      "return not self._buffered and self.signature_check is None and (\n"
+      "            not self.conn.mav.signing.sign_outgoing)",
+      "return not self._buffered",
+      T + "test_signed_link_checks_every_datagram.py"),
     # ---------------------------------------------------------------- layers
     M("layer-upward-import", "a lower layer never imports a higher one (mecanum -> io)",
       PKG + "mecanum/geometry.py",
@@ -698,8 +714,11 @@ def run_tests(copy: Path, tests: tuple[str, ...], junit: Path) -> tuple[int, str
     found = first_failure(junit)
     if found is not None:
         return out.returncode, found[0], found[1] or out.returncode == 2
-    tail = (out.stdout + out.stderr).strip().splitlines()
-    return out.returncode, tail[-1] if tail else "", out.returncode == 2
+    text = out.stdout + out.stderr
+    lines = [line for line in text.strip().splitlines() if line.strip()]
+    if out.returncode == 4 and "not found:" not in text:  # (a conftest that did not import)
+        return 2, next((line for line in reversed(lines) if "Error" in line), lines[-1]), True
+    return out.returncode, lines[-1] if lines else "", out.returncode == 2
 
 
 def run_one(copy: Path, m: Mutation) -> Outcome:
