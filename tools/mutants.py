@@ -491,6 +491,11 @@ MUTATIONS: tuple[Mutation, ...] = (
       PKG + "io/paramfile.py",
       "for message, names in consistency_problems(candidate):", "for message, names in []:",
       PAR + "test_min_trim_max_order_is_checked_and_cited_at_the_last_involved_line"),
+    M("cli-params-markdown", "params --markdown prints the parameter table",
+      PKG + "app/cli.py",
+      "if args.markdown:\n        print(markdown_table())",
+      "if False:\n        print(markdown_table())",
+      T + "test_cli.py::test_params_markdown_lists_every_parameter"),
     # ---------------------------------------------------------------- setup-fc's hazards
     M("fcsetup-gcs-id", "MAV_GCS_SYSID must be the companion's FC_GCS_SYSID",
       PKG + "protocol/fcsetup.py", "gcs is not None and gcs != own))", "False))",
