@@ -496,6 +496,23 @@ MUTATIONS: tuple[Mutation, ...] = (
       "if args.markdown:\n        print(markdown_table())",
       "if False:\n        print(markdown_table())",
       T + "test_cli.py::test_params_markdown_lists_every_parameter"),
+    M("param-set-refused", "a refused PARAM_SET changes and saves nothing, and says why",
+      PKG + "control/core.py",
+      "if problem:\n            self.refuse(Refusal.PARAM",
+      "if False:\n            self.refuse(Refusal.PARAM",
+      T + "test_param_protocol.py"),
+    M("param-set-takes-effect", "an accepted PARAM_SET takes effect at once (no restart)",
+      PKG + "control/core.py",
+      "self.reconfigure()\n        if name in RESTART_REQUIRED:",
+      "if name in RESTART_REQUIRED:",
+      T + "test_param_protocol.py"),
+    M("param-set-for-us", "a PARAM_SET for another system is ignored", PKG + "control/core.py",
+      "def _on_param_set(self, msg: ParamSetMsg, now_s: float) -> None:\n"
+      "        if not (self._for_us(msg.target_system, msg.target_component) and "
+      "self._from_pilot(msg)):",
+      "def _on_param_set(self, msg: ParamSetMsg, now_s: float) -> None:\n"
+      "        if not self._from_pilot(msg):",
+      T + "test_param_protocol.py"),
     # ---------------------------------------------------------------- setup-fc's hazards
     M("fcsetup-gcs-id", "MAV_GCS_SYSID must be the companion's FC_GCS_SYSID",
       PKG + "protocol/fcsetup.py", "gcs is not None and gcs != own))", "False))",
