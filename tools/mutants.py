@@ -55,7 +55,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 COPIED = ("mecanum_mav", "tests", "tools", "params", "docs", "pyproject.toml", "README.md",
-          "mkdocs.yml")
+          "mkdocs.yml", ".ci")
 """What a worker's copy holds (the tests read the README, the docs and the parameter files)."""
 IGNORED = shutil.ignore_patterns("__pycache__", "*.pyc", ".pytest_cache", ".hypothesis",
                                  "*.egg-info")
@@ -676,7 +676,7 @@ class Outcome:
     mutation: Mutation
     verdict: str
     """``killed``, ``killed (error)``, ``killed (timeout)``, ``SURVIVED``, ``STALE``,
-    ``NO TESTS``."""
+    ``NO TESTS`` (its test ids match nothing), ``TOOL ERROR``."""
     by: str
     """The first failing test's node id, or why not."""
     seconds: float
@@ -840,14 +840,17 @@ def run_all(selected: list[Mutation], workers: int, show: bool) -> list[Outcome]
                     m = todo.get_nowait()
                 except queue.Empty:
                     return
-                outcome = run_one(copy, m)
+                try:
+                    outcome = run_one(copy, m)
+                except Exception as exc:  # (a tool failure, not a verdict: reported, not lost)
+                    outcome = Outcome(m, "TOOL ERROR", repr(exc), 0.0)
                 with lock:
                     outcomes[m.id] = outcome
                     if show:
                         print(f"  {m.id}: {outcome.verdict} {outcome.by} "
                               f"({outcome.seconds:.1f} s)", flush=True)
 
-        threads = [threading.Thread(target=work, args=(c,)) for c in copies]
+        threads = [threading.Thread(target=work, args=(c,), daemon=True) for c in copies]
         for t in threads:
             t.start()
         for t in threads:
