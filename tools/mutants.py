@@ -1,0 +1,931 @@
+#!/usr/bin/env python3
+"""Mutation check: every safety rule and protocol decision, broken once, must fail a test.
+
+What
+    :data:`MUTATIONS` is a curated list of small changes to the product, one or more per rule
+    (neutral on every way out, failsafes, pre-arm checks, the RC override's field rules,
+    signing, the stick lane's refusals, the layer rule, parameter validation, setup-fc's
+    hazards, mixing and kinematics signs, the PWM edge, mission protocol decisions). Each names
+    the rule it breaks, the file, an exact ``old`` snippet (which must occur exactly once in
+    that file, else the entry is STALE: a refactor must update the list), its ``new`` text,
+    and the tests that should fail when it is applied (targeted node ids, a few seconds each).
+
+How
+    The package and its tests are copied into a temporary folder per worker (no .git, no
+    .venv, no byte code). Each mutation is written into the copy's file, the tests run there
+    (the same interpreter, ``PYTHONPATH`` and the working directory the copy, so that pytest
+    AND the subprocesses the tests start, ``python -m mecanum_mav ...``, import the mutated
+    package, not the editable install; checked by a canary at start), and the file is put
+    back. First the baseline: the union of the selected tests must pass on the unmutated copy.
+
+    A mutant is killed when pytest fails a test; a failure to collect or import is reported
+    as "killed (error)" (a mutation that only breaks an import proves little: keep mutations
+    importable). The table gives the first failing test's node id (from the JUnit XML).
+
+Usage
+    python tools/mutants.py                 # the whole list, 2 workers
+    python tools/mutants.py --fast          # the CI subset (flagged fast in the list)
+    python tools/mutants.py --only ID ...   # some entries
+    python tools/mutants.py --list          # the list, nothing run
+    python tools/mutants.py -j 1            # one worker
+
+Exit status: 0 when every selected mutant was killed; 1 on a survivor, a stale entry, a
+broken baseline or a copy that does not import from itself.
+
+Adding a mutation: append a :class:`Mutation` to :data:`MUTATIONS` with a new short id, the
+rule in one line, ``old`` copied from the file (enough context to be unique) and the tests
+that name the behaviour; run ``python tools/mutants.py --only ID``. A survivor is a missing
+test: write the test (its commit names the mutation), keep the entry.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import queue
+import shutil
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+COPIED = ("mecanum_mav", "tests", "tools", "params", "docs", "pyproject.toml", "README.md",
+          "mkdocs.yml", ".ci")
+"""What a worker's copy holds (the tests read the README, the docs and the parameter files)."""
+IGNORED = shutil.ignore_patterns("__pycache__", "*.pyc", ".pytest_cache", ".hypothesis",
+                                 "*.egg-info")
+PYTEST = ("-x", "-q", "-p", "no:cacheprovider", "-o", "addopts=", "--tb=no")
+TIMEOUT_S = 120.0
+"""A mutant whose tests run longer than this is reported as killed (timeout)."""
+
+
+@dataclass(frozen=True)
+class Mutation:
+    """One change to the product and the tests that must notice it.
+
+    Attributes:
+        id: short and stable (``--only`` takes it).
+        rule: the rule the change breaks, one line.
+        file: the file, relative to the repository root.
+        old: text that occurs exactly once in ``file``.
+        new: what replaces it.
+        tests: pytest node ids or files (relative to the root) that must fail.
+        fast: one of the CI subset (``--fast``).
+    """
+
+    id: str
+    rule: str
+    file: str
+    old: str
+    new: str
+    tests: tuple[str, ...]
+    fast: bool = False
+
+
+def M(id: str, rule: str, file: str, old: str, new: str, *tests: str,
+      fast: bool = False) -> Mutation:
+    """A :class:`Mutation` (short to write in the list)."""
+    return Mutation(id, rule, file, old, new, tests, fast)
+
+
+PKG = "mecanum_mav/"
+T = "tests/"
+CO = T + "test_companion.py::"
+FCS = T + "test_fcsetup.py::"
+PAR = T + "test_params.py::"
+
+MUTATIONS: tuple[Mutation, ...] = (
+    # ---------------------------------------------------------------- neutral on every way out
+    M("core-shutdown-neutral", "shutdown sends neutral (each wheel's trim) before releasing",
+      PKG + "control/core.py",
+      "neutral = self.pwm.neutral()\n        self.pulses_us = neutral\n",
+      "neutral = self.pulses_us\n",
+      CO + "test_clean_shutdown_sends_neutral_then_releases_the_channels",
+      fast=True),
+    M("core-shutdown-release", "shutdown ends by releasing the wheel channels to the radio",
+      PKG + "control/core.py",
+      "return [hold, hold, RcOverride(*target, release_fields(self.pwm.channels))]",
+      "return [hold, hold]",
+      CO + "test_clean_shutdown_sends_neutral_then_releases_the_channels"),
+    M("core-handler-neutral", "an exception in a message handler sends neutral at once",
+      PKG + "control/core.py",
+      'f"Error handling {kind}: neutral")\n        return self._override(self.pwm.neutral(), '
+      "now_s)",
+      'f"Error handling {kind}: neutral")\n        return self._override(self.pulses_us, now_s)',
+      CO + ""
+      "test_an_exception_in_a_message_handler_latches_neutral_until_the_next_valid_stick",
+      fast=True),
+    M("core-handler-latch", "after a handler's exception neutral stays latched",
+      PKG + "control/core.py",
+      "self.faulted = True\n        self.say(Severity.ERROR, f\"Error handling",
+      "self.faulted = False\n        self.say(Severity.ERROR, f\"Error handling",
+      CO + ""
+      "test_an_exception_in_a_message_handler_latches_neutral_until_the_next_valid_stick"),
+    M("core-output-exception", "an exception computing the output gives neutral",
+      PKG + "control/core.py",
+      "wheels, pulses = _NEUTRAL_WHEELS, self.pwm.neutral()\n        self._output_wheels",
+      "wheels, pulses = _NEUTRAL_WHEELS, self.pulses_us\n        self._output_wheels",
+      CO + "test_an_exception_in_the_control_path_ends_at_neutral_and_latches"),
+    M("core-faulted-neutral", "a latched fault keeps the output neutral",
+      PKG + "control/core.py",
+      "if self.faulted:\n            self._autopilot_active = False",
+      "if False:\n            self._autopilot_active = False",
+      CO + "test_an_exception_in_the_control_path_ends_at_neutral_and_latches"),
+    M("core-not-driving-neutral", "not driving (disarmed, HOLD, stale, failsafe) is neutral",
+      PKG + "control/core.py",
+      "if not vehicle.driving():\n            return _NEUTRAL_WHEELS",
+      "if False:\n            return _NEUTRAL_WHEELS",
+      CO + "test_sticks_while_disarmed_leave_the_wheels_at_neutral",
+      CO + "test_hold_mode_keeps_neutral_while_armed"),
+    M("core-fc-link-down", "a broken FC link fires the FC failsafe at once",
+      PKG + "control/core.py",
+      'if link == "fc":\n            self.vehicle.on_fc_link_down(now_s)',
+      'if link == "fc":\n            pass',
+      T + "test_link_drops.py"),
+    M("vehicle-gcs-link-down", "a broken GCS link makes the stick stale at once",
+      PKG + "control/vehicle.py",
+      "self.input_s = None\n        if self.gcs_seen_s is not None:",
+      "if self.gcs_seen_s is not None:",
+      T + "test_vehicle_ways_out.py", T + "test_link_drops.py"),
+    M("vehicle-driving-armed", "disarmed never drives", PKG + "control/vehicle.py",
+      "self.armed and self.mode is Mode.MANUAL and not self.input_stale",
+      "self.mode is Mode.MANUAL and not self.input_stale",
+      CO + "test_sticks_while_disarmed_leave_the_wheels_at_neutral",
+      fast=True),
+    M("vehicle-driving-stale", "a stale stick never drives", PKG + "control/vehicle.py",
+      "self.armed and self.mode is Mode.MANUAL and not self.input_stale",
+      "self.armed and self.mode is Mode.MANUAL",
+      CO + ""
+      "test_stale_manual_control_returns_wheels_to_neutral_at_the_timeout_and_resumes",
+      T + "test_vehicle_manual.py"),
+    M("vehicle-driving-manual", "HOLD never drives", PKG + "control/vehicle.py",
+      "self.armed and self.mode is Mode.MANUAL and not self.input_stale",
+      "self.armed and not self.input_stale",
+      CO + "test_hold_mode_keeps_neutral_while_armed"),
+    M("vehicle-arm-waits-for-sticks", "after arming the wheels wait for a fresh stick",
+      PKG + "control/vehicle.py",
+      "self.input_stale = True  # the wheels wait for fresh sticks after arming",
+      "pass",
+      T + "test_vehicle_ways_out.py"),
+    M("guided-setpoint-lapse", "a GUIDED velocity setpoint not renewed within GUID_TMO stops",
+      PKG + "control/guided.py",
+      "lapsed = sp is not None and now_s - sp.time_s > c.timeout_s",
+      "lapsed = sp is not None and now_s - sp.time_s > 2 * c.timeout_s",
+      T + "test_guided.py::test_a_velocity_setpoint_lapses_and_the_rover_stops", fast=True),
+    M("guided-only-in-guided", "a setpoint outside GUIDED is refused", PKG + "control/core.py",
+      "if self.vehicle.mode is not Mode.GUIDED:\n            self.refuse",
+      "if False:\n            self.refuse",
+      T + "test_guided.py::test_setpoints_outside_guided_are_refused_with_a_reason"),
+    M("vehicle-autonomous-armed", "GUIDED and AUTO drive only while armed",
+      PKG + "control/vehicle.py",
+      "return self.armed and self.mode in _AUTONOMOUS and not (",
+      "return self.mode in _AUTONOMOUS and not (",
+      T + "test_guided_needs_arming.py", T + "test_guided.py"),
+    M("auto-cannot-start-holds", "a mission that cannot start switches AUTO to HOLD",
+      PKG + "control/core.py",
+      'f"AUTO: {reason}: HOLD")\n                vehicle.request_mode(Mode.HOLD, now_s)',
+      'f"AUTO: {reason}: HOLD")',
+      T + "test_auto_that_cannot_start.py"),
+    M("auto-disarm-neutral", "disarmed in AUTO or GUIDED the controllers never drive",
+      PKG + "control/core.py",
+      "if vehicle.autonomous():\n            self._autopilot_active = True",
+      "if vehicle.mode in (Mode.GUIDED, Mode.AUTO):\n            self._autopilot_active = True",
+      T + "test_missions.py::test_disarming_in_auto_sends_neutral_and_arming_resumes"),
+    M("stick-rc-direction", "a GCS RC override above RCIN_TRIM is positive (forward, right, cw)",
+      PKG + "control/sticks.py",
+      "value = (pulse - trim) / span", "value = (trim - pulse) / span",
+      CO + "test_ground_station_rc_override_drives_like_a_stick"),
+    # ---------------------------------------------------------------- failsafes
+    M("vehicle-stale-timeout", "FS_INPUT_TMO: no stick for the timeout is stale",
+      PKG + "control/vehicle.py",
+      "stale = self.input_s is None or now_s - self.input_s > c.input_timeout_s",
+      "stale = self.input_s is None or now_s - self.input_s > 2 * c.input_timeout_s",
+      CO + ""
+      "test_stale_manual_control_returns_wheels_to_neutral_at_the_timeout_and_resumes",
+      T + "test_vehicle_manual.py", fast=True),
+    M("vehicle-fc-timeout", "FS_FC_TMO: no FC heartbeat for the timeout is FC loss",
+      PKG + "control/vehicle.py",
+      "now_s - self.fc_seen_s > c.fc_timeout_s", "now_s - self.fc_seen_s > 2 * c.fc_timeout_s",
+      CO + "test_flight_controller_loss_disarms_reports_and_refuses_to_arm",
+      fast=True),
+    M("vehicle-fc-lost-disarms", "FC loss disarms", PKG + "control/vehicle.py",
+      "if self.fc_lost and self.armed:", "if False:",
+      CO + "test_flight_controller_loss_disarms_reports_and_refuses_to_arm"),
+    M("vehicle-gcs-timeout", "FS_GCS_TMO: no GCS heartbeat for the timeout is the failsafe",
+      PKG + "control/vehicle.py",
+      "now_s - self.gcs_seen_s > c.gcs_timeout_s", "now_s - self.gcs_seen_s > 2 * c.gcs_timeout_s",
+      CO + "test_ground_station_loss_triggers_the_failsafe_action_at_the_timeout",
+      fast=True),
+    M("vehicle-gcs-action", "FS_GCS_ACTION: 1 disarms, 0 switches to HOLD",
+      PKG + "control/vehicle.py",
+      "if c.gcs_action_disarm:", "if not c.gcs_action_disarm:",
+      CO + "test_ground_station_loss_triggers_the_failsafe_action_at_the_timeout"),
+    M("vehicle-rc-failsafe-action", "FS_RC_ACTION: a receiver failsafe holds or disarms",
+      PKG + "control/vehicle.py",
+      "if self.config.receiver_action_disarm:", "if not self.config.receiver_action_disarm:",
+      T + "test_receiver.py"),
+    M("vehicle-rc-timeout", "the receiver failsafe fires when RC_CHANNELS stop",
+      PKG + "control/vehicle.py",
+      "if rc_s is not None and now_s - rc_s > c.input_timeout_s and c.receiver_failsafe:",
+      "if False:",
+      T + "test_receiver.py"),
+    # ---------------------------------------------------------------- pre-arm checks
+    M("prearm-fc-link", "arming is refused while the FC link is down",
+      PKG + "control/vehicle.py",
+      'if self.fc_lost:\n            return self._refuse("PreArm: flight controller link down"',
+      'if False:\n            return self._refuse("PreArm: flight controller link down"',
+      CO + "test_arming_without_the_flight_controller_is_refused_as_a_pre_arm_check",
+      fast=True),
+    M("prearm-radio-failsafe", "arming is refused in the receiver failsafe",
+      PKG + "control/vehicle.py",
+      'if self.rc_failsafe:\n            return self._refuse("PreArm: radio failsafe',
+      'if False:\n            return self._refuse("PreArm: radio failsafe',
+      T + "test_receiver.py"),
+    M("prearm-problems", "a failed pre-arm check refuses arming (unless forced)",
+      PKG + "control/vehicle.py",
+      "if problems and not force and self.config.arming_check:",
+      "if problems and force and self.config.arming_check:",
+      CO + "test_arming_with_the_sticks_deflected_is_refused_as_ardupilot_words_it",
+      CO + "test_forced_arming_and_arming_check_0_skip_the_pre_arm_checks"),
+    M("prearm-sticks-centred", "arming needs the sticks within the deadband",
+      PKG + "control/core.py",
+      "if abs(value) > self.input.deadband]", "if abs(value) > 1.0]",
+      CO + "test_arming_with_the_sticks_deflected_is_refused_as_ardupilot_words_it"),
+    M("prearm-fc-unsafe", "an unsafe FC setup refuses arming", PKG + "control/fccheck.py",
+      "if state is FcCheckState.UNSAFE:", "if False:",
+      FCS + "test_a_board_whose_setup_is_wrong_is_unsafe_and_blocks_arming",
+      fast=True),
+    M("prearm-fc-reading", "arming waits while the FC setup is read",
+      PKG + "control/fccheck.py",
+      "if state is FcCheckState.READING and self._reader is not None:", "if False:",
+      FCS + "test_arming_waits_while_the_board_is_read_again_after_a_change"),
+    M("prearm-fc-unconfirmed", "an unanswered FC setting refuses arming and is read again",
+      PKG + "control/fccheck.py",
+      "if state is FcCheckState.UNCONFIRMED:", "if False:",
+      FCS + ""
+      "test_a_setting_never_answered_is_not_confirmed_and_read_again_at_the_next_arm_attempt"),
+    M("fccheck-reread-on-change", "a checked FC setting changed on the board is read again",
+      PKG + "control/fccheck.py",
+      "return self._read(now_s) if changed else []", "return []",
+      FCS + "test_a_setting_changed_on_the_board_is_read_again_and_arming_waits_for_it"),
+    M("fccheck-hazards", "a hazard found in the FC setup makes it unsafe",
+      PKG + "control/fccheck.py",
+      "if f.hazard]", "if f.hazard and f.value is None]",
+      FCS + "test_a_board_whose_setup_is_wrong_is_unsafe_and_blocks_arming"),
+    # ---------------------------------------------------------------- RC override fields
+    M("rco-low-leave", "channels 1-8 not ours are 65535 (leave), never 0 (release)",
+      PKG + "protocol/rcoverride.py",
+      "_UNTOUCHED: Final = [LEAVE_LOW] * LOW_CHANNELS",
+      "_UNTOUCHED: Final = [RELEASE_LOW] * LOW_CHANNELS",
+      T + "test_rcoverride.py", fast=True),
+    M("rco-high-leave", "channels 9-18 not ours are 0 (leave), never 65534 (release)",
+      PKG + "protocol/rcoverride.py",
+      "+ [LEAVE_HIGH] * (CHANNELS - LOW_CHANNELS)", "+ [RELEASE_HIGH] * (CHANNELS - LOW_CHANNELS)",
+      T + "test_rcoverride.py"),
+    M("rco-release-high", "releasing channels 9-18 writes 65534, not 0 (which leaves them)",
+      PKG + "protocol/rcoverride.py",
+      "RELEASE_LOW if channel <= LOW_CHANNELS else RELEASE_HIGH",
+      "RELEASE_LOW if channel <= LOW_CHANNELS else RELEASE_LOW",
+      T + "test_rcoverride.py", fast=True),
+    M("rco-read-zero-low", "0 on channels 1-8 releases the channel",
+      PKG + "protocol/rcoverride.py",
+      "return RELEASE if raw == RELEASE_LOW else raw",
+      "return LEAVE if raw == RELEASE_LOW else raw",
+      T + "test_rcoverride.py"),
+    M("rco-read-zero-high", "0 on channels 9-18 leaves the channel",
+      PKG + "protocol/rcoverride.py",
+      "if raw == LEAVE_HIGH:\n        return LEAVE",
+      "if raw == LEAVE_HIGH:\n        return RELEASE",
+      T + "test_rcoverride.py"),
+    M("rco-read-65534", "65534 on channels 9-18 releases the channel",
+      PKG + "protocol/rcoverride.py",
+      "return RELEASE if raw == RELEASE_HIGH else raw", "return raw",
+      T + "test_rcoverride.py"),
+    M("rco-boundary", "channel 8 follows the channels 1-8 convention",
+      PKG + "protocol/rcoverride.py",
+      "if channel <= LOW_CHANNELS:\n        return RELEASE",
+      "if channel < LOW_CHANNELS:\n        return RELEASE",
+      T + "test_rcoverride.py"),
+    M("rco-65535-high", "65535 leaves channels 9-18 alone too", PKG + "protocol/rcoverride.py",
+      "if raw == LEAVE_LOW:\n        return LEAVE",
+      "if raw == LEAVE_LOW and channel <= LOW_CHANNELS:\n        return LEAVE",
+      T + "test_rcoverride.py"),
+    M("rco-channel-slot", "channel n is field chan{n}_raw", PKG + "protocol/rcoverride.py",
+      "fields[channel - 1] = int(pulse)", "fields[channel % CHANNELS] = int(pulse)",
+      T + "test_rcoverride.py"),
+    # ---------------------------------------------------------------- stick input
+    M("stick-pulse-range", "a GCS RC override pulse outside 800..2200 us is refused whole",
+      PKG + "control/sticks.py",
+      "PULSE_RANGE_US = (800, 2200)", "PULSE_RANGE_US = (1, 65533)",
+      CO + "test_ground_station_rc_override_with_an_absurd_pulse_is_rejected"),
+    M("stick-axis-range", "a MANUAL_CONTROL axis outside +-1000 is refused, never clamped",
+      PKG + "control/sticks.py",
+      "if not -1000 <= value <= 1000:", "if not -32768 <= value <= 32767:",
+      CO + "test_out_of_range_stick_is_rejected_and_never_moves_the_robot"),
+    M("stick-invalid-axis", "0x7FFF marks an axis invalid: it reads 0",
+      PKG + "control/sticks.py",
+      "if value == INVALID_AXIS:\n        return 0.0", "if False:\n        return 0.0",
+      CO + "test_invalid_axis_reads_as_zero"),
+    M("stick-z-range", "MAN_Z_SCALE: z outside 0..1000 is refused (a negative z reverses)",
+      PKG + "control/sticks.py",
+      "if not 0 <= z <= 1000:", "if not -1000 <= z <= 1000:",
+      T + "test_stick_decoding.py"),
+    M("core-stick-target", "MANUAL_CONTROL for another system is ignored",
+      PKG + "control/core.py",
+      "if not (self._for_us(msg.target) and self._from_pilot(msg)):",
+      "if not self._from_pilot(msg):",
+      CO + "test_manual_control_for_another_system_is_ignored"),
+    M("core-from-pilot", "SYSID_MYGCS restricts who may drive", PKG + "control/core.py",
+      "return gcs == 0 or msg.get_srcSystem() == gcs", "return True",
+      CO + "test_a_restricted_ground_station_id_ignores_other_senders"),
+    # ---------------------------------------------------------------- the stick lane
+    M("lane-target", "the lane refuses a stick addressed to another vehicle",
+      PKG + "control/lane.py",
+      "if (to and to != sysid) or (pilot and datagram[5] != pilot):",
+      "if (pilot and datagram[5] != pilot):",
+      T + "test_lane.py", fast=True),
+    M("lane-pilot", "the lane refuses a stick from another sender than SYSID_MYGCS",
+      PKG + "control/lane.py",
+      "if (to and to != sysid) or (pilot and datagram[5] != pilot):",
+      "if (to and to != sysid):",
+      T + "test_lane.py"),
+    M("lane-axis-range", "the lane refuses an axis outside +-1000",
+      PKG + "control/lane.py",
+      "if not (-1000 <= x <= 1000 and -1000 <= y <= 1000 and -1000 <= r <= 1000):",
+      "if False:",
+      T + "test_lane.py", fast=True),
+    M("lane-z-range", "the lane refuses z outside 0..1000 with MAN_Z_SCALE",
+      PKG + "control/lane.py",
+      "if not 0 <= z <= 1000:\n                return None",
+      "if False:\n                return None",
+      T + "test_lane.py"),
+    M("lane-one-message", "the lane answers only a datagram holding exactly one message",
+      PKG + "control/lane.py",
+      "if size != end + 2 or length", "if size < end + 2 or length",
+      T + "test_lane.py"),
+    M("lane-crc", "the lane refuses a bad CRC", PKG + "control/lane.py",
+      "or length > manual_size or (", "or length > manual_size or False and (",
+      T + "test_lane.py"),
+    M("core-lane-gate", "the lane answers only while driving in MANUAL",
+      PKG + "control/core.py",
+      "if now_s >= self._lane_until_s or self.faulted or not self._lane_driving:",
+      "if now_s >= self._lane_until_s or self.faulted:",
+      T + "test_lane.py", T + "test_companion.py"),
+    # ---------------------------------------------------------------- signing
+    M("sign-bad-signature", "a packet signed with another key (or altered) is refused",
+      PKG + "protocol/signing.py",
+      "if not hmac.compare_digest(signature(self.key, packet[:-6]), packet[-6:]):", "if False:",
+      T + "test_signing.py", fast=True),
+    M("sign-unsigned", "an unsigned packet is refused where signing is required",
+      PKG + "protocol/signing.py",
+      "or not packet[2] & IFLAG_SIGNED):", "or False):",
+      T + "test_signing_refusal_kinds.py", T + "test_signing.py"),
+    M("sign-replay", "a signed packet not newer than its stream's last is a replay",
+      PKG + "protocol/signing.py",
+      "if timestamp <= last:", "if timestamp < last:",
+      T + "test_signing.py"),
+    M("sign-too-old", "a new stream more than a minute behind is refused",
+      PKG + "protocol/signing.py",
+      "elif timestamp + NEW_STREAM_WINDOW_TICKS < self.timestamp:", "elif False:",
+      T + "test_signing.py"),
+    M("sign-key-length", "a hex key that is not 64 digits is refused, not a passphrase",
+      PKG + "protocol/signing.py",
+      "if len(body) != 2 * KEY_LEN:", "if len(body) > 2 * KEY_LEN:",
+      T + "test_signing.py"),
+    M("link-signed-fast-stick", "a signing link drops an unsigned MANUAL_CONTROL (fast decode)",
+      PKG + "protocol/framing.py",
+      "if check is None or check.check(data) is _ACCEPTED:\n                    return [fast]",
+      "if True:\n                    return [fast]",
+      T + "test_signed_link_checks_every_datagram.py", T + "test_signing_process.py"),
+    M("link-signed-messages", "a signing link keeps only correctly signed, fresh messages",
+      PKG + "protocol/framing.py",
+      "return [m for m in messages if check.check(m.get_msgbuf()) is _ACCEPTED]",
+      "return messages",
+      T + "test_signing_process.py", T + "test_signing.py"),
+    M("link-signed-no-lane", "a signing link never hands datagrams to the unchecked stick lane",
+      PKG + "io/links.py",
+      "return not self._buffered and self.signature_check is None and (\n"
+      "            not self.conn.mav.signing.sign_outgoing)",
+      "return not self._buffered",
+      T + "test_signed_link_checks_every_datagram.py"),
+    M("prearm-force-magic", "only param2 21196 forces an arm past the pre-arm checks",
+      PKG + "control/core.py",
+      "force=p[1] == FORCE_ARM_MAGIC))", "force=p[1] != 0))",
+      T + "test_arming_rules.py"),
+    M("core-fc-sysid", "on the FC link only the flight controller's own messages count",
+      PKG + "control/core.py",
+      "if msg.get_srcSystem() == self.identity.fc_sysid:", "if True:",
+      T + "test_arming_rules.py"),
+    M("heartbeat-armed-flag", "the HEARTBEAT says armed (SAFETY_ARMED) exactly when armed",
+      PKG + "protocol/heartbeat.py",
+      "if armed:\n        base |= mavlink.MAV_MODE_FLAG_SAFETY_ARMED",
+      "if failsafe:\n        base |= mavlink.MAV_MODE_FLAG_SAFETY_ARMED",
+      T + "test_companion.py"),
+    M("heartbeat-critical", "a link failsafe shows as CRITICAL in the HEARTBEAT",
+      PKG + "protocol/heartbeat.py",
+      "if failsafe:\n        status = mavlink.MAV_STATE_CRITICAL", "if False:\n        status = 0",
+      CO + "test_flight_controller_loss_disarms_reports_and_refuses_to_arm"),
+    M("rcin-throttle-failsafe", "a receiver throttle below FS_THR_VALUE is the radio failsafe",
+      PKG + "control/rcinput.py",
+      "if channel == sticks.throttle_ch and pulse < config.throttle_fs_us:", "if False:",
+      T + "test_receiver.py"),
+    M("rcin-rssi", "a receiver reporting RSSI 0 is the radio failsafe", PKG + "control/rcinput.py",
+      "if rssi == 0:", "if False:", T + "test_receiver.py"),
+    M("rcin-no-pulse", "a stick channel without a pulse is the radio failsafe",
+      PKG + "control/rcinput.py",
+      "if not low <= pulse <= high:\n                return ReceiverFrame",
+      "if False:\n                return ReceiverFrame", T + "test_receiver_frames.py"),
+    M("lane-override-source", "overrides go out as FC_GCS_SYSID (ArduPilot obeys only its GCS id)",
+      PKG + "control/lane.py",
+      "source_system = identity.fc_gcs_sysid", "source_system = identity.sysid",
+      T + "test_lane.py"),
+    M("guided-absurd-speed", "a setpoint faster than 50 m/s is refused, not clamped",
+      PKG + "protocol/limits.py",
+      "MAX_SPEED_MPS: Final[float] = 50.0", "MAX_SPEED_MPS: Final[float] = 1000.0",
+      T + "test_guided.py"),
+    # ---------------------------------------------------------------- layers
+    M("layer-upward-import", "a lower layer never imports a higher one (mecanum -> io)",
+      PKG + "mecanum/geometry.py",
+      "from __future__ import annotations\n",
+      "from __future__ import annotations\n\nimport mecanum_mav.io.links  # noqa: F401\n",
+      T + "test_architecture.py", fast=True),
+    M("layer-relative-import", "a lower layer never imports a higher one, relative import too",
+      PKG + "mecanum/geometry.py",
+      "from __future__ import annotations\n",
+      "from __future__ import annotations\n\nfrom ..io import links  # noqa: F401\n",
+      T + "test_architecture.py"),
+    M("layer-protocol-imports-control", "protocol never imports control",
+      PKG + "protocol/rcoverride.py",
+      "from typing import Final\n",
+      "from typing import Final\n\nimport mecanum_mav.control.pwm  # noqa: F401\n",
+      T + "test_architecture.py"),
+    M("layer-core-socket", "the pure layers never import sockets", PKG + "control/vehicle.py",
+      "import math\n", "import math\nimport socket  # noqa: F401\n",
+      T + "test_architecture.py"),
+    # ---------------------------------------------------------------- parameter validation
+    M("param-range", "a parameter value outside its range is refused", PKG + "config/params.py",
+      "if not self.minimum <= x <= self.maximum:\n            raise ParamError",
+      "if False:\n            raise ParamError",
+      PAR + "test_set_rejects_a_bad_value_with_a_clear_message_and_keeps_the_old_one"),
+    M("param-integer", "an int parameter refuses a fraction", PKG + "config/params.py",
+      "if self.kind is int and not x.is_integer():", "if False:",
+      PAR + "test_set_rejects_a_bad_value_with_a_clear_message_and_keeps_the_old_one"),
+    M("param-finite", "a parameter refuses NaN and infinity", PKG + "config/params.py",
+      "if not math.isfinite(x):\n            raise ParamError",
+      "if False:\n            raise ParamError",
+      PAR + "test_set_rejects_a_bad_value_with_a_clear_message_and_keeps_the_old_one"),
+    M("param-min-trim-max", "MIN < TRIM < MAX for every pulse triple", PKG + "config/params.py",
+      "if low < trim < high:", "if low <= trim <= high:",
+      PAR + "test_min_trim_max_order_is_checked_and_cited_at_the_last_involved_line",
+      T + "test_param_rules.py"),
+    M("param-distinct-channels", "two wheels never share an RC channel", PKG + "config/params.py",
+      "            if len(on_channel) > 1\n", "            if len(on_channel) > 2\n",
+      T + "test_param_channel_sharing.py", PAR + "test_duplicate_channels_are_caught"),
+    M("param-receiver-wheel", "with RCIN_ENABLE 1 no wheel is on a receiver channel",
+      PKG + "config/params.py",
+      'if values["RCIN_ENABLE"] == 1:', 'if values["RCIN_ENABLE"] == 2:',
+      T + "test_params.py", T + "test_param_rules.py", T + "test_receiver.py"),
+    M("paramfile-typo", "a misspelt name in a parameter file is an error, not ignored",
+      PKG + "io/paramfile.py",
+      "if name not in SPECS:\n            errors.append(where + unknown_name(name))",
+      "if name not in SPECS:\n            pass",
+      PAR + "test_a_file_with_several_mistakes_reports_every_one_with_file_and_line"),
+    M("paramfile-duplicate", "a parameter set twice in a file is an error", PKG + "io/paramfile.py",
+      "if duplicate:\n            errors.append", "if False:\n            errors.append",
+      PAR + "test_a_file_with_several_mistakes_reports_every_one_with_file_and_line"),
+    M("paramfile-trailing-text", "text after the value is an error", PKG + "io/paramfile.py",
+      "if len(rest) > 1:", "if len(rest) > 2:",
+      PAR + "test_a_file_with_several_mistakes_reports_every_one_with_file_and_line"),
+    M("paramfile-rules", "a parameter file that breaks a cross-parameter rule is refused",
+      PKG + "io/paramfile.py",
+      "for message, names in consistency_problems(candidate):", "for message, names in []:",
+      PAR + "test_min_trim_max_order_is_checked_and_cited_at_the_last_involved_line"),
+    M("cli-params-markdown", "params --markdown prints the parameter table",
+      PKG + "app/cli.py",
+      "if args.markdown:\n        print(markdown_table())",
+      "if False:\n        print(markdown_table())",
+      T + "test_cli.py::test_params_markdown_lists_every_parameter"),
+    M("param-set-refused", "a refused PARAM_SET changes and saves nothing, and says why",
+      PKG + "control/core.py",
+      "if problem:\n            self.refuse(Refusal.PARAM",
+      "if False:\n            self.refuse(Refusal.PARAM",
+      T + "test_param_protocol.py"),
+    M("param-set-takes-effect", "an accepted PARAM_SET takes effect at once (no restart)",
+      PKG + "control/core.py",
+      "self.reconfigure()\n        if name in RESTART_REQUIRED:",
+      "if name in RESTART_REQUIRED:",
+      T + "test_param_protocol.py"),
+    M("param-set-for-us", "a PARAM_SET for another system is ignored", PKG + "control/core.py",
+      "def _on_param_set(self, msg: ParamSetMsg, now_s: float) -> None:\n"
+      "        if not (self._for_us(msg.target_system, msg.target_component) and "
+      "self._from_pilot(msg)):",
+      "def _on_param_set(self, msg: ParamSetMsg, now_s: float) -> None:\n"
+      "        if not self._from_pilot(msg):",
+      T + "test_param_protocol.py"),
+    # ---------------------------------------------------------------- setup-fc's hazards
+    M("fcsetup-gcs-id", "MAV_GCS_SYSID must be the companion's FC_GCS_SYSID",
+      PKG + "protocol/fcsetup.py", "gcs is not None and gcs != own))", "False))",
+      T + "test_fcsetup.py"),
+    M("fcsetup-plain-passthrough", "the plain RCINn pass-through holds the last command: unsafe",
+      PKG + "protocol/fcsetup.py",
+      "fn is not None and fn != scaled))", "fn is not None and fn != scaled and fn != 50 + ch))",
+      FCS + "test_plain_passthrough_holds_the_last_command_after_the_companion_dies"),
+    M("fcsetup-fs-mask", "each wheel channel's SERVO_RC_FS_MSK bit must be set",
+      PKG + "protocol/fcsetup.py", "masked == 0.0))", "False))", T + "test_fcsetup.py"),
+    M("fcsetup-ranges", "RC/SERVO MIN/TRIM/MAX must equal MOT_x's", PKG + "protocol/fcsetup.py",
+      "value is not None and value != want))", "value is not None and abs(value - want) > 50))",
+      T + "test_fcsetup.py"),
+    M("fcsetup-dead-zone", "RCn_DZ must be 0", PKG + "protocol/fcsetup.py",
+      "dz is not None and dz != 0))", "dz is not None and dz > 30))", T + "test_fcsetup.py"),
+    M("fcsetup-override-time", "RC_OVERRIDE_TIME above 1 s is a hazard",
+      PKG + "protocol/fcsetup.py",
+      "not 0 < timeout <= OVERRIDE_TIME_MAX_S))", "not 0 < timeout <= 3 * OVERRIDE_TIME_MAX_S))",
+      T + "test_fcsetup.py"),
+    M("fcsetup-override-never", "RC_OVERRIDE_TIME 0 (ignore) or -1 (for ever) is a hazard",
+      PKG + "protocol/fcsetup.py",
+      "not 0 < timeout <= OVERRIDE_TIME_MAX_S))", "timeout > OVERRIDE_TIME_MAX_S))",
+      T + "test_fcsetup.py"),
+    M("fcsetup-throttle", "RCMAP_THROTTLE must be a wheel channel the companion refreshes",
+      PKG + "protocol/fcsetup.py",
+      "throttle is not None and throttle not in refreshed))", "False))", T + "test_fcsetup.py"),
+    M("fcsetup-fs-thr", "FS_THR_ENABLE 0 is a hazard", PKG + "protocol/fcsetup.py",
+      "fs_thr == 0))", "False))", T + "test_fcsetup.py"),
+    M("fcsetup-rudder", "ARMING_RUDDER must be 0 (a diagonal drive would arm or disarm)",
+      PKG + "protocol/fcsetup.py", "rudder is not None and rudder != 0))", "False))",
+      T + "test_fcsetup.py"),
+    M("fcsetup-apply-mask", "--apply sets each wheel channel's failsafe mask bit",
+      PKG + "protocol/fcsetup.py", "mask |= 1 << (ch - 1)", "mask |= 1 << ch",
+      T + "test_fcsetup.py"),
+    M("fcsetup-apply-throttle", "--apply puts RCMAP_THROTTLE on a wheel channel",
+      PKG + "protocol/fcsetup.py",
+      'out["RCMAP_THROTTLE"] = wheels[0][1]', 'out["RCMAP_THROTTLE"] = 3',
+      T + "test_fcsetup.py"),
+    M("fcsetup-nudge", "only pulse widths, dead zones and the override time are nudged",
+      PKG + "protocol/fcsetup.py",
+      "if name == \"RC_OVERRIDE_TIME\":\n        return value + 0.1\n    return None",
+      "if name == \"RC_OVERRIDE_TIME\":\n        return value + 0.1\n    return value + 1",
+      T + "test_fcsetup.py"),
+    M("setupfc-hazard-exit", "setup-fc exits 1 while a hazard remains", PKG + "app/setupfc.py",
+      "if hazards:\n            out.write(", "if False:\n            out.write(",
+      T + "test_setup_fc_verdict.py"),
+    M("setupfc-unanswered-exit", "setup-fc never calls a board safe with a setting unanswered",
+      PKG + "app/setupfc.py",
+      "if reading.missing:\n            out.write(", "if False:\n            out.write(",
+      T + "test_setup_fc_verdict.py"),
+    M("setupfc-hazard-row", "setup-fc marks a hazard's row HAZARD", PKG + "app/setupfc.py",
+      "if finding.hazard:", "if False:",
+      T + "test_setup_fc_verdict.py"),
+    M("setupfc-reads-the-board", "setup-fc judges the board's own values", PKG + "app/setupfc.py",
+      "findings = check(self.params, reading.values)",
+      "findings = check(self.params, safe_settings(self.params, reading.values))",
+      T + "test_setup_fc_verdict.py"),
+    # ---------------------------------------------------------------- mixing and kinematics
+    M("mix-pattern", "FL = x+y+r, FR = x-y-r, RL = x-y+r, RR = x+y-r",
+      PKG + "mecanum/mixing.py",
+      "return (a + r, b - r, b + r, a - r)", "return (a + r, b + r, b - r, a - r)",
+      T + "test_mixing.py", T + "test_wheels.py"),
+    M("mix-lateral", "y right: the FL/RR pair is x + y", PKG + "mecanum/mixing.py",
+      "return mix_pairs(xs + ys, xs - ys, _clamp1(r), priority)",
+      "return mix_pairs(xs - ys, xs + ys, _clamp1(r), priority)",
+      T + "test_mixing.py", T + "test_wheels.py"),
+    M("mix-desaturate", "wheel commands are desaturated to [-1, 1]", PKG + "mecanum/mixing.py",
+      "if t + ar > 1.0:", "if t + ar > 2.0:", T + "test_mixing.py"),
+    M("mix-rotation-priority", "rotation priority keeps the rotation whole",
+      PKG + "mecanum/mixing.py",
+      "k0, k1, k2, k3, o0, o1, o2, o3 = r0, r1, r2, r3, t0, t1, t2, t3",
+      "k0, k1, k2, k3, o0, o1, o2, o3 = t0, t1, t2, t3, r0, r1, r2, r3",
+      T + "test_mixing.py"),
+    M("mix-nonfinite", "a non-finite input stops the wheels (never NaN)", PKG + "mecanum/mixing.py",
+      "if (w0 - w0) + (w1 - w1) + (w2 - w2) + (w3 - w3) != 0.0:  # a sum that overflowed",
+      "if False:", T + "test_wheel_output_edges.py", T + "test_mixing.py"),
+    M("wheels-lateral-signs", "the roller signs of the X arrangement", PKG + "mecanum/wheels.py",
+      "LATERAL_SIGNS: tuple[float, float, float, float] = (1.0, -1.0, -1.0, 1.0)",
+      "LATERAL_SIGNS: tuple[float, float, float, float] = (1.0, -1.0, 1.0, -1.0)",
+      T + "test_wheels.py", T + "test_kinematics.py"),
+    M("chassis-y-sign", "forward kinematics: y = (FL - FR - RL + RR) / 4",
+      PKG + "mecanum/mixing.py",
+      "(fl - fr - rl + rr) * 0.25", "(-fl + fr + rl - rr) * 0.25",
+      T + "test_wheels.py", T + "test_mixing.py"),
+    M("kin-rotation-sign", "a clockwise yaw rate speeds up the left wheels",
+      PKG + "mecanum/kinematics.py",
+      "fl = vxc + vyc + w * k_fl", "fl = vxc + vyc - w * k_fl",
+      T + "test_kinematics.py"),
+    M("kin-centre-of-rotation", "turning about an offset centre moves the robot centre",
+      PKG + "mecanum/kinematics.py",
+      "vyc = float(vy) - w * float(cx)", "vyc = float(vy) + w * float(cx)",
+      T + "test_kinematics.py"),
+    M("shaping-deadband", "a stick inside the deadband is zero", PKG + "mecanum/shaping.py",
+      "if abs(v) <= deadband:", "if abs(v) < 0.0:", T + "test_shaping_pwm.py"),
+    # ---------------------------------------------------------------- PWM edge
+    M("pwm-reverse", "MOT_x_REV mirrors a wheel at the PWM edge", PKG + "control/pwm.py",
+      "if mirrored:\n                c = -c", "if False:\n                c = -c",
+      T + "test_shaping_pwm.py", CO + ""
+      "test_reverse_and_channel_map_parameters_move_the_output"),
+    M("pwm-limit", "a wheel command beyond +-1 is limited to MIN..MAX", PKG + "control/pwm.py",
+      "c = -1.0 if c < -1.0 else (1.0 if c > 1.0 else c)\n            pulses.append",
+      "pulses.append", T + "test_shaping_pwm.py"),
+    M("pwm-sides", "each side of trim spans to its own end (off-centre trim)",
+      PKG + "control/pwm.py",
+      "pulses.append(round(trim + c * (up if c >= 0.0 else down)))",
+      "pulses.append(round(trim + c * up))", T + "test_shaping_pwm.py"),
+    M("pwm-nonfinite", "a non-finite wheel command gives trim", PKG + "control/pwm.py",
+      "if not isfinite(c):\n                pulses.append(trim)",
+      "if False:\n                pulses.append(trim)", T + "test_shaping_pwm.py"),
+    M("pwm-neutral-trim", "neutral is each wheel's own trim", PKG + "control/pwm.py",
+      "(w[0].trim, w[1].trim, w[2].trim, w[3].trim)", "(w[0].trim, w[1].trim, w[2].trim, 1500)",
+      T + "test_wheel_output_edges.py"),
+    # ---------------------------------------------------------------- mission protocol
+    M("mission-replace-at-end", "an upload replaces the mission only after its last item",
+      PKG + "protocol/missionservice.py",
+      "upload.items.append(item)\n",
+      "upload.items.append(item)\n        self._replace(upload.items)\n",
+      T + "test_mission_protocol.py"),
+    M("mission-second-gcs", "a second ground station is denied mid-upload",
+      PKG + "protocol/missionservice.py",
+      "if upload.src != src:\n                self._error(\"Mission upload denied",
+      "if False:\n                self._error(\"Mission upload denied",
+      T + "test_mission_protocol.py"),
+    M("mission-no-space", "more items than MAX_ITEMS get NO_SPACE",
+      PKG + "protocol/missionservice.py", "if count > MAX_ITEMS:", "if count > MAX_ITEMS + 1:",
+      T + "test_mission_protocol.py"),
+    M("mission-retries", "an upload is cancelled after MAX_RETRIES requests",
+      PKG + "protocol/missionservice.py",
+      "if upload.retries >= MAX_RETRIES:", "if upload.retries > MAX_RETRIES:",
+      T + "test_mission_protocol.py"),
+    M("mission-item-check", "an invalid item aborts the upload with its result code",
+      PKG + "protocol/missionservice.py",
+      "            check_item(item, upload.count)\n", "",
+      T + "test_mission_protocol.py"),
+    M("mission-out-of-sequence", "an out-of-sequence item is dropped, the expected one asked",
+      PKG + "protocol/missionservice.py",
+      "if seq > upload.expected:", "if seq > upload.expected + 1:",
+      T + "test_mission_protocol.py"),
+    M("mission-download-range", "a download request past the end gets INVALID_SEQUENCE",
+      PKG + "protocol/missionservice.py",
+      "if not 0 <= seq < len(self.items):", "if not -1 <= seq < len(self.items):",
+      T + "test_mission_protocol.py"),
+    M("mission-fence-upload", "a fence or rally upload is unsupported (only missions stored)",
+      PKG + "protocol/missionservice.py",
+      "        if mission_type != _MISSION:\n            return [_ack(src, mavlink.MAV_MISSION_"
+      "UNSUPPORTED, mission_type)]\n        upload = self._upload\n        if upload is not None:\n"
+      "            if upload.src != src:",
+      "        upload = self._upload\n        if upload is not None:\n"
+      "            if upload.src != src:",
+      T + "test_mission_protocol.py"),
+)
+
+
+# ====================================================================== running
+
+
+@dataclass
+class Outcome:
+    """What became of one mutant."""
+
+    mutation: Mutation
+    verdict: str
+    """``killed``, ``killed (error)``, ``killed (timeout)``, ``SURVIVED``, ``STALE``,
+    ``NO TESTS`` (its test ids match nothing), ``TOOL ERROR``."""
+    by: str
+    """The first failing test's node id, or why not."""
+    seconds: float
+
+    @property
+    def ok(self) -> bool:
+        return self.verdict.startswith("killed")
+
+
+def stale_reason(m: Mutation) -> str | None:
+    """Why ``m`` cannot be applied to this tree (None if it can)."""
+    path = ROOT / m.file
+    if not path.is_file():
+        return f"{m.file} missing"
+    count = path.read_text(encoding="utf-8").count(m.old)
+    if count != 1:
+        return f"old snippet found {count} times in {m.file}"
+    if m.old == m.new:
+        return "old == new"
+    return None
+
+
+def make_copy(into: Path) -> Path:
+    """A copy of the repository's package, tests and data under ``into``; its root."""
+    root = into / "repo"
+    root.mkdir()
+    for name in COPIED:
+        src = ROOT / name
+        if src.is_dir():
+            shutil.copytree(src, root / name, ignore=IGNORED)
+        elif src.is_file():
+            shutil.copy2(src, root / name)
+    return root
+
+
+def environment(copy: Path) -> dict[str, str]:
+    """The environment tests run in: the copy first on the import path, no byte code."""
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(copy), env.get("PYTHONPATH")]))
+    env["PYTHONDONTWRITEBYTECODE"] = "1"  # a same-size mutation within a second: no stale .pyc
+    env.pop("PYTEST_ADDOPTS", None)
+    return env
+
+
+def canary(copy: Path) -> str | None:
+    """None if a subprocess started as the tests start them imports the copy's package; else
+    what it imported."""
+    probe = "import mecanum_mav, sys; sys.stdout.write(mecanum_mav.__file__)"
+    for cwd in (copy, Path(tempfile.gettempdir())):
+        out = subprocess.run([sys.executable, "-c", probe], cwd=cwd, env=environment(copy),
+                             capture_output=True, text=True, timeout=60)
+        where = out.stdout.strip()
+        if out.returncode != 0 or not Path(where).resolve().is_relative_to(copy.resolve()):
+            return f"from cwd {cwd}: {where or out.stderr.strip()[-300:]}"
+    return None
+
+
+def first_failure(junit: Path) -> tuple[str, bool] | None:
+    """(node id, is a collection/import error) of the first failing test in a JUnit XML."""
+    try:
+        tree = ET.parse(junit)
+    except (OSError, ET.ParseError):
+        return None
+    for case in tree.iter("testcase"):
+        failure = case.find("failure")
+        error = case.find("error")
+        bad = failure if failure is not None else error
+        if bad is None:
+            continue
+        classname, name = case.get("classname", ""), case.get("name", "")
+        if not classname:  # a collection error: the name is the module
+            return name, True
+        parts = classname.split(".")
+        module = "/".join(p for p in parts if not p[:1].isupper())
+        classes = [p for p in parts if p[:1].isupper()]
+        node = "::".join([f"{module}.py", *classes, name])
+        message = (bad.get("message") or "").lower()
+        return node, failure is None and "collect" in message
+    return None
+
+
+def run_tests(copy: Path, tests: tuple[str, ...], junit: Path) -> tuple[int, str, bool]:
+    """pytest on ``tests`` in ``copy``: (exit code, the first failing node or a reason,
+    the failure was a collection/import error)."""
+    junit.unlink(missing_ok=True)
+    cmd = [sys.executable, "-m", "pytest", *PYTEST, f"--junitxml={junit}", *tests]
+    try:
+        out = subprocess.run(cmd, cwd=copy, env=environment(copy), capture_output=True,
+                             text=True, timeout=TIMEOUT_S)
+    except subprocess.TimeoutExpired:
+        return -1, f"timeout after {TIMEOUT_S:.0f} s", False
+    found = first_failure(junit)
+    if found is not None:
+        return out.returncode, found[0], found[1] or out.returncode == 2
+    text = out.stdout + out.stderr
+    lines = [line for line in text.strip().splitlines() if line.strip()]
+    if out.returncode == 4 and "not found:" not in text:  # (a conftest that did not import)
+        return 2, next((line for line in reversed(lines) if "Error" in line), lines[-1]), True
+    return out.returncode, lines[-1] if lines else "", out.returncode == 2
+
+
+def run_one(copy: Path, m: Mutation) -> Outcome:
+    """Apply ``m`` to ``copy``, run its tests, put the file back."""
+    start = time.monotonic()
+    reason = stale_reason(m)
+    if reason is not None:
+        return Outcome(m, "STALE", reason, 0.0)
+    target = copy / m.file
+    original = (ROOT / m.file).read_text(encoding="utf-8")
+    target.write_text(original.replace(m.old, m.new), encoding="utf-8")
+    try:
+        code, by, error = run_tests(copy, m.tests, copy.parent / f"junit-{m.id}.xml")
+    finally:
+        target.write_text(original, encoding="utf-8")
+    seconds = time.monotonic() - start
+    if code == -1:
+        return Outcome(m, "killed (timeout)", by, seconds)
+    if code == 0:
+        return Outcome(m, "SURVIVED", "", seconds)
+    if code in (4, 5):
+        return Outcome(m, "NO TESTS", by, seconds)
+    return Outcome(m, "killed (error)" if error else "killed", by, seconds)
+
+
+def run_all(selected: list[Mutation], workers: int, show: bool) -> list[Outcome]:
+    """Every mutant in ``selected`` on ``workers`` copies; exits on a broken baseline."""
+    outcomes: dict[str, Outcome] = {}
+    todo: queue.Queue[Mutation] = queue.Queue()
+    runnable = []
+    for m in selected:
+        reason = stale_reason(m)
+        if reason is None:
+            runnable.append(m)
+        else:
+            outcomes[m.id] = Outcome(m, "STALE", reason, 0.0)
+    with tempfile.TemporaryDirectory(prefix="mutants-") as tmp:
+        copies = []
+        for n in range(max(1, min(workers, len(runnable)))):
+            folder = Path(tmp) / f"w{n}"
+            folder.mkdir()
+            copies.append(make_copy(folder))
+        if copies:
+            problem = canary(copies[0])
+            if problem is not None:
+                sys.exit(f"mutants: the copy does not import itself ({problem}); the results "
+                         f"would be about the installed package")
+            union = tuple(dict.fromkeys(t for m in runnable for t in m.tests))
+            start = time.monotonic()
+            code, by, _ = run_tests(copies[0], union, copies[0].parent / "junit-baseline.xml")
+            print(f"baseline: {len(union)} test selections, exit {code}, "
+                  f"{time.monotonic() - start:.1f} s", flush=True)
+            if code != 0:
+                sys.exit(f"mutants: BROKEN BASELINE: {by}")
+        for m in runnable:
+            todo.put(m)
+        lock = threading.Lock()
+
+        def work(copy: Path) -> None:
+            while True:
+                try:
+                    m = todo.get_nowait()
+                except queue.Empty:
+                    return
+                try:
+                    outcome = run_one(copy, m)
+                except Exception as exc:  # (a tool failure, not a verdict: reported, not lost)
+                    outcome = Outcome(m, "TOOL ERROR", repr(exc), 0.0)
+                with lock:
+                    outcomes[m.id] = outcome
+                    if show:
+                        print(f"  {m.id}: {outcome.verdict} {outcome.by} "
+                              f"({outcome.seconds:.1f} s)", flush=True)
+
+        threads = [threading.Thread(target=work, args=(c,), daemon=True) for c in copies]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join()
+    return [outcomes[m.id] for m in selected]
+
+
+def table(outcomes: list[Outcome]) -> str:
+    """The report: one row per mutant, then the totals."""
+    rows = [("id", "rule", "killed by", "s")]
+    for o in outcomes:
+        by = o.by if o.verdict == "killed" else f"{o.verdict}: {o.by}".rstrip(": ")
+        rows.append((o.mutation.id, o.mutation.rule, by, f"{o.seconds:.1f}"))
+    widths = [max(len(r[i]) for r in rows) for i in range(2)]
+    lines = [f"{r[0]:<{widths[0]}} | {r[1]:<{widths[1]}} | {r[2]} | {r[3]}" for r in rows]
+    lines.insert(1, "-" * min(160, len(lines[0])))
+    killed = sum(o.ok for o in outcomes)
+    errors = sum(o.verdict != "killed" and o.ok for o in outcomes)
+    bad = [o.mutation.id for o in outcomes if not o.ok]
+    lines.append(f"\n{len(outcomes)} mutants: {killed} killed ({errors} by an error or timeout),"
+                 f" {len(bad)} not: {' '.join(bad) or '-'}; "
+                 f"{sum(o.seconds for o in outcomes):.0f} s of test time")
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """The command line (module docstring)."""
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--fast", action="store_true", help="only the CI subset")
+    parser.add_argument("--only", nargs="+", metavar="ID", help="only these ids")
+    parser.add_argument("-j", "--jobs", type=int, default=2, help="workers (default 2)")
+    parser.add_argument("--list", action="store_true", help="print the list and exit")
+    parser.add_argument("-v", "--verbose", action="store_true", help="each result as it comes")
+    args = parser.parse_args(argv)
+    ids = [m.id for m in MUTATIONS]
+    duplicates = {i for i in ids if ids.count(i) > 1}
+    if duplicates:
+        print(f"mutants: duplicate ids {sorted(duplicates)}", file=sys.stderr)
+        return 1
+    selected = [m for m in MUTATIONS if m.fast] if args.fast else list(MUTATIONS)
+    if args.only:
+        unknown = set(args.only) - set(ids)
+        if unknown:
+            print(f"mutants: unknown ids {sorted(unknown)}", file=sys.stderr)
+            return 1
+        selected = [m for m in selected if m.id in args.only]
+    if args.list:
+        for m in selected:
+            flag = "*" if m.fast else " "
+            stale = stale_reason(m)
+            print(f"{flag} {m.id:<18} {m.file:<36} {m.rule}"
+                  + (f"  [STALE: {stale}]" if stale else ""))
+        print(f"{len(selected)} mutations ({sum(m.fast for m in selected)} in --fast, marked *)")
+        return 0
+    start = time.monotonic()
+    outcomes = run_all(selected, args.jobs, args.verbose)
+    print(table(outcomes))
+    print(f"wall time {time.monotonic() - start:.0f} s with -j {args.jobs}")
+    return 0 if all(o.ok for o in outcomes) else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
