@@ -184,6 +184,7 @@ def cmd_log(args: argparse.Namespace, params: Params) -> int:
 
     return run_log(args.tlog, args.png)
 
+
 def cmd_setup_fc(args: argparse.Namespace, params: Params) -> int:
     from mecanum_mav.app.setupfc import run_setup
 
@@ -193,6 +194,7 @@ def cmd_setup_fc(args: argparse.Namespace, params: Params) -> int:
 
 def cmd_simfc(args: argparse.Namespace, params: Params) -> int:
     return serve_simfc(args.listen, params)
+
 
 def cmd_plot(args: argparse.Namespace, params: Params) -> int:
     from mecanum_mav.app.plots import render_all

@@ -331,6 +331,7 @@ rotation).
 ALGORITHM_NAMES: tuple[str, ...] = tuple(ALGORITHMS)
 """Algorithm names indexed by the ``MIX_ALGO`` parameter value."""
 
+
 def mix_stick(
     x: float,
     y: float,
