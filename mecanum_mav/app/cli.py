@@ -18,23 +18,49 @@ that do not validate (or do not exist, except for ``run`` and ``sim``, which sta
 defaults and create them) and a rover refused because another holds its parameter file or
 its system id and ground station; 130 when Ctrl-C cut a command short (one line, no
 traceback).
-"""
 
+This module is the command line itself: the parsers (what docs/reference/cli.md is generated
+from), the entry point, and each sub-command's handler, which turns its flags into a call.
+What the commands do lives beside it: :mod:`~mecanum_mav.app.foreground` (``run``, ``sim``,
+``simfc``), :mod:`~mecanum_mav.app.mixcommand` (``mix``), :mod:`~mecanum_mav.app.instances`
+(``--instance``), :mod:`~mecanum_mav.app.setupfc`, :mod:`~mecanum_mav.app.logview`,
+:mod:`~mecanum_mav.app.demo`, :mod:`~mecanum_mav.app.plots`. Their public names are
+importable from here too.
+"""
 from __future__ import annotations
 
 import argparse
 import contextlib
-import csv
 import io
-import json
 import logging
-import math
 import sys
-from collections.abc import Iterable, Sequence
+from collections.abc import Sequence
 from pathlib import Path
-from typing import TextIO
 
 from mecanum_mav import __version__
+from mecanum_mav.app.foreground import serve, serve_simfc
+from mecanum_mav.app.instances import (
+    DEFAULT_GCS_URL,
+    INSTANCE_PORT_BASE,
+    INSTANCE_PORT_STEP,
+    MAX_INSTANCE,
+    instance_gcs_url,
+    instance_number,
+    instance_port,
+    instance_sysid,
+    sim_gcs_url,
+)
+from mecanum_mav.app.mixcommand import (
+    CSV_COLUMNS,
+    DESAT_NAMES,
+    OUTPUT_HEADER,
+    POLAR_KEYS,
+    CommandError,
+    cmd_mix,
+    mix_fields,
+    run_batch,
+    stick_from_fields,
+)
 from mecanum_mav.config.params import (
     ParamError,
     ParamFileError,
@@ -42,27 +68,33 @@ from mecanum_mav.config.params import (
     markdown_table,
     parse_assignment,
 )
-from mecanum_mav.control.pwm import PwmMap
 from mecanum_mav.io.keyfile import KeyFileError, load_signing_key
 from mecanum_mav.io.paramfile import load, save
-from mecanum_mav.mecanum.mixing import ALGORITHM_NAMES, Desaturation, mix_stick
-from mecanum_mav.mecanum.wheels import WHEEL_KEYS
+from mecanum_mav.mecanum.mixing import ALGORITHM_NAMES
 
-DESAT_NAMES = {d.name.lower(): d for d in Desaturation}
+__all__ = [  # the command line, and what it re-exports from the modules that do the work
+    "CSV_COLUMNS", "DEFAULT_GCS_URL", "DESAT_NAMES", "INSTANCE_PORT_BASE", "INSTANCE_PORT_STEP",
+    "INTERRUPTED", "LOG_LEVELS", "MAX_INSTANCE", "OUTPUT_HEADER", "POLAR_KEYS", "CommandError",
+    "build_parser", "configure_logging", "instance_gcs_url", "instance_port", "instance_sysid",
+    "load_params", "main", "mix_fields", "run_batch", "serve", "serve_simfc", "signing_keys",
+    "sim_gcs_url", "stick_from_fields",
+]
+
 LOG_LEVELS = ("DEBUG", "INFO", "WARNING", "ERROR")
 """The values of ``--log-level``."""
-CSV_COLUMNS = ("x", "y", "rotation", "heading_deg", "magnitude", "direction_deg", "algo")
-POLAR_KEYS = ("magnitude", "direction_deg")
-OUTPUT_HEADER = [f"w_{k.lower()}" for k in WHEEL_KEYS] + [
-    f"pwm_{k.lower()}" for k in WHEEL_KEYS
-] + ["error"]
+PARAMS_RESET_HELP = ("start on the parameter defaults (and --set) instead of the --params "
+                     "file, which is left untouched: for a file that no longer loads")
+QUIET_HELP = ("no status line every 5 s (printed only when stdout is a terminal); what "
+              "happens and errors are still said")
+SIGNING_KEY_HELP = ("MAVLink 2 signing on the ground-station link: FILE holds 64 hex digits "
+                    "(the key) or a passphrase (key = SHA-256, as MAVProxy's 'signing key'); "
+                    "it must not be readable by group or others. Only correctly signed "
+                    "packets are obeyed; everything sent is signed")
+FC_SIGNING_KEY_HELP = ("MAVLink 2 signing on the flight-controller link, for a board that "
+                       "requires it (same FILE format as --signing-key)")
 
 
-class CommandError(ValueError):
-    """A command (one line of a batch, or the flags of ``mix``) that cannot be mixed."""
-
-
-# --------------------------------------------------------------------------- parameters
+# --------------------------------------------------------------------------- common flags
 
 
 def load_params(path: Path | None, assignments: Sequence[str],
@@ -87,255 +119,6 @@ def load_params(path: Path | None, assignments: Sequence[str],
     return params
 
 
-# --------------------------------------------------------------------------- fleet instances
-
-INSTANCE_PORT_BASE = 14560
-"""UDP port instance 0 sends to; instance N sends to ``INSTANCE_PORT_BASE + 10 N``."""
-INSTANCE_PORT_STEP = 10
-"""Ports per instance, as ArduPilot SITL's ``-I N`` (5760 + 10 N ...)."""
-MAX_INSTANCE = 254
-"""The last instance whose system id (N + 1) is a valid vehicle id (SYSID_THISMAV <= 255)."""
-
-
-def instance_sysid(instance: int) -> int:
-    """The vehicle system id of fleet instance ``instance``: N + 1 (sim_vehicle.py's
-    ``--auto-sysid``)."""
-    return instance + 1
-
-
-def instance_port(instance: int) -> int:
-    """The UDP port fleet instance ``instance`` sends its ground-station link to: 14560 + 10 N,
-    a block of ten per instance starting above 14550, so that a router can hand the fleet to
-    a ground station listening on its usual 14550."""
-    return INSTANCE_PORT_BASE + INSTANCE_PORT_STEP * instance
-
-
-def instance_gcs_url(instance: int) -> str:
-    """The default ``--gcs`` of fleet instance ``instance``: ``udpout:127.0.0.1:14560+10N``."""
-    return f"udpout:127.0.0.1:{instance_port(instance)}"
-
-
-def _instance_number(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
-    if not 0 <= value <= MAX_INSTANCE:
-        raise argparse.ArgumentTypeError(f"must be 0 .. {MAX_INSTANCE}, got {value}")
-    return value
-
-
-# --------------------------------------------------------------------------- mixing a command
-
-
-def _number(fields: dict[str, object], key: str, default: float | None = None) -> float | None:
-    raw = fields.get(key)
-    if raw is None or raw == "":
-        return default
-    try:
-        value = float(raw)  # type: ignore[arg-type]  # any object: TypeError is caught
-    except (TypeError, ValueError):
-        raise CommandError(f"{key}: not a number: {raw!r}") from None
-    if not math.isfinite(value):
-        raise CommandError(f"{key}: must be finite, got {raw!r}")
-    return value
-
-
-def stick_from_fields(fields: dict[str, object]) -> tuple[float, float, float, float]:
-    """``(x, y, rotation, heading_deg)`` from a command given in Cartesian or polar form.
-
-    Polar fields (``magnitude``, ``direction_deg``) become ``x = m cos d``, ``y = m sin d``;
-    missing Cartesian fields are 0. Mixing both forms in one command is an error.
-    """
-    unknown = sorted(set(fields) - set(CSV_COLUMNS))
-    if unknown:
-        known = ", ".join(CSV_COLUMNS)
-        raise CommandError(f"unknown field(s) {', '.join(unknown)}; known: {known}")
-    polar = any(fields.get(k) not in (None, "") for k in POLAR_KEYS)
-    cartesian = any(fields.get(k) not in (None, "") for k in ("x", "y"))
-    if polar and cartesian:
-        raise CommandError("give x/y or magnitude/direction_deg, not both")
-    rotation = _number(fields, "rotation", 0.0)
-    heading = _number(fields, "heading_deg", 0.0)
-    if polar:
-        m = _number(fields, "magnitude", 0.0)
-        d = math.radians(_number(fields, "direction_deg", 0.0) or 0.0)
-        x, y = (m or 0.0) * math.cos(d), (m or 0.0) * math.sin(d)
-    else:
-        x, y = _number(fields, "x", 0.0) or 0.0, _number(fields, "y", 0.0) or 0.0
-    return x, y, rotation or 0.0, heading or 0.0
-
-
-def mix_fields(
-    fields: dict[str, object], params: Params, default_algo: str, priority: Desaturation
-) -> tuple[str, list[float], tuple[int, int, int, int]]:
-    """Mix one command; returns (algorithm, four normalized wheels, four PWM values in us)."""
-    algo = str(fields.pop("algo", None) or default_algo)
-    if algo not in ALGORITHM_NAMES:
-        raise CommandError(f"unknown algorithm {algo!r}; known: {', '.join(ALGORITHM_NAMES)}")
-    x, y, rotation, heading = stick_from_fields(fields)
-    wheels = [round(float(w), 6) + 0.0 for w in mix_stick(
-        x, y, rotation, algo, heading_deg=heading, priority=priority)]
-    return algo, wheels, PwmMap.from_params(params).pulses_us(wheels)
-
-
-# --------------------------------------------------------------------------- batch
-
-
-def _parse_line(
-    line: str, header: list[str] | None, default_keys: Sequence[str]
-) -> dict[str, object]:
-    if line.lstrip().startswith("{"):
-        try:
-            fields = json.loads(line)
-        except json.JSONDecodeError as exc:
-            raise CommandError(f"bad JSON: {exc.msg} at column {exc.colno}") from None
-        if not isinstance(fields, dict):
-            raise CommandError("a JSON line must be an object")
-        return dict(fields)
-    values = next(csv.reader([line]))
-    keys = header or list(default_keys)
-    if len(values) > len(keys):
-        raise CommandError(
-            f"expected at most {len(keys)} values ({','.join(keys)}), got {len(values)}"
-        )
-    return {k: v.strip() for k, v in zip(keys, values, strict=False)}
-
-
-def _is_header(line: str) -> bool:
-    first = next(csv.reader([line]), [""])[0].strip()
-    return first in CSV_COLUMNS
-
-
-def run_batch(
-    lines: Iterable[str], out: TextIO, err: TextIO, params: Params, algo: str,
-    priority: Desaturation,
-) -> int:
-    """Mix one command per input line (CSV or JSON lines); write one output line each.
-
-    Blank lines and ``#`` comments are skipped. A CSV header line (naming columns from
-    :data:`CSV_COLUMNS`) sets the column order and is answered by an output header; without a
-    header the columns are ``x,y,rotation,heading_deg`` for ``cartesian`` and
-    ``magnitude,direction_deg,rotation,heading_deg`` for the polar algorithms. CSV lines get
-    CSV answers (``w_fl..w_rr,pwm_fl..pwm_rr,error``), JSON lines JSON answers. A bad line is
-    answered with its error (and reported on ``err``), never with wheel values.
-
-    Returns:
-        0 if every line mixed, 1 otherwise.
-    """
-    default_keys = ("x", "y", "rotation", "heading_deg") if algo == "cartesian" else (
-        "magnitude", "direction_deg", "rotation", "heading_deg")
-    header: list[str] | None = None
-    writer = csv.writer(out, lineterminator="\n")
-    failures = 0
-    for number, raw in enumerate(lines, start=1):
-        line = raw.strip()
-        if not line or line.startswith("#"):
-            continue
-        if header is None and not line.startswith("{") and _is_header(line):
-            header = [h.strip() for h in next(csv.reader([line]))]
-            bad = [h for h in header if h not in CSV_COLUMNS]
-            if bad:
-                err.write(f"line {number}: unknown column(s) {', '.join(bad)}\n")
-                return 1
-            writer.writerow(OUTPUT_HEADER)
-            continue
-        as_json = line.startswith("{")
-        try:
-            used, wheels, pwm = mix_fields(_parse_line(line, header, default_keys), params, algo,
-                                           priority)
-        except CommandError as exc:
-            failures += 1
-            err.write(f"line {number}: {exc}\n")
-            if as_json:
-                out.write(json.dumps({"line": number, "error": str(exc)}) + "\n")
-            else:
-                writer.writerow([""] * 8 + [str(exc)])
-            continue
-        if as_json:
-            out.write(json.dumps({"algorithm": used, "wheels": wheels, "pwm": list(pwm)}) + "\n")
-        else:
-            writer.writerow([*wheels, *pwm, ""])
-    return 1 if failures else 0
-
-
-# --------------------------------------------------------------------------- sub-commands
-
-
-def cmd_mix(args: argparse.Namespace, params: Params) -> int:
-    algo = args.algo or ALGORITHM_NAMES[int(params["MIX_ALGO"])]
-    priority = DESAT_NAMES[args.desat] if args.desat else Desaturation(int(params["MIX_DESAT"]))
-    if args.batch:
-        return run_batch(sys.stdin, sys.stdout, sys.stderr, params, algo, priority)
-    fields: dict[str, object] = {
-        "x": args.x, "y": args.y, "magnitude": args.magnitude,
-        "direction_deg": args.direction, "rotation": args.rotation, "heading_deg": args.heading,
-    }
-    try:
-        used, wheels, pwm = mix_fields({k: v for k, v in fields.items() if v is not None},
-                                       params, algo, priority)
-    except CommandError as exc:
-        print(f"mecanum-mav mix: {exc}", file=sys.stderr)
-        return 2
-    channels = PwmMap.from_params(params).channels
-    if args.json:
-        print(json.dumps({"algorithm": used, "desaturation": priority.name.lower(),
-                          "wheels": wheels, "pwm": list(pwm), "channels": list(channels)}))
-        return 0
-    print(f"algorithm {used}, desaturation {priority.name.lower()}")
-    print("wheel  command    PWM us  channel")
-    for key, w, p, ch in zip(WHEEL_KEYS, wheels, pwm, channels, strict=True):
-        print(f"{key:<5}  {w:+.4f}   {p:>6}  {ch:>7}")
-    return 0
-
-
-def cmd_plot(args: argparse.Namespace, params: Params) -> int:
-    from mecanum_mav.app.plots import render_all
-
-    try:
-        paths = render_all(Path(args.out))
-    except RuntimeError as exc:
-        print(f"mecanum-mav plot: {exc}", file=sys.stderr)
-        return 2
-    for path in paths:
-        print(path)
-    return 0
-
-
-def cmd_params(args: argparse.Namespace, params: Params) -> int:
-    if args.markdown:
-        print(markdown_table())
-        return 0
-    if args.save:
-        save(params, Path(args.save))
-        print(f"saved {len(params.names())} parameters to {args.save}")
-        return 0
-    buffer = io.StringIO()
-    for name in params.names():
-        marker = "  # changed" if name in params.changed() else ""
-        buffer.write(f"{name} {params[name]}{marker}\n")
-    sys.stdout.write(buffer.getvalue())
-    return 0
-
-
-# --------------------------------------------------------------------------- the companion
-
-PARAMS_RESET_HELP = ("start on the parameter defaults (and --set) instead of the --params "
-                     "file, which is left untouched: for a file that no longer loads")
-QUIET_HELP = ("no status line every 5 s (printed only when stdout is a terminal); what "
-              "happens and errors are still said")
-DEFAULT_GCS_URL = "udpout:127.0.0.1:14550"
-"""Where QGroundControl and MAVProxy listen by default."""
-
-
-SIGNING_KEY_HELP = ("MAVLink 2 signing on the ground-station link: FILE holds 64 hex digits "
-                    "(the key) or a passphrase (key = SHA-256, as MAVProxy's 'signing key'); "
-                    "it must not be readable by group or others. Only correctly signed "
-                    "packets are obeyed; everything sent is signed")
-FC_SIGNING_KEY_HELP = ("MAVLink 2 signing on the flight-controller link, for a board that "
-                       "requires it (same FILE format as --signing-key)")
-
-
 def signing_keys(args: argparse.Namespace) -> tuple[bytes | None, bytes | None]:
     """The ground-station and flight-controller links' signing keys from ``--signing-key``
     and ``--fc-signing-key`` (None where not given).
@@ -348,67 +131,8 @@ def signing_keys(args: argparse.Namespace) -> tuple[bytes | None, bytes | None]:
             None if fc is None else load_signing_key(fc))
 
 
-def serve(params: Params, gcs_url: str, fc_url: str, param_path: Path | None,
-          tlog_path: Path | None,
-          keys: tuple[bytes | None, bytes | None] = (None, None), *,
-          quiet: bool = False) -> int:
-    """Run the companion in the foreground until SIGINT/SIGTERM; ``fc_url`` may be ``sim``.
-
-    The status line (:meth:`~mecanum_mav.control.core.RoverCore.status_line`: messages
-    received, malformed packets, failed sends, refusals per kind) goes to stderr on SIGUSR1
-    and at exit. On stdout it says what it does (:class:`~mecanum_mav.app.progress.Progress`:
-    waiting for the flight controller, found, lost; on a terminal and without ``quiet`` a
-    status line every 5 s). A SIGINT or SIGTERM while it starts abandons the start-up
-    (:class:`KeyboardInterrupt`); once it runs, the first one stops it in order and any
-    further one is ignored (:class:`~mecanum_mav.app.shutdown.Termination`)."""
-    import signal
-
-    from mecanum_mav.app.companion import Companion
-    from mecanum_mav.app.progress import Progress
-    from mecanum_mav.app.shutdown import on_signals, terminate_in_order
-    from mecanum_mav.io.claims import claim_ground_station
-    from mecanum_mav.io.storage import claim_parameter_file
-    from mecanum_mav.sim.simfc import SimFlightController
-
-    with terminate_in_order() as termination, contextlib.ExitStack() as stack:
-        try:
-            if param_path is not None:  # one rover per file: a second one is refused
-                stack.enter_context(claim_parameter_file(param_path))
-            # one rover per system id and ground station (and per listening port)
-            stack.enter_context(claim_ground_station(int(params["SYSID_THISMAV"]), gcs_url))
-            if fc_url == "sim":
-                sim = SimFlightController("udpin:127.0.0.1:0", params)
-                sim.start()
-                stack.callback(sim.stop)
-                fc_url = f"udpout:127.0.0.1:{sim.local_port}"
-            tlog = stack.enter_context(tlog_path.open("ab")) if tlog_path else None
-            companion = Companion(params, gcs_url, fc_url, param_path=param_path, tlog=tlog,
-                                  gcs_signing_key=keys[0], fc_signing_key=keys[1])
-        except (OSError, ValueError) as exc:
-            print(f"mecanum-mav: {exc}", file=sys.stderr)
-            return 2
-        stack.callback(companion.close)
-        signed = " (signed)" if keys[0] is not None else ""
-        fc_signed = " (signed)" if keys[1] is not None else ""
-        print(f"mecanum-mav: rover system {params['SYSID_THISMAV']} on {gcs_url}{signed}, "
-              f"flight controller on {fc_url}{fc_signed}. Ctrl-C stops (wheels to neutral, "
-              f"channels released).", flush=True)
-
-        def print_status() -> None:
-            print(f"mecanum-mav: {companion.core.status_line()}", file=sys.stderr, flush=True)
-
-        progress = Progress(companion.core, fc_url, sys.stdout,
-                            periodic=not quiet and sys.stdout.isatty())
-        progress.started()
-        companion.set_timer(progress.tick)
-
-        # From here a SIGINT or SIGTERM, however many, ends the loop in order (neutral,
-        # release) and waits for the links to linger: none cuts the shutdown short.
-        termination.running(companion.stop)
-        with on_signals((signal.SIGUSR1,), print_status):
-            companion.run()
-        print_status()
-    return 0
+# --------------------------------------------------------------------------- the handlers
+# One per sub-command: its flags to a call of the module that does the work.
 
 
 def cmd_run(args: argparse.Namespace, params: Params) -> int:
@@ -429,14 +153,6 @@ def cmd_sim(args: argparse.Namespace, params: Params) -> int:
               f"udpin:{host_port} of the router (see docs/fleet.md)",
               flush=True)
     return serve(params, gcs, "sim", args.params, args.tlog, args.keys, quiet=args.quiet)
-
-
-def sim_gcs_url(args: argparse.Namespace) -> str:
-    """``sim``'s ground-station URL: ``--gcs`` if given, else the instance's port
-    (:func:`instance_gcs_url`), else :data:`DEFAULT_GCS_URL`."""
-    if args.gcs is not None:
-        return str(args.gcs)
-    return DEFAULT_GCS_URL if args.instance is None else instance_gcs_url(args.instance)
 
 
 def cmd_demo(args: argparse.Namespace, params: Params) -> int:
@@ -469,32 +185,6 @@ def cmd_log(args: argparse.Namespace, params: Params) -> int:
     return run_log(args.tlog, args.png)
 
 
-def serve_simfc(url: str, params: Params) -> int:
-    """``mecanum-mav simfc --listen URL``: serve in the foreground until SIGINT or SIGTERM.
-
-    Prints one line saying where it listens; returns 0, or 1 (message on stderr) when the
-    link cannot be opened. Call from the main thread (it installs signal handlers).
-    """
-    import threading
-
-    from mecanum_mav.app.shutdown import on_termination
-    from mecanum_mav.sim.simfc import SimFlightController
-
-    try:
-        sim = SimFlightController(url, params)
-    except (OSError, ValueError) as exc:
-        print(f"simfc: {exc}", file=sys.stderr)
-        return 1
-    stop = threading.Event()
-    with sim, on_termination(stop.set):
-        port = sim.local_port
-        where = f"{url} (port {port})" if port is not None else url
-        print(f"simfc: simulated ArduPilot Rover, system {params['FC_SYSID']} component "
-              f"{params['FC_COMPID']}, listening on {where}", flush=True)
-        sim.run(stop)
-    return 0
-
-
 def cmd_setup_fc(args: argparse.Namespace, params: Params) -> int:
     from mecanum_mav.app.setupfc import run_setup
 
@@ -504,6 +194,35 @@ def cmd_setup_fc(args: argparse.Namespace, params: Params) -> int:
 
 def cmd_simfc(args: argparse.Namespace, params: Params) -> int:
     return serve_simfc(args.listen, params)
+
+
+def cmd_plot(args: argparse.Namespace, params: Params) -> int:
+    from mecanum_mav.app.plots import render_all
+
+    try:
+        paths = render_all(Path(args.out))
+    except RuntimeError as exc:
+        print(f"mecanum-mav plot: {exc}", file=sys.stderr)
+        return 2
+    for path in paths:
+        print(path)
+    return 0
+
+
+def cmd_params(args: argparse.Namespace, params: Params) -> int:
+    if args.markdown:
+        print(markdown_table())
+        return 0
+    if args.save:
+        save(params, Path(args.save))
+        print(f"saved {len(params.names())} parameters to {args.save}")
+        return 0
+    buffer = io.StringIO()
+    for name in params.names():
+        marker = "  # changed" if name in params.changed() else ""
+        buffer.write(f"{name} {params[name]}{marker}\n")
+    sys.stdout.write(buffer.getvalue())
+    return 0
 
 
 # --------------------------------------------------------------------------- parser
@@ -536,7 +255,7 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--gcs", metavar="URL",
                      help=f"ground-station link (default {DEFAULT_GCS_URL}; with --instance N "
                      f"udpout:127.0.0.1:{INSTANCE_PORT_BASE}+{INSTANCE_PORT_STEP}N)")
-    sim.add_argument("--instance", type=_instance_number, metavar="N",
+    sim.add_argument("--instance", type=instance_number, metavar="N",
                      help=f"rover N of a fleet on one machine (0 .. {MAX_INSTANCE}), as "
                      f"ArduPilot SITL's -I N: system id N+1 (SYSID_THISMAV; --set wins, the "
                      f"--params file does not) and the ground-station link to UDP port "
