@@ -408,10 +408,9 @@ MUTATIONS: tuple[Mutation, ...] = (
       "return messages",
       T + "test_signing_process.py", T + "test_signing.py"),
     M("link-signed-no-lane", "a signing link never hands datagrams to the unchecked stick lane",
-      PKG + "io/links.py",
-      "return not self._buffered and self.signature_check is None and (\n"
-      "            not self.conn.mav.signing.sign_outgoing)",
-      "return not self._buffered",
+      PKG + "io/links/datagram.py",
+      "return self.signature_check is None and not self.conn.mav.signing.sign_outgoing",
+      "return True",
       T + "test_signed_link_checks_every_datagram.py"),
     M("prearm-force-magic", "only param2 21196 forces an arm past the pre-arm checks",
       PKG + "control/core.py",
@@ -727,15 +726,15 @@ MUTATIONS: tuple[Mutation, ...] = (
       T + "test_interrupts.py"),
     # ---------------------------------------------------------------- the links' timers
     M("link-reopen-period", "a broken serial or TCP link tries to reopen every 0.5 s",
-      PKG + "io/links.py", "REOPEN_PERIOD_S = 0.5", "REOPEN_PERIOD_S = 1.0",
+      PKG + "io/links/base.py", "REOPEN_PERIOD_S = 0.5", "REOPEN_PERIOD_S = 1.0",
       T + "test_link_timing.py"),
     M("link-pacing-baud", "a serial link hands over no faster than its baud rate carries",
-      PKG + "io/links.py",
+      PKG + "io/links/serialport.py",
       "            self._wire_free_s = max(self._wire_free_s, now) + n / rate",
       "            self._wire_free_s = max(self._wire_free_s, now) + n / rate / 4",
       T + "test_link_timing.py"),
     M("link-override-newest-wins", "a waiting override is replaced by a newer one (stream)",
-      PKG + "io/links.py",
+      PKG + "io/links/stream.py",
       "        if replace:\n            self._override = (target_system, target_component, "
       "channels)",
       "        if False:\n            self._override = (target_system, target_component, "
