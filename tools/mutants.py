@@ -740,6 +740,12 @@ MUTATIONS: tuple[Mutation, ...] = (
       "        if False:\n            self._override = (target_system, target_component, "
       "channels)",
       T + "test_link_timing.py", T + "test_serial_pacing.py", T + "test_links.py"),
+    M("link-bcast-reply", "a udpbcast link sends to the address that answered it",
+      PKG + "io/links/datagram.py", "        self.conn.last_address = address\n", "",
+      T + "test_link_classes.py"),
+    M("link-class-signed-udpin", "a signed udpin link told to is the one that tells refusals",
+      PKG + "io/links/__init__.py", "        if signing_key is not None and tell_refused:",
+      "        if False:", T + "test_link_classes.py", T + "test_refused_senders.py"),
     # ---------------------------------------------------------------- what is stored
     M("storage-atomic-save", "a saved file is complete old or complete new, never torn",
       PKG + "io/atomicfile.py",

@@ -14,7 +14,8 @@ common bus class:
 ``tcp:HOST:PORT``                      :class:`~.tcp.TcpLink`
 ``tcpin:HOST:PORT``                    :class:`~.tcp.TcpServerLink`
 ``/dev/ttyUSB0,57600``                 :class:`~.serialport.SerialLink` (pyserial)
-anything else (``udpbcast:``, ...)     :class:`~.datagram.PymavlinkDatagramLink`
+``udpbcast:HOST:PORT``                 :class:`~.datagram.UdpBroadcastLink`
+anything else                          :class:`~.datagram.PymavlinkDatagramLink`
 =====================================  ====================================================
 
 :class:`~.base.Link` (:mod:`~mecanum_mav.io.links.base`) is what every link has and what the
@@ -40,7 +41,9 @@ from mecanum_mav.io.links.base import (
 )
 from mecanum_mav.io.links.datagram import (
     DATAGRAM_BYTES,
+    DatagramLink,
     PymavlinkDatagramLink,
+    UdpBroadcastLink,
     UdpoutLink,
     fixed_destination,
 )
@@ -60,10 +63,11 @@ from mecanum_mav.protocol.dialect import mavlink, mavutil
 
 __all__ = ["DATAGRAM_BYTES", "MAX_PEERS", "PACING_LEAD_S", "PEER_TIMEOUT_S", "QUEUE_MIN_BYTES",
            "QUEUE_S", "REOPEN_PERIOD_S", "SEND_WARNING_PERIOD_S", "TCP_CONNECT_TIMEOUT_S",
-           "TCP_POLL_S", "TCP_QUEUE_BYTES", "TCP_UNSENT_LIMIT", "Link", "LinkDownError",
+           "TCP_POLL_S", "TCP_QUEUE_BYTES", "TCP_UNSENT_LIMIT", "DatagramLink", "Link",
+           "LinkDownError",
            "PymavlinkDatagramLink", "SerialLink", "SignedUdpinLink", "StreamLink", "TcpLink",
-           "TcpServerLink", "UdpinLink", "UdpoutLink", "follow", "mavlink", "mavutil",
-           "open_link"]
+           "TcpServerLink", "UdpBroadcastLink", "UdpinLink", "UdpoutLink", "follow", "mavlink",
+           "mavutil", "open_link"]
 
 
 def open_link(url: str, *, source_system: int, source_component: int, name: str,
@@ -110,6 +114,8 @@ def _link_for(conn: object, *, url: str, name: str, signing_key: bytes | None,
             return SignedUdpinLink(conn, url=url, name=name, signing_key=signing_key,
                                    clock=clock)
         return UdpinLink(conn, url=url, name=name, signing_key=signing_key, clock=clock)
+    if isinstance(conn, mavutil.mavudp) and conn.broadcast:
+        return UdpBroadcastLink(conn, url=url, name=name, signing_key=signing_key, clock=clock)
     destination = fixed_destination(conn)
     if destination is not None:
         return UdpoutLink(conn, destination, url=url, name=name, signing_key=signing_key,

@@ -1,7 +1,7 @@
 """Datagram links: :class:`DatagramLink`, what every one has, :class:`UdpoutLink` (its
-socket connected to its one destination) and :class:`PymavlinkDatagramLink` (``udpbcast:``
-and the rest pymavlink opens, sent through pymavlink). ``udpin:`` is in
-:mod:`~mecanum_mav.io.links.udpin`.
+socket connected to its one destination), :class:`UdpBroadcastLink` (``udpbcast:``) and
+:class:`PymavlinkDatagramLink` (the rest pymavlink opens, sent through pymavlink). ``udpin:``
+is in :mod:`~mecanum_mav.io.links.udpin`.
 
 A datagram link never goes down and nothing waits in it: a packet is one datagram handed to
 the kernel at once (:meth:`DatagramLink.send_all` puts whole packets together, at most
@@ -36,7 +36,8 @@ from mecanum_mav.protocol.dialect import mavutil
 
 log = logging.getLogger("mecanum_mav.io.links")
 
-__all__ = ["DATAGRAM_BYTES", "DatagramLink", "PymavlinkDatagramLink", "UdpoutLink"]
+__all__ = ["DATAGRAM_BYTES", "DatagramLink", "PymavlinkDatagramLink", "UdpBroadcastLink",
+           "UdpoutLink"]
 
 DATAGRAM_BYTES = 1400
 """:meth:`DatagramLink.send_all` puts at most this many bytes of whole packets in one datagram
@@ -212,9 +213,8 @@ class DatagramLink(Link):
 
 
 class PymavlinkDatagramLink(DatagramLink):
-    """A ``udpbcast:`` link, a ``udpout:`` one whose host does not resolve, and whatever else
-    pymavlink opens that is neither a stream nor ``udpin:``: sent through pymavlink's own
-    ``write`` (a broadcast link turns to the first address that answers)."""
+    """A ``udpout:`` link whose host does not resolve, and whatever else pymavlink opens that
+    is neither a stream nor another link here: sent through pymavlink's own ``write``."""
 
     def __init__(self, conn: Any, *, url: str, name: str, signing_key: bytes | None,
                  clock: Callable[[], float]) -> None:
@@ -222,16 +222,18 @@ class PymavlinkDatagramLink(DatagramLink):
         self.parses_datagrams = url.startswith(("udp:", "udpin:", "udpout:", "udpbcast:"))
         super().__init__(conn, url=url, name=name, signing_key=signing_key, clock=clock)
 
-    def _arrived(self, data: bytes, address: Any) -> None:
-        """pymavlink's bookkeeping: a broadcast link's reply address, the MAVLink version."""
-        conn = self.conn
-        if conn.broadcast:
-            conn.last_address = address
-        if conn.first_byte:
-            conn.auto_mavlink_version(data)
-
     def _put_datagram(self, data: bytes) -> None:
         self.conn.write(data)
+
+
+class UdpBroadcastLink(PymavlinkDatagramLink):
+    """A ``udpbcast:`` link: pymavlink sends to the broadcast address until someone answers,
+    then to the address that answered last."""
+
+    def _arrived(self, data: bytes, address: Any) -> None:
+        """pymavlink's bookkeeping: the reply address, the MAVLink version."""
+        self.conn.last_address = address
+        super()._arrived(data, address)
 
 
 class UdpoutLink(DatagramLink):
