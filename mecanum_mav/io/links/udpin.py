@@ -19,6 +19,7 @@ else, at most once per heartbeat; such addresses are few and forgotten when sile
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from typing import Any
 
@@ -47,7 +48,7 @@ class UdpinLink(DatagramLink):
         super().__init__(conn, url=url, name=name, signing_key=signing_key, clock=clock)
         self._peers_s: dict[Any, float] = {}  # peers -> when last heard (clock s)
         self.peer_timeout_s = PEER_TIMEOUT_S
-        self._next_prune_s = -float("inf")
+        self._next_prune_s = -math.inf
 
     def answered(self, data: bytes, address: Any) -> None:
         """A datagram answered without parsing (the stick lane): its sender is heard too."""
