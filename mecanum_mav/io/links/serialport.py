@@ -1,0 +1,111 @@
+"""Serial links: :class:`SerialLink`, a device such as ``/dev/ttyUSB0,57600`` (pyserial),
+paced to its baud rate; reopened by its path when it vanished.
+
+Pacing (times in seconds on the link's clock): the wire carries ``baud / 10`` bytes/s (8N1,
+:attr:`SerialLink.bytes_per_s`); a packet goes to the kernel only when what was handed over
+would be on the wire within :data:`~mecanum_mav.io.links.stream.PACING_LEAD_S`, judged from
+the baud rate (the time the bytes handed over need on the wire) and from the tty's own
+output queue (``TIOCOUTQ``), whichever is longer; a pty, a USB-CDC board or any device faster
+than its nominal rate is thus paced to the nominal rate too. At most :data:`QUEUE_S` of the
+wire (at least :data:`QUEUE_MIN_BYTES`) waits in the link besides the newest override.
+
+A device that vanishes (USB unplugged, board rebooting: reads and writes fail with
+EIO/ENXIO) puts the link down ("device gone"); its port is closed, and the same path is
+opened again, as pymavlink opens it, once it exists.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import os
+import termios
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any, ClassVar
+
+import serial
+
+from mecanum_mav.io.links.base import READ_CHUNK
+from mecanum_mav.io.links.stream import PACING_LEAD_S, StreamLink, queued_bytes
+from mecanum_mav.protocol.dialect import mavutil
+
+log = logging.getLogger("mecanum_mav.io.links")
+
+__all__ = ["QUEUE_MIN_BYTES", "QUEUE_S", "SerialLink"]
+
+QUEUE_S = 1.0
+"""A serial link queues at most this much wire time (seconds; at least
+:data:`QUEUE_MIN_BYTES`) of packets other than the newest override; more is dropped."""
+QUEUE_MIN_BYTES = 4096
+
+
+class SerialLink(StreamLink):
+    """A serial device (module description)."""
+
+    gone_reason: ClassVar[str] = "device gone"
+
+    def __init__(self, conn: Any, *, url: str, name: str, signing_key: bytes | None,
+                 clock: Callable[[], float]) -> None:
+        baud = int(getattr(conn, "baud", 0) or 0)
+        self.bytes_per_s = baud / 10.0 if baud > 0 else None
+        """The wire's capacity (8N1 at the URL's baud rate; None: not known)."""
+        self._wire_free_s = 0.0  # when what was handed over is on the wire (clock s)
+        limit = (max(QUEUE_MIN_BYTES, int(QUEUE_S * self.bytes_per_s))
+                 if self.bytes_per_s is not None else QUEUE_MIN_BYTES)
+        super().__init__(conn, url=url, name=name, signing_key=signing_key, clock=clock,
+                         queue_limit=limit)
+
+    def _current_port_fd(self) -> int:
+        fd = super()._current_port_fd()
+        if fd >= 0:
+            os.set_blocking(fd, False)  # pyserial opens it so; its writes wait, ours do not
+        return fd
+
+    def _read_port(self) -> bytes:
+        return bytes(self.conn.port.read(READ_CHUNK))
+
+    def _write_port(self, data: bytes) -> int:
+        return os.write(self._port_fd, data)
+
+    def _backlog_s(self, now: float) -> float:
+        rate = self.bytes_per_s
+        if rate is None:
+            return 0.0
+        in_kernel = queued_bytes(self._port_fd, termios.TIOCOUTQ)
+        if in_kernel:  # the device is slower than its baud rate says: follow the device
+            self._wire_free_s = max(self._wire_free_s, now + in_kernel / rate)
+        return self._wire_free_s - now - PACING_LEAD_S
+
+    def _handed(self, n: int, now: float) -> None:
+        rate = self.bytes_per_s
+        if rate is not None:
+            self._wire_free_s = max(self._wire_free_s, now) + n / rate
+
+    def _drop_pending(self) -> None:
+        super()._drop_pending()
+        self._wire_free_s = 0.0
+
+    def _reopen(self, now_s: float) -> bool:
+        conn = self.conn
+        if not Path(conn.device).exists():
+            return False
+        try:  # as pymavlink opens it: at 1200 baud first (a Linux driver bug), then the rate
+            port = serial.Serial(conn.device, 1200, timeout=0, dsrdtr=False, rtscts=False,
+                                 xonxoff=False)
+        except (OSError, ValueError) as exc:  # not ready yet (permissions, enumeration)
+            log.debug("%s: reopening %s failed: %s", self.name, conn.device, exc)
+            return False
+        with contextlib.suppress(OSError):
+            conn.port.close()
+        conn.port = port
+        conn.set_baudrate(conn.baud)
+        conn.fd = port.fileno()
+        mavutil.set_close_on_exec(conn.fd)
+        conn.portdead = False
+        return True
+
+    def _flush_out(self, linger_s: float) -> None:
+        """pyserial waits until what was handed over is sent (at most
+        :data:`~mecanum_mav.io.links.stream.PACING_LEAD_S` and a packet after the pacing)."""
+        self.conn.port.flush()

@@ -1,0 +1,84 @@
+"""open_link gives each transport family its own class under the common Link base
+(mecanum_mav/io/links/), and the broadcast link answers whoever answered it."""
+
+from __future__ import annotations
+
+import socket
+
+import pytest
+from support import RawPty, wait_until
+
+from mecanum_mav.io import links
+from mecanum_mav.io.links import Link, open_link
+from mecanum_mav.protocol.dialect import mavlink
+
+KEY = bytes(range(32))
+
+
+def opened(url: str, **kwargs: object) -> Link:
+    return open_link(url, source_system=1, source_component=191, name="gcs", **kwargs)
+
+
+def test_open_link_gives_each_transport_family_its_own_link_class():
+    listener = socket.create_server(("127.0.0.1", 0))
+    pty = RawPty()
+    made: list[Link] = []
+    try:
+        cases = [
+            ("udpin:127.0.0.1:0", {}, links.UdpinLink),
+            ("udpin:127.0.0.1:0", {"signing_key": KEY, "tell_refused": True},
+             links.SignedUdpinLink),
+            ("udpin:127.0.0.1:0", {"signing_key": KEY}, links.UdpinLink),
+            ("udpout:127.0.0.1:9", {}, links.UdpoutLink),
+            ("udpbcast:127.0.0.1:9", {}, links.UdpBroadcastLink),
+            (f"tcp:127.0.0.1:{listener.getsockname()[1]}", {}, links.TcpLink),
+            ("tcpin:127.0.0.1:0", {}, links.TcpServerLink),
+            (f"{pty.path},57600", {}, links.SerialLink),
+        ]
+        for url, kwargs, cls in cases:
+            made.append(opened(url, **kwargs))
+            assert type(made[-1]) is cls, url
+        datagram = [isinstance(link, links.DatagramLink) for link in made]
+        stream = [isinstance(link, links.StreamLink) for link in made]
+        assert datagram == [True] * 5 + [False] * 3
+        assert stream == [not d for d in datagram]
+        assert [link.steady for link in made] == datagram
+    finally:
+        for link in made:
+            link.close()
+        listener.close()
+        pty.close()
+
+
+def test_a_udpbcast_link_sends_to_the_address_that_answered_it():
+    first, answering = (socket.socket(socket.AF_INET, socket.SOCK_DGRAM) for _ in range(2))
+    for sock in (first, answering):
+        sock.bind(("127.0.0.1", 0))
+        sock.settimeout(5.0)
+    link = opened(f"udpbcast:127.0.0.1:{first.getsockname()[1]}")
+    try:
+        beat = link.mav.heartbeat_encode(10, 8, 0, 0, 4)
+        assert link.send(beat)
+        first.recvfrom(1024)
+        station = mavlink.MAVLink(None, srcSystem=255, srcComponent=190)
+        answering.sendto(station.heartbeat_encode(6, 8, 0, 0, 4).pack(station),
+                         ("127.0.0.1", link.local_port))
+        assert wait_until(link.read, 5.0)
+        assert link.send(beat)
+        data, _ = answering.recvfrom(1024)
+        assert mavlink.MAVLink(None).parse_buffer(data)[0].get_type() == "HEARTBEAT"
+    finally:
+        link.close()
+        first.close()
+        answering.close()
+
+
+@pytest.mark.parametrize("url", ["udpout:127.0.0.1:9", "udpin:127.0.0.1:0"])
+def test_a_datagram_link_never_goes_down_and_nothing_waits_in_it(url):
+    link = opened(url)
+    try:
+        link.send_rc_override(1, 1, [1500] * 18)
+        assert link.reopen(0.0) and link.up and not link.pending and not link.wants_write
+        assert link.wait_fd() == link.fileno()
+    finally:
+        link.close()
