@@ -12,7 +12,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 
-from mecanum_mav.control.context import Context
+from mecanum_mav.control.context import Context, Handler
 from mecanum_mav.control.estimator import WheelOdometryEstimator
 from mecanum_mav.control.missions import MissionControl
 from mecanum_mav.control.refusals import Refusal
@@ -75,6 +75,12 @@ class Commands:
             mavlink.MAV_CMD_DO_SET_HOME: self._cmd_set_home,
         }
         """The commands answered, by MAV_CMD id."""
+
+    def routes(self) -> dict[str, Handler]:
+        """The messages handled here, by type."""
+        return {"COMMAND_LONG": self.on_command, "COMMAND_INT": self.on_command,
+                "SET_MODE": self.on_set_mode, "PING": self.on_ping,
+                "FILE_TRANSFER_PROTOCOL": self.on_ftp}
 
     def on_command(self, msg: CommandMsg, now_s: float) -> None:
         """COMMAND_LONG or COMMAND_INT: run from the table, acknowledged."""

@@ -13,19 +13,20 @@ from __future__ import annotations
 
 import logging
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import replace
 from typing import Any
 
 from mecanum_mav.config.params import Params
 from mecanum_mav.config.views import IdentityConfig, InputConfig, RcInputConfig, ReceiverConfig
 from mecanum_mav.control.fccheck import FcSetupCheck
-from mecanum_mav.control.refusals import Refusal, RefusalLog
+from mecanum_mav.control.refusals import FC_SIGNATURE_REFUSED, Refusal, RefusalLog
 from mecanum_mav.control.vehicle import Vehicle
 from mecanum_mav.protocol.outbox import MessageOutbox
+from mecanum_mav.protocol.signing import REFUSED_TEXTS, Check
 from mecanum_mav.protocol.statustext import Severity, statustext_messages
 
-__all__ = ["COMPANION_COMPID", "NEUTRAL_STICK", "Context"]
+__all__ = ["COMPANION_COMPID", "NEUTRAL_STICK", "Context", "Handler"]
 
 log = logging.getLogger("mecanum_mav.control.core")
 """The rover's voice keeps the core's logger name (what its log lines always said)."""
@@ -33,6 +34,10 @@ log = logging.getLogger("mecanum_mav.control.core")
 COMPANION_COMPID = 1
 """The companion's component id on the ground-station link (MAVSDK talks to component 1 only)."""
 NEUTRAL_STICK = (0.0, 0.0, 0.0)
+
+Handler = Callable[[Any, float], None]
+"""A message handler: (the message, its arrival time in s); each declares the fields it
+reads with a protocol of :mod:`mecanum_mav.protocol.messages`."""
 
 
 class Context:
@@ -113,6 +118,27 @@ class Context:
         second per kind (:class:`~mecanum_mav.control.refusals.RefusalLog`)."""
         if self.refusals.add(kind, self.now_s, count):
             self.say(Severity.WARNING, text)
+
+    def tell_vehicle_events(self) -> None:
+        """What the vehicle decided since (mode changes, failsafes, arming refused): each
+        said, or refused (counted) when it turned an input down."""
+        for event in self.vehicle.take_events():
+            if event.refusal is None:
+                self.say(event.severity, event.text)
+            else:
+                self.refuse(event.refusal, event.text)
+
+    def refuse_unsigned(self, rejected: Mapping[Check, int], now_s: float, *,
+                        from_fc: bool = False) -> None:
+        """Packets a link's signature check dropped before they became messages (per kind,
+        :meth:`~mecanum_mav.protocol.signing.SignatureCheck.take_rejections`): counted as
+        :attr:`Refusal.SIGNATURE`; none of them reached the core's ``handle``, so none armed, drove
+        or kept the ground-station failsafe from firing (or, ``from_fc``, brought the
+        flight-controller link up)."""
+        self.now_s = now_s
+        texts = FC_SIGNATURE_REFUSED if from_fc else REFUSED_TEXTS
+        for kind, count in rejected.items():
+            self.refuse(Refusal.SIGNATURE, texts[kind], count)
 
     def ask_fc_params(self, names: Sequence[str]) -> None:
         """PARAM_REQUEST_READ to the flight controller for each of ``names``."""

@@ -35,37 +35,30 @@ from __future__ import annotations
 
 import logging
 import math
-from collections.abc import Callable, Mapping, Sequence
-from typing import Any, NamedTuple, Protocol
+from collections.abc import Callable, Sequence
+from typing import Protocol
 
 from mecanum_mav.config.params import Params
-from mecanum_mav.config.views import OutputConfig
 from mecanum_mav.control.autopilot import TIMER_SLACK_S, Autopilot
-from mecanum_mav.control.chain import Output, manual_output
 from mecanum_mav.control.commands import Commands
-from mecanum_mav.control.context import COMPANION_COMPID, Context
+from mecanum_mav.control.context import COMPANION_COMPID, Handler
 from mecanum_mav.control.estimator import WheelOdometryEstimator
 from mecanum_mav.control.fclink import FcLink
 from mecanum_mav.control.gcsinput import GcsInput
 from mecanum_mav.control.lane import LaneAnswer, StickLane, compile_stick_lane
-from mecanum_mav.control.missions import MissionControl
-from mecanum_mav.control.outbox import NOTHING, Outbox, RcOverride, new_outbox, new_override
-from mecanum_mav.control.paramlink import ParamLink
-from mecanum_mav.control.pwm import PwmMap
-from mecanum_mav.control.refusals import Refusal
+from mecanum_mav.control.missions import MissionControl, MissionStore
+from mecanum_mav.control.outbox import NOTHING, Outbox, RcOverride, new_outbox
+from mecanum_mav.control.output import NEUTRAL_WHEELS, OutputStage
+from mecanum_mav.control.paramlink import ParamLink, ParamStore
+from mecanum_mav.control.reports import LinkCounts, Reports, no_link_counts
 from mecanum_mav.control.vehicle import Vehicle
 from mecanum_mav.mecanum.geo import GlobalOrigin
 from mecanum_mav.protocol.dialect import mavlink
-from mecanum_mav.protocol.health import sensor_bits
-from mecanum_mav.protocol.heartbeat import send_gcs_heartbeat, send_rover_heartbeat
 from mecanum_mav.protocol.messages import Received
 from mecanum_mav.protocol.mission import MissionItem
-from mecanum_mav.protocol.missionlink import MISSION_MESSAGES
 from mecanum_mav.protocol.modes import Mode
-from mecanum_mav.protocol.rcoverride import override_fields, release_fields
-from mecanum_mav.protocol.signing import REFUSED_TEXTS, Check
 from mecanum_mav.protocol.statustext import Severity
-from mecanum_mav.protocol.telemetry import StreamSchedule, TelemetryState, build, next_on_grid
+from mecanum_mav.protocol.telemetry import StreamSchedule, next_on_grid
 
 log = logging.getLogger(__name__)
 
@@ -76,55 +69,22 @@ FC_LINK_COMPID: int = mavlink.MAV_COMP_ID_MISSIONPLANNER
 """The companion's component id on the flight-controller link, where it is a ground station
 (190, as Mission Planner)."""
 HEARTBEAT_PERIOD_S = 1.0
-
-_NEUTRAL_WHEELS = (0.0, 0.0, 0.0, 0.0)
 _LINK_LABELS = {"fc": "FC", "gcs": "GCS"}
-_FC_SIGNATURE_REFUSED = {
-    Check.UNSIGNED: "FC sent unsigned: board has no signing key",
-    Check.BAD_SIGNATURE: "FC bad signature: wrong --fc-signing-key?",
-    Check.REPLAYED: "FC replayed signed packet refused",
-    Check.TOO_OLD: "FC signed packet refused: timestamp too old",
-}
-"""The same for the flight-controller link (``--fc-signing-key``): unsigned packets from it
-mean the board has no key (SETUP_SIGNING was never sent to it)."""
 
 
-class Storage(Protocol):
-    """Where accepted parameters and missions are kept (files, in the companion)."""
-
-    def save_params(self, params: Params) -> None:
-        """Keep the parameters; raises ``OSError`` when that fails."""
-
-    def save_mission(self, items: Sequence[MissionItem]) -> None:
-        """Keep the mission; raises ``OSError`` when that fails."""
+class Storage(ParamStore, MissionStore, Protocol):
+    """Where accepted parameters and missions are kept (files, in the companion):
+    ``save_params`` and ``save_mission``, each raising ``OSError`` when it fails."""
 
 
-class LinkCounts(NamedTuple):
-    """What the links counted, over both (the shell's; SYS_STATUS and the status line)."""
-
-    received: int = 0
-    """Messages received (parsed whole)."""
-    malformed: int = 0
-    """Packets dropped before they became messages: bad CRC, truncated, unknown."""
-    send_failed: int = 0
-    """Sends that failed (peer gone, no route)."""
-
-
-def _no_link_counts() -> LinkCounts:
-    return LinkCounts()
-
-
-Handler = Callable[[Any, float], None]
-"""A message handler: (the message, its arrival time in s); each declares the fields it
-reads with a protocol of :mod:`mecanum_mav.protocol.messages`."""
-
-
-class RoverCore(Context):
+class RoverCore(OutputStage):
     """The rover's decisions (see the module docstring): routes each message to the handler of
     its concern (:mod:`~mecanum_mav.control.gcsinput`, :mod:`~mecanum_mav.control.commands`,
     :mod:`~mecanum_mav.control.paramlink`, :mod:`~mecanum_mav.control.missions`,
     :mod:`~mecanum_mav.control.fclink`), which change the shared
-    :class:`~mecanum_mav.control.context.Context`; decides what goes out when.
+    :class:`~mecanum_mav.control.context.Context`; decides what goes out when (the wheels'
+    output: :class:`~mecanum_mav.control.output.OutputStage`; reports:
+    :mod:`~mecanum_mav.control.reports`).
 
     Args:
         params: the parameter store; PARAM_SET changes it (and :meth:`reconfigure` re-reads it).
@@ -137,36 +97,26 @@ class RoverCore(Context):
 
     def __init__(self, params: Params, *, now_s: float, mission: Sequence[MissionItem] = (),
                  storage: Storage | None = None,
-                 link_counts: Callable[[], LinkCounts] = _no_link_counts) -> None:
-        super().__init__(params, Vehicle(params, hooks=self), now_s)
+                 link_counts: Callable[[], LinkCounts] = no_link_counts) -> None:
+        estimator = WheelOdometryEstimator(params)
+        autopilot = Autopilot(params, estimator, lambda: self.origin)
+        super().__init__(params, Vehicle(params, hooks=self), estimator, autopilot, now_s)
         self.storage = storage
         self.link_counts = link_counts
-        self._drop_window = (0, 0)  # (received + malformed, dropped) at the last heartbeat
-        self._drop_rate_cpct = 0
-        self.estimator = WheelOdometryEstimator(params)
-        self.autopilot = Autopilot(params, self.estimator, lambda: self.origin)
         self.streams = StreamSchedule(params)
         self.mission = MissionControl(mission, self.to_gcs, self.for_us, self.from_pilot,
-                                      self.vehicle, self.autopilot.executor,
-                                      lambda: self.estimator.pose, self.say, self.refuse,
-                                      storage)
-        self._gcs = GcsInput(self, self.estimator, self.autopilot)
-        self._fc = FcLink(self, self.estimator)
-        self._param_link = ParamLink(self, self.reconfigure, storage)
-        self._commands = Commands(self, self.streams, self.estimator, self.mission,
-                                  self._telemetry_state)
-        self.param_service = self._param_link.service
-        self.rc_sticks = self._gcs.rc_sticks
-        self.receiver = self._fc.receiver
+                                      self.vehicle, autopilot.executor,
+                                      lambda: estimator.pose, self.say, self.refuse, storage)
+        self._gcs = gcs = GcsInput(self, estimator, autopilot)
+        self._fc = fc = FcLink(self, estimator)
+        self._reports = Reports(self, fc, lambda: self.origin, link_counts)
+        commands = Commands(self, self.streams, estimator, self.mission,
+                            self._reports.telemetry_state)
+        param_link = ParamLink(self, self.reconfigure, storage)
+        self.param_service = param_link.service
+        self.rc_sticks = gcs.rc_sticks
+        self.receiver = fc.receiver
         """The RC receiver read through the flight controller (``RCIN_ENABLE``)."""
-        self.wheels = _NEUTRAL_WHEELS
-        """The wheel commands being output, normalized FL, FR, RL, RR."""
-        self.pulses_us: tuple[int, ...] = ()
-        """The pulse widths last sent to the flight controller (us), FL, FR, RL, RR."""
-        self._wheels_s: float | None = None
-        self._output_wheels = _NEUTRAL_WHEELS
-        self._autopilot_active = False
-        self._next_output_s = now_s
         self._next_heartbeat_s = now_s
         self._housekeeping_due_s = -math.inf
         """Before this no timer of :meth:`housekeeping` is due (-inf: look at them all)."""
@@ -182,39 +132,14 @@ class RoverCore(Context):
         """The earliest of the timers :meth:`housekeeping` keeps (heartbeat, streams, mission
         protocol, setup check), as it last left them; valid before :attr:`_housekeeping_due_s`
         (a message that may move one resets that)."""
-        self._last_override: RcOverride | None = None
         self._lane: StickLane
         """The stick lane compiled for the configuration (:meth:`reconfigure`)."""
         self._lane_answer: LaneAnswer | None = None
         self._lane_s = -math.inf
-        gcs, fc, commands, param_link = self._gcs, self._fc, self._commands, self._param_link
         self._gcs_handlers: dict[str, Handler] = {
-            "HEARTBEAT": gcs.on_heartbeat,
-            "MANUAL_CONTROL": gcs.on_manual_control,
-            "RC_CHANNELS_OVERRIDE": gcs.on_rc_override,
-            "COMMAND_LONG": commands.on_command,
-            "COMMAND_INT": commands.on_command,
-            "SET_MODE": commands.on_set_mode,
-            "PARAM_REQUEST_LIST": param_link.on_request_list,
-            "PARAM_REQUEST_READ": param_link.on_request_read,
-            "PARAM_SET": param_link.on_param_set,
-            "SET_POSITION_TARGET_LOCAL_NED": gcs.on_position_target,
-            "PING": commands.on_ping,
-            "FILE_TRANSFER_PROTOCOL": commands.on_ftp,
-            "MISSION_SET_CURRENT": self.mission.on_set_current,
-            "SET_GPS_GLOBAL_ORIGIN": gcs.on_set_origin,
-            "SETUP_SIGNING": gcs.on_setup_signing,
-            **dict.fromkeys(MISSION_MESSAGES, self.mission.on_message),
-        }
+            **gcs.routes(), **commands.routes(), **param_link.routes(), **self.mission.routes()}
         """The ground station's messages, by type, to their handlers."""
-        self._fc_handlers: dict[str, Handler] = {
-            "HEARTBEAT": fc.on_heartbeat,
-            "ATTITUDE": fc.on_attitude,
-            "WHEEL_DISTANCE": fc.on_wheel_distance,
-            "SYS_STATUS": fc.on_sys_status,
-            "PARAM_VALUE": fc.on_param_value,
-            "RC_CHANNELS": fc.on_rc_channels,
-        }
+        self._fc_handlers: dict[str, Handler] = fc.routes()
         """The flight controller's messages, by type, to their handlers."""
         self.reconfigure()
 
@@ -274,7 +199,7 @@ class RoverCore(Context):
             log.exception("error computing the output")
             self.faulted = True
             self.say(Severity.ERROR, "Error computing output: neutral")
-            wheels, pulses = _NEUTRAL_WHEELS, self.pwm.neutral()
+            wheels, pulses = NEUTRAL_WHEELS, self.pwm.neutral()
         self._output_wheels = wheels
         if self.new_input or pulses != self.pulses_us or now_s >= self._next_output_s:
             # (timers are set TIMER_SLACK_S early: a clock that adds in floating point,
@@ -303,25 +228,15 @@ class RoverCore(Context):
         ride_s = self.output.refresh_period_s / 2
         due = self.streams.due(now_s, ride_s)
         if due:
-            state = self._telemetry_state(now_s)
-            for name in due:
-                build(name, self.to_gcs, state)
+            self._reports.send_streams(due, now_s)
         if now_s + ride_s >= self._next_heartbeat_s:
-            self._update_drop_rate()
-            vehicle = self.vehicle
-            send_rover_heartbeat(self.to_gcs, vehicle.mode, armed=vehicle.armed,
-                                 failsafe=vehicle.failsafe)
-            send_gcs_heartbeat(self.to_fc)
+            self._reports.send_heartbeats()
             self.mission.send_current()  # MISSION_CURRENT at 1 Hz, as ArduPilot
             self._next_heartbeat_s = next_on_grid(self._next_heartbeat_s, HEARTBEAT_PERIOD_S,
                                                   now_s)
         self.mission.tick(now_s)
         if self.vehicle.events:
-            for event in self.vehicle.take_events():
-                if event.refusal is None:
-                    self.say(event.severity, event.text)
-                else:
-                    self.refuse(event.refusal, event.text)
+            self.tell_vehicle_events()
         timers_s = min(self.fc_check.next_due_s, self.mission.next_due_s())
         periodic_s = min(self._next_heartbeat_s, self.streams.next_due_s())
         self._housekeeping_timers_s = min(timers_s, self._ride(periodic_s, ride_s))
@@ -336,12 +251,6 @@ class RoverCore(Context):
         idle rover wakes at the refresh rate only, not also at each stream's."""
         late_s = periodic_s + ride_s
         return late_s if self._next_output_s <= late_s else periodic_s
-
-    def _wheels_held(self, wheels: tuple[float, float, float, float], now_s: float) -> None:
-        """The odometry of the wheels commanded until ``now_s``; ``wheels`` from then on."""
-        if self._wheels_s is not None:
-            self.estimator.on_commanded(self.wheels, now_s - self._wheels_s, now_s)
-        self.wheels, self._wheels_s = wheels, now_s
 
     def _settle(self) -> None:
         """After housekeeping: until when a tick may take its short way, and the lane answer
@@ -461,136 +370,30 @@ class RoverCore(Context):
                    self.streams.next_due_s(), self.autopilot.next_due_s(),
                    self.mission.next_due_s(), self.fc_check.next_due_s)
 
-    def shutdown(self) -> list[RcOverride]:
-        """The last overrides before the companion lets go: neutral (twice, the wheels stop),
-        then the channels released to the flight controller's radio."""
-        neutral = self.pwm.neutral()
-        self.pulses_us = neutral
-        target = self.identity.fc_sysid, self.identity.fc_compid
-        hold = RcOverride(*target, override_fields(self.pwm.channels, neutral))
-        return [hold, hold, RcOverride(*target, release_fields(self.pwm.channels))]
-
     def reconfigure(self) -> None:
         """Re-read the parameter views the loop uses (after a parameter changed)."""
         self._unsettle()
         p = self.params
-        self.read_views()  # identity, input, rc_input, receiver_config (the handlers')
-        self.pwm = PwmMap.from_params(p)
+        self.read_views()  # identity, input, rc_input, receiver_config, pwm, output
         self._lane = compile_stick_lane(self.input, self.pwm, self.identity, FC_LINK_COMPID)
-        self.output = OutputConfig.from_params(p)
         if not self.receiver_config.enabled:
             self._fc.rc_stream_asked = False  # (asked again when it is turned on)
-        lat, lon = float(p["ORIGIN_LAT"]), float(p["ORIGIN_LON"])
-        self._origin_param = None if lat == lon == 0.0 else GlobalOrigin.from_degrees(lat, lon)
+        self._gcs.reconfigure(p)
         self.vehicle.reconfigure(p)
         self.estimator.reconfigure(p)
         self.autopilot.reconfigure(p)
 
-    def refuse_unsigned(self, rejected: Mapping[Check, int], now_s: float, *,
-                        from_fc: bool = False) -> None:
-        """Packets a link's signature check dropped before they became messages (per kind,
-        :meth:`~mecanum_mav.protocol.signing.SignatureCheck.take_rejections`): counted as
-        :attr:`Refusal.SIGNATURE`; none of them reached :meth:`handle`, so none armed, drove
-        or kept the ground-station failsafe from firing (or, ``from_fc``, brought the
-        flight-controller link up)."""
-        self.now_s = now_s
-        texts = _FC_SIGNATURE_REFUSED if from_fc else REFUSED_TEXTS
-        for kind, count in rejected.items():
-            self.refuse(Refusal.SIGNATURE, texts[kind], count)
-
     def status_line(self) -> str:
         """One line of counts for people: messages received, packets dropped as malformed,
         failed sends, and the refusals per kind."""
-        c = self.link_counts()
-        return (f"received {c.received}, malformed {c.malformed}, send failures "
-                f"{c.send_failed}, refused {self.refusals.total} "
-                f"({self.refusals.summary()})")
+        return self._reports.status_line()
 
     @property
     def origin(self) -> GlobalOrigin | None:
         """Where local (0, 0) is on the earth: SET_GPS_GLOBAL_ORIGIN, else ORIGIN_LAT/LON."""
-        origin_set = self._gcs.origin_set
-        return self._origin_param if origin_set is None else origin_set
+        return self._gcs.origin
 
     @property
     def origin_set(self) -> GlobalOrigin | None:
         """The global origin from SET_GPS_GLOBAL_ORIGIN (overrides ORIGIN_LAT/LON)."""
         return self._gcs.origin_set
-
-    # ================================================================== mode hooks
-
-    def refuse_entry(self, mode: Mode, now_s: float) -> str | None:
-        """:class:`~mecanum_mav.control.vehicle.ModeHooks`: the autopilot decides."""
-        return self.autopilot.refuse_entry(mode, now_s)
-
-    def on_mode_change(self, before: Mode, after: Mode, now_s: float) -> None:
-        """A mode change clears an exception's neutral latch and starts the controllers."""
-        self.faulted = False
-        self.autopilot.on_mode_change(before, after, now_s)
-
-    # ================================================================== output
-
-    def _compute_output(self, now_s: float) -> Output:
-        vehicle = self.vehicle
-        if self.faulted:
-            self._autopilot_active = False
-            self.autopilot.idle()
-            return _NEUTRAL_WHEELS, self.pwm.neutral()
-        if vehicle.autonomous():
-            self._autopilot_active = True
-            return self.autopilot.output(vehicle.mode is Mode.AUTO, now_s, self.output,
-                                         self.input.desaturation, self.pwm)
-        if self._autopilot_active:
-            self._autopilot_active = False
-            self.autopilot.idle()
-        if not vehicle.driving():
-            return _NEUTRAL_WHEELS, self.pwm.neutral()
-        x, y, r = self.stick
-        return manual_output(x, y, r, self.input, self.pwm)
-
-    def _override(self, pulses: tuple[int, ...], now_s: float,
-                  fields: list[int] | None = None) -> RcOverride:
-        """The override setting the wheels to ``pulses`` (its ``fields`` if already made)."""
-        self.pulses_us = pulses
-        self.new_input = False
-        self._autopilot_active = False
-        self._next_output_s = now_s + self.output.refresh_period_s - TIMER_SLACK_S
-        identity = self.identity
-        if fields is None:
-            fields = override_fields(self.pwm.channels, pulses)
-        override = self._last_override = new_override((identity.fc_sysid, identity.fc_compid,
-                                                        fields))
-        return override
-
-    def _take(self, override: RcOverride | None) -> Outbox:
-        gcs, fc = self.to_gcs, self.to_fc
-        if not (gcs.messages or fc.messages or override):
-            return NOTHING
-        return new_outbox((gcs.take() if gcs.messages else (),
-                            fc.take() if fc.messages else (), override))
-
-    def _telemetry_state(self, now_s: float) -> TelemetryState:
-        est = self.estimator
-        counts = self.link_counts()
-        errors = counts.malformed + self.refusals.total + counts.send_failed
-        battery, fresh = self._fc.battery(now_s)
-        sensors = sensor_bits(fc_link_up=not self.vehicle.fc_lost, battery_known=fresh)
-        return TelemetryState(now_s, self.boot_s, est.pose, est.velocity_body, est.yaw_rate,
-                              est.reset_counter, est.wheel_distances_m, self.pwm.channels,
-                              self.pulses_us, errors, self._drop_rate_cpct, self.origin,
-                              sensors, battery)
-
-    def _update_drop_rate(self) -> None:
-        """SYS_STATUS ``drop_rate_comm`` (c%): of the packets that arrived since the last
-        heartbeat, the share dropped as malformed or refused."""
-        counts = self.link_counts()
-        arrived = counts.received + counts.malformed
-        dropped = counts.malformed + self.refusals.total
-        arrived_before, dropped_before = self._drop_window
-        self._drop_window = arrived, dropped
-        if arrived > arrived_before:
-            share = (dropped - dropped_before) / (arrived - arrived_before)
-            self._drop_rate_cpct = min(10_000, round(10_000 * share))
-        else:
-            self._drop_rate_cpct = 0
-

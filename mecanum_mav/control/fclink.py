@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 
-from mecanum_mav.control.context import NEUTRAL_STICK, Context
+from mecanum_mav.control.context import NEUTRAL_STICK, Context, Handler
 from mecanum_mav.control.estimator import WheelOdometryEstimator
 from mecanum_mav.control.fccheck import FcCheckState
 from mecanum_mav.control.rcinput import RC_CHANNELS_INTERVAL_US, ReceiverInput
@@ -58,6 +58,12 @@ class FcLink:
         self.rc_stream_asked = False
         """The receiver's RC_CHANNELS were asked for (again when the receiver is turned on)."""
         self.refuse = ctx.refuse
+
+    def routes(self) -> dict[str, Handler]:
+        """The flight controller's messages handled here, by type."""
+        return {"HEARTBEAT": self.on_heartbeat, "ATTITUDE": self.on_attitude,
+                "WHEEL_DISTANCE": self.on_wheel_distance, "SYS_STATUS": self.on_sys_status,
+                "PARAM_VALUE": self.on_param_value, "RC_CHANNELS": self.on_rc_channels}
 
     def battery(self, now_s: float) -> tuple[Battery, bool]:
         """The board's battery at ``now_s`` and whether it is fresh (else unknown)."""

@@ -12,8 +12,9 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+from mecanum_mav.config.params import Params
 from mecanum_mav.control.autopilot import Autopilot
-from mecanum_mav.control.context import Context
+from mecanum_mav.control.context import Context, Handler
 from mecanum_mav.control.estimator import WheelOdometryEstimator
 from mecanum_mav.control.guided import SetpointError, decode_setpoint
 from mecanum_mav.control.refusals import Refusal
@@ -51,11 +52,30 @@ class GcsInput:
         """The ground station's RC_CHANNELS_OVERRIDE channels, as the sticks read them."""
         self.origin_set: GlobalOrigin | None = None
         """The global origin from SET_GPS_GLOBAL_ORIGIN (overrides ORIGIN_LAT/LON)."""
+        self._origin_param: GlobalOrigin | None = None
         # bound once: each stick calls them
         self._for_us: Callable[..., bool] = ctx.for_us
         self._from_pilot = ctx.from_pilot
         self._take_stick = ctx.take_stick
         self.refuse = ctx.refuse
+
+    def routes(self) -> dict[str, Handler]:
+        """The messages handled here, by type."""
+        return {"HEARTBEAT": self.on_heartbeat, "MANUAL_CONTROL": self.on_manual_control,
+                "RC_CHANNELS_OVERRIDE": self.on_rc_override,
+                "SET_POSITION_TARGET_LOCAL_NED": self.on_position_target,
+                "SET_GPS_GLOBAL_ORIGIN": self.on_set_origin,
+                "SETUP_SIGNING": self.on_setup_signing}
+
+    def reconfigure(self, params: Params) -> None:
+        """Re-read ``ORIGIN_LAT`` and ``ORIGIN_LON`` (both 0: no origin)."""
+        lat, lon = float(params["ORIGIN_LAT"]), float(params["ORIGIN_LON"])
+        self._origin_param = None if lat == lon == 0.0 else GlobalOrigin.from_degrees(lat, lon)
+
+    @property
+    def origin(self) -> GlobalOrigin | None:
+        """Where local (0, 0) is on the earth: SET_GPS_GLOBAL_ORIGIN, else ORIGIN_LAT/LON."""
+        return self._origin_param if self.origin_set is None else self.origin_set
 
     def on_heartbeat(self, msg: Received, now_s: float) -> None:
         """The pilot's HEARTBEAT keeps the ground-station failsafe from firing."""

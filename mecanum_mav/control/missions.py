@@ -16,13 +16,14 @@ import math
 from collections.abc import Callable, Sequence
 from typing import Any, Protocol
 
+from mecanum_mav.control.context import Handler
 from mecanum_mav.control.executor import MissionExecutor
 from mecanum_mav.control.refusals import Refusal
 from mecanum_mav.control.vehicle import Vehicle
 from mecanum_mav.mecanum.geometry import Pose2d
 from mecanum_mav.protocol.messages import MissionSetCurrentMsg, Result
 from mecanum_mav.protocol.mission import MissionItem
-from mecanum_mav.protocol.missionlink import MissionLink
+from mecanum_mav.protocol.missionlink import MISSION_MESSAGES, MissionLink
 from mecanum_mav.protocol.missionservice import MissionService
 from mecanum_mav.protocol.modes import Mode
 from mecanum_mav.protocol.statustext import Severity
@@ -85,6 +86,11 @@ class MissionControl:
         return self.service.next_due_s()
 
     # ------------------------------------------------------------------ messages
+
+    def routes(self) -> dict[str, Handler]:
+        """The ground station's messages handled here, by type."""
+        return {"MISSION_SET_CURRENT": self.on_set_current,
+                **dict.fromkeys(MISSION_MESSAGES, self.on_message)}
 
     def on_message(self, msg: Any, now_s: float) -> None:
         """A mission protocol message (only the pilot's ground station's count)."""

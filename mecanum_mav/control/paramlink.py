@@ -14,7 +14,7 @@ from collections.abc import Callable
 from typing import Protocol
 
 from mecanum_mav.config.params import Params
-from mecanum_mav.control.context import Context
+from mecanum_mav.control.context import Context, Handler
 from mecanum_mav.control.refusals import Refusal
 from mecanum_mav.protocol.messages import Addressed, ParamReadMsg, ParamSetMsg
 from mecanum_mav.protocol.paramservice import RESTART_REQUIRED, ParamService, ParamValue
@@ -50,6 +50,11 @@ class ParamLink:
         self._from_pilot = ctx.from_pilot
         self.say = ctx.say
         self.refuse = ctx.refuse
+
+    def routes(self) -> dict[str, Handler]:
+        """The messages handled here, by type."""
+        return {"PARAM_REQUEST_LIST": self.on_request_list,
+                "PARAM_REQUEST_READ": self.on_request_read, "PARAM_SET": self.on_param_set}
 
     def _send_param(self, value: ParamValue) -> None:
         self.to_gcs.param_value_send(value.param_id, value.param_value, value.param_type,
