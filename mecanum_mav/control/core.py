@@ -30,6 +30,14 @@ Safety: disarmed, HOLD, any failsafe, stale input, and an exception while handli
 or computing the output all end at neutral PWM (each wheel's trim). After an exception the
 output stays neutral (latched) until the next valid stick or setpoint or a mode change.
 :meth:`RoverCore.shutdown` gives the last overrides: neutral, then the channels released.
+
+Where things are: this module routes each message by type to its concern's handler
+(:mod:`~mecanum_mav.control.gcsinput`, :mod:`~mecanum_mav.control.commands`,
+:mod:`~mecanum_mav.control.paramlink`, :mod:`~mecanum_mav.control.missions`,
+:mod:`~mecanum_mav.control.fclink`), which changes the shared
+:class:`~mecanum_mav.control.context.Context`, and decides what goes out when; the wheels'
+output is :class:`~mecanum_mav.control.output.OutputStage`'s, telemetry
+:mod:`~mecanum_mav.control.reports`'.
 """
 from __future__ import annotations
 
@@ -78,13 +86,7 @@ class Storage(ParamStore, MissionStore, Protocol):
 
 
 class RoverCore(OutputStage):
-    """The rover's decisions (see the module docstring): routes each message to the handler of
-    its concern (:mod:`~mecanum_mav.control.gcsinput`, :mod:`~mecanum_mav.control.commands`,
-    :mod:`~mecanum_mav.control.paramlink`, :mod:`~mecanum_mav.control.missions`,
-    :mod:`~mecanum_mav.control.fclink`), which change the shared
-    :class:`~mecanum_mav.control.context.Context`; decides what goes out when (the wheels'
-    output: :class:`~mecanum_mav.control.output.OutputStage`; reports:
-    :mod:`~mecanum_mav.control.reports`).
+    """The rover's decisions (see the module docstring).
 
     Args:
         params: the parameter store; PARAM_SET changes it (and :meth:`reconfigure` re-reads it).
@@ -373,19 +375,15 @@ class RoverCore(OutputStage):
     def reconfigure(self) -> None:
         """Re-read the parameter views the loop uses (after a parameter changed)."""
         self._unsettle()
-        p = self.params
         self.read_views()  # identity, input, rc_input, receiver_config, pwm, output
         self._lane = compile_stick_lane(self.input, self.pwm, self.identity, FC_LINK_COMPID)
         if not self.receiver_config.enabled:
             self._fc.rc_stream_asked = False  # (asked again when it is turned on)
-        self._gcs.reconfigure(p)
-        self.vehicle.reconfigure(p)
-        self.estimator.reconfigure(p)
-        self.autopilot.reconfigure(p)
+        for part in (self._gcs, self.vehicle, self.estimator, self.autopilot):
+            part.reconfigure(self.params)
 
     def status_line(self) -> str:
-        """One line of counts for people: messages received, packets dropped as malformed,
-        failed sends, and the refusals per kind."""
+        """One line of counts for people (:mod:`~mecanum_mav.control.reports`)."""
         return self._reports.status_line()
 
     @property
