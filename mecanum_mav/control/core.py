@@ -111,7 +111,7 @@ class RoverCore(OutputStage):
                                       lambda: estimator.pose, self.say, self.refuse, storage)
         self._gcs = gcs = GcsInput(self, estimator, autopilot)
         self._fc = fc = FcLink(self, estimator)
-        self._reports = Reports(self, fc, lambda: self.origin, link_counts)
+        self._reports = Reports(self, fc, gcs.origin, link_counts)
         commands = Commands(self, self.streams, estimator, self.mission,
                             self._reports.telemetry_state)
         param_link = ParamLink(self, self.reconfigure, storage)
@@ -224,7 +224,8 @@ class RoverCore(OutputStage):
             if not (self._lane_driving and now_s < self._lane_until_s):
                 self._settle()  # (after a stick in its lane the lane's bounds still hold)
             return NOTHING
-        self._fc.housekeeping(now_s)  # the board lost and back; the setup check's timers
+        if self.vehicle.fc_lost or now_s >= self.fc_check.next_due_s:
+            self._fc.housekeeping(now_s)  # the board lost and back; the setup check's timers
         # Telemetry and heartbeats ride the output refresh's wake-ups: each goes on the first
         # wake within half a refresh period of its time, early or late (see _ride), on its grid.
         ride_s = self.output.refresh_period_s / 2
@@ -389,7 +390,7 @@ class RoverCore(OutputStage):
     @property
     def origin(self) -> GlobalOrigin | None:
         """Where local (0, 0) is on the earth: SET_GPS_GLOBAL_ORIGIN, else ORIGIN_LAT/LON."""
-        return self._gcs.origin
+        return self._gcs.origin()
 
     @property
     def origin_set(self) -> GlobalOrigin | None:

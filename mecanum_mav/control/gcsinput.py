@@ -72,7 +72,6 @@ class GcsInput:
         lat, lon = float(params["ORIGIN_LAT"]), float(params["ORIGIN_LON"])
         self._origin_param = None if lat == lon == 0.0 else GlobalOrigin.from_degrees(lat, lon)
 
-    @property
     def origin(self) -> GlobalOrigin | None:
         """Where local (0, 0) is on the earth: SET_GPS_GLOBAL_ORIGIN, else ORIGIN_LAT/LON."""
         return self._origin_param if self.origin_set is None else self.origin_set
