@@ -637,11 +637,11 @@ def test_a_stick_lane_that_raises_leaves_the_stick_to_the_general_path(monkeypat
 
 def test_an_exception_in_a_message_handler_latches_neutral_until_the_next_valid_stick(
         monkeypatch):
-    from mecanum_mav.control import core
+    from mecanum_mav.control import gcsinput
 
     h = armed(lockstep({"FS_INPUT_TMO": 5.0}))
     assert wheels(drive(h, 1000)) == FORWARD
-    real = core.stick_from_manual_control
+    real = gcsinput.stick_from_manual_control
     calls = []
 
     def once(*args, **kwargs):
@@ -650,7 +650,7 @@ def test_an_exception_in_a_message_handler_latches_neutral_until_the_next_valid_
             raise RuntimeError("bug")
         return real(*args, **kwargs)
 
-    monkeypatch.setattr(core, "stick_from_manual_control", once)
+    monkeypatch.setattr(gcsinput, "stick_from_manual_control", once)
     monkeypatch.setattr(h.core, "_lane", broken)  # (the stick lane decodes inline: fails too)
     since = h.gcs.mark()
     o = drive(h, 1000)

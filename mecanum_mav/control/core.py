@@ -30,173 +30,62 @@ Safety: disarmed, HOLD, any failsafe, stale input, and an exception while handli
 or computing the output all end at neutral PWM (each wheel's trim). After an exception the
 output stays neutral (latched) until the next valid stick or setpoint or a mode change.
 :meth:`RoverCore.shutdown` gives the last overrides: neutral, then the channels released.
-"""
 
+Where things are: this module routes each message by type to its concern's handler
+(:mod:`~mecanum_mav.control.gcsinput`, :mod:`~mecanum_mav.control.commands`,
+:mod:`~mecanum_mav.control.paramlink`, :mod:`~mecanum_mav.control.missions`,
+:mod:`~mecanum_mav.control.fclink`), which changes the shared
+:class:`~mecanum_mav.control.context.Context`, and decides what goes out when; the wheels'
+output is :class:`~mecanum_mav.control.output.OutputStage`'s, telemetry
+:mod:`~mecanum_mav.control.reports`'.
+"""
 from __future__ import annotations
 
 import logging
 import math
-from collections.abc import Callable, Mapping, Sequence
-from dataclasses import replace
-from functools import partial
-from typing import Any, NamedTuple, Protocol
+from collections.abc import Callable, Sequence
+from typing import Protocol
 
 from mecanum_mav.config.params import Params
-from mecanum_mav.config.views import (
-    IdentityConfig,
-    InputConfig,
-    OutputConfig,
-    RcInputConfig,
-    ReceiverConfig,
-)
 from mecanum_mav.control.autopilot import TIMER_SLACK_S, Autopilot
-from mecanum_mav.control.chain import Output, manual_output
+from mecanum_mav.control.commands import Commands
+from mecanum_mav.control.context import COMPANION_COMPID, Handler
 from mecanum_mav.control.estimator import WheelOdometryEstimator
-from mecanum_mav.control.fccheck import FcCheckState, FcSetupCheck
-from mecanum_mav.control.guided import SetpointError, decode_setpoint
+from mecanum_mav.control.fclink import FcLink
+from mecanum_mav.control.gcsinput import GcsInput
 from mecanum_mav.control.lane import LaneAnswer, StickLane, compile_stick_lane
-from mecanum_mav.control.missions import MissionControl
-from mecanum_mav.control.pwm import PwmMap
-from mecanum_mav.control.rcinput import RC_CHANNELS_INTERVAL_US, ReceiverInput
-from mecanum_mav.control.refusals import Refusal, RefusalLog
-from mecanum_mav.control.sticks import InputError, RcStickState, stick_from_manual_control
-from mecanum_mav.control.vehicle import Decision, Vehicle
+from mecanum_mav.control.missions import MissionControl, MissionStore
+from mecanum_mav.control.outbox import NOTHING, Outbox, RcOverride, new_outbox
+from mecanum_mav.control.output import NEUTRAL_WHEELS, OutputStage
+from mecanum_mav.control.paramlink import ParamLink, ParamStore
+from mecanum_mav.control.reports import LinkCounts, Reports, no_link_counts
+from mecanum_mav.control.vehicle import Vehicle
 from mecanum_mav.mecanum.geo import GlobalOrigin
 from mecanum_mav.protocol.dialect import mavlink
-from mecanum_mav.protocol.health import (
-    BATTERY_FRESH_S,
-    UNKNOWN_BATTERY,
-    Battery,
-    sensor_bits,
-)
-from mecanum_mav.protocol.heartbeat import send_gcs_heartbeat, send_rover_heartbeat
-from mecanum_mav.protocol.messages import (
-    Addressed,
-    AttitudeMsg,
-    CommandMsg,
-    FcParamValueMsg,
-    FcSysStatusMsg,
-    FtpMsg,
-    ManualControlMsg,
-    MissionSetCurrentMsg,
-    OriginMsg,
-    ParamReadMsg,
-    ParamSetMsg,
-    PingMsg,
-    RcChannelsMsg,
-    Received,
-    Result,
-    SetModeMsg,
-    SetpointMsg,
-    WheelDistanceMsg,
-)
+from mecanum_mav.protocol.messages import Received
 from mecanum_mav.protocol.mission import MissionItem
-from mecanum_mav.protocol.missionlink import MISSION_MESSAGES
 from mecanum_mav.protocol.modes import Mode
-from mecanum_mav.protocol.outbox import MessageOutbox
-from mecanum_mav.protocol.paramservice import RESTART_REQUIRED, ParamService, ParamValue
-from mecanum_mav.protocol.rcoverride import override_fields, release_fields
-from mecanum_mav.protocol.signing import REFUSED_TEXTS, Check
-from mecanum_mav.protocol.statustext import Severity, statustext_messages
-from mecanum_mav.protocol.telemetry import (
-    REQUESTABLE,
-    StreamSchedule,
-    TelemetryState,
-    build,
-    ftp_nak,
-    next_on_grid,
-)
+from mecanum_mav.protocol.statustext import Severity
+from mecanum_mav.protocol.telemetry import StreamSchedule, next_on_grid
 
 log = logging.getLogger(__name__)
 
 __all__ = ["COMPANION_COMPID", "FC_LINK_COMPID", "NOTHING", "LinkCounts", "Outbox", "RcOverride",
            "RoverCore", "Storage"]
 
-COMPANION_COMPID = 1
-"""The companion's component id on the ground-station link (MAVSDK talks to component 1 only)."""
 FC_LINK_COMPID: int = mavlink.MAV_COMP_ID_MISSIONPLANNER
 """The companion's component id on the flight-controller link, where it is a ground station
 (190, as Mission Planner)."""
 HEARTBEAT_PERIOD_S = 1.0
-FC_SYS_STATUS_INTERVAL_US = 1_000_000
-"""The flight controller is asked for SYS_STATUS (its battery) at 1 Hz."""
-FORCE_ARM_MAGIC = 21196.0
-"""MAV_CMD_COMPONENT_ARM_DISARM param2 that forces arming past the pre-arm checks (ArduPilot)."""
-
-_NEUTRAL_WHEELS = (0.0, 0.0, 0.0, 0.0)
-_FC_CHECK_FINE = (FcCheckState.SAFE, FcCheckState.NOT_CHECKED)
-"""Verdicts said as a NOTICE; the others as a WARNING."""
 _LINK_LABELS = {"fc": "FC", "gcs": "GCS"}
-_FC_SIGNATURE_REFUSED = {
-    Check.UNSIGNED: "FC sent unsigned: board has no signing key",
-    Check.BAD_SIGNATURE: "FC bad signature: wrong --fc-signing-key?",
-    Check.REPLAYED: "FC replayed signed packet refused",
-    Check.TOO_OLD: "FC signed packet refused: timestamp too old",
-}
-"""The same for the flight-controller link (``--fc-signing-key``): unsigned packets from it
-mean the board has no key (SETUP_SIGNING was never sent to it)."""
 
 
-class RcOverride(NamedTuple):
-    """One RC_CHANNELS_OVERRIDE to the flight controller."""
-
-    target_system: int
-    target_component: int
-    channels: list[int]
-    """The 18 ``chanN_raw`` fields, channel 1 first."""
+class Storage(ParamStore, MissionStore, Protocol):
+    """Where accepted parameters and missions are kept (files, in the companion):
+    ``save_params`` and ``save_mission``, each raising ``OSError`` when it fails."""
 
 
-class Outbox(NamedTuple):
-    """What the core wants sent: message objects per link, and the override if one is due."""
-
-    gcs: Sequence[Any]
-    fc: Sequence[Any]
-    override: RcOverride | None = None
-
-
-# The hot path builds these two tuples up to 1000 times a second: tuple.__new__ skips the
-# generated keyword-handling __new__ (120 ns instead of 240 ns each), same values.
-_new_override: Callable[[tuple[int, int, list[int]]], RcOverride] = partial(
-    tuple.__new__, RcOverride)
-_new_outbox: Callable[[tuple[Sequence[Any], Sequence[Any], RcOverride | None]], Outbox] = (
-    partial(tuple.__new__, Outbox))
-
-NOTHING = Outbox((), (), None)
-"""The outbox with nothing in it (the common answer to a message: compare with ``is``)."""
-
-
-class Storage(Protocol):
-    """Where accepted parameters and missions are kept (files, in the companion)."""
-
-    def save_params(self, params: Params) -> None:
-        """Keep the parameters; raises ``OSError`` when that fails."""
-
-    def save_mission(self, items: Sequence[MissionItem]) -> None:
-        """Keep the mission; raises ``OSError`` when that fails."""
-
-
-class LinkCounts(NamedTuple):
-    """What the links counted, over both (the shell's; SYS_STATUS and the status line)."""
-
-    received: int = 0
-    """Messages received (parsed whole)."""
-    malformed: int = 0
-    """Packets dropped before they became messages: bad CRC, truncated, unknown."""
-    send_failed: int = 0
-    """Sends that failed (peer gone, no route)."""
-
-
-def _no_link_counts() -> LinkCounts:
-    return LinkCounts()
-
-
-Handler = Callable[[Any, float], None]
-"""A message handler: (the message, its arrival time in s); each declares the fields it
-reads with a protocol of :mod:`mecanum_mav.protocol.messages`."""
-Command = Callable[[tuple[float, ...], float], Result]
-
-
-class RoverCore:
+class RoverCore(OutputStage):
     """The rover's decisions (see the module docstring).
 
     Args:
@@ -210,47 +99,26 @@ class RoverCore:
 
     def __init__(self, params: Params, *, now_s: float, mission: Sequence[MissionItem] = (),
                  storage: Storage | None = None,
-                 link_counts: Callable[[], LinkCounts] = _no_link_counts) -> None:
-        self.params = params
-        self._boot_sysid = int(params["SYSID_THISMAV"])
+                 link_counts: Callable[[], LinkCounts] = no_link_counts) -> None:
+        estimator = WheelOdometryEstimator(params)
+        autopilot = Autopilot(params, estimator, lambda: self.origin)
+        super().__init__(params, Vehicle(params, hooks=self), estimator, autopilot, now_s)
         self.storage = storage
         self.link_counts = link_counts
-        self.refusals = RefusalLog()
-        """What was refused, per kind (:mod:`mecanum_mav.control.refusals`)."""
-        self._drop_window = (0, 0)  # (received + malformed, dropped) at the last heartbeat
-        self._drop_rate_cpct = 0
-        self.boot_s = now_s
-        self._now_s = now_s
-        self.to_gcs = MessageOutbox()
-        self.to_fc = MessageOutbox()
-        self.param_service = ParamService(params)
-        self.estimator = WheelOdometryEstimator(params)
-        self.autopilot = Autopilot(params, self.estimator, lambda: self.origin)
-        self.vehicle = Vehicle(params, hooks=self)
         self.streams = StreamSchedule(params)
-        self.rc_sticks = RcStickState()
-        self.receiver = ReceiverInput()
+        self.mission = MissionControl(mission, self.to_gcs, self.for_us, self.from_pilot,
+                                      self.vehicle, autopilot.executor,
+                                      lambda: estimator.pose, self.say, self.refuse, storage)
+        self._gcs = gcs = GcsInput(self, estimator, autopilot)
+        self._fc = fc = FcLink(self, estimator)
+        self._reports = Reports(self, fc, gcs.origin, link_counts)
+        commands = Commands(self, self.streams, estimator, self.mission,
+                            self._reports.telemetry_state)
+        param_link = ParamLink(self, self.reconfigure, storage)
+        self.param_service = param_link.service
+        self.rc_sticks = gcs.rc_sticks
+        self.receiver = fc.receiver
         """The RC receiver read through the flight controller (``RCIN_ENABLE``)."""
-        self._gcs_stick_s = -math.inf  # a ground station's latest stick (it takes over)
-        self._rc_stream_asked = False
-        self.mission = MissionControl(mission, self.to_gcs, self._for_us, self.vehicle,
-                                      self.autopilot.executor, lambda: self.estimator.pose,
-                                      self.say, self.refuse, storage)
-        self.origin_set: GlobalOrigin | None = None
-        """The global origin from SET_GPS_GLOBAL_ORIGIN (overrides ORIGIN_LAT/LON)."""
-        self.stick = (0.0, 0.0, 0.0)
-        """The latest valid stick: forward, right, clockwise, normalized."""
-        self.wheels = _NEUTRAL_WHEELS
-        """The wheel commands being output, normalized FL, FR, RL, RR."""
-        self.pulses_us: tuple[int, ...] = ()
-        """The pulse widths last sent to the flight controller (us), FL, FR, RL, RR."""
-        self.faulted = False
-        """An exception forced neutral; cleared by the next valid input or a mode change."""
-        self._wheels_s: float | None = None
-        self._output_wheels = _NEUTRAL_WHEELS
-        self._new_input = False
-        self._autopilot_active = False
-        self._next_output_s = now_s
         self._next_heartbeat_s = now_s
         self._housekeeping_due_s = -math.inf
         """Before this no timer of :meth:`housekeeping` is due (-inf: look at them all)."""
@@ -266,52 +134,15 @@ class RoverCore:
         """The earliest of the timers :meth:`housekeeping` keeps (heartbeat, streams, mission
         protocol, setup check), as it last left them; valid before :attr:`_housekeeping_due_s`
         (a message that may move one resets that)."""
-        self._last_override: RcOverride | None = None
         self._lane: StickLane
         """The stick lane compiled for the configuration (:meth:`reconfigure`)."""
         self._lane_answer: LaneAnswer | None = None
         self._lane_s = -math.inf
-        self._fc_streams_asked = False
-        self.fc_check = FcSetupCheck()
-        """The read-only check of the flight controller's setup, run when it appears."""
-        self._battery = UNKNOWN_BATTERY
-        self._battery_s = -math.inf
         self._gcs_handlers: dict[str, Handler] = {
-            "HEARTBEAT": self._on_gcs_heartbeat,
-            "MANUAL_CONTROL": self._on_manual_control,
-            "RC_CHANNELS_OVERRIDE": self._on_rc_override,
-            "COMMAND_LONG": self._on_command,
-            "COMMAND_INT": self._on_command,
-            "SET_MODE": self._on_set_mode,
-            "PARAM_REQUEST_LIST": self._on_param_request_list,
-            "PARAM_REQUEST_READ": self._on_param_request_read,
-            "PARAM_SET": self._on_param_set,
-            "SET_POSITION_TARGET_LOCAL_NED": self._on_position_target,
-            "PING": self._on_ping,
-            "FILE_TRANSFER_PROTOCOL": self._on_ftp,
-            "MISSION_SET_CURRENT": self._on_mission_set_current,
-            "SET_GPS_GLOBAL_ORIGIN": self._on_set_origin,
-            "SETUP_SIGNING": self._on_setup_signing,
-            **dict.fromkeys(MISSION_MESSAGES, self._on_mission_message),
-        }
-        self._fc_handlers: dict[str, Handler] = {
-            "HEARTBEAT": self._on_fc_heartbeat,
-            "ATTITUDE": self._on_attitude,
-            "WHEEL_DISTANCE": self._on_wheel_distance,
-            "SYS_STATUS": self._on_fc_sys_status,
-            "PARAM_VALUE": self._on_fc_param_value,
-            "RC_CHANNELS": self._on_rc_channels,
-        }
-        self._commands: dict[int, Command] = {
-            mavlink.MAV_CMD_COMPONENT_ARM_DISARM: self._cmd_arm_disarm,
-            mavlink.MAV_CMD_DO_SET_MODE: self._cmd_set_mode,
-            mavlink.MAV_CMD_SET_MESSAGE_INTERVAL: self._cmd_set_message_interval,
-            mavlink.MAV_CMD_GET_MESSAGE_INTERVAL: self._cmd_get_message_interval,
-            mavlink.MAV_CMD_REQUEST_MESSAGE: self._cmd_request_message,
-            mavlink.MAV_CMD_DO_SET_MISSION_CURRENT: self.mission.cmd_set_current,
-            mavlink.MAV_CMD_MISSION_START: self.mission.cmd_start,
-            mavlink.MAV_CMD_DO_SET_HOME: self._cmd_set_home,
-        }
+            **gcs.routes(), **commands.routes(), **param_link.routes(), **self.mission.routes()}
+        """The ground station's messages, by type, to their handlers."""
+        self._fc_handlers: dict[str, Handler] = fc.routes()
+        """The flight controller's messages, by type, to their handlers."""
         self.reconfigure()
 
     # ================================================================== the interface
@@ -319,7 +150,7 @@ class RoverCore:
     def handle(self, msg: Received, now_s: float, *, from_fc: bool = False) -> Outbox:
         """One message received on the ground-station link (or the flight controller's, with
         ``from_fc``) at ``now_s``; returns what to send in answer."""
-        self._now_s = now_s
+        self.now_s = now_s
         self._unsettle()  # something arrived: the next tick looks at it all
         kind = msg.get_type()
         if kind != "MANUAL_CONTROL":  # every other message may set a housekeeping timer
@@ -349,13 +180,13 @@ class RoverCore:
         can have changed the output: the tick only repeats the last override when its refresh
         is due, and after a stick answered by :meth:`stick_lane` it has nothing to do. An
         idle rover's wakes are mostly these (``OUT_RATE``)."""
-        self._now_s = now_s
-        if (now_s < self._lane_until_s and not self._new_input and not self.to_gcs.messages
+        self.now_s = now_s
+        if (now_s < self._lane_until_s and not self.new_input and not self.to_gcs.messages
                 and not self.to_fc.messages and self._last_override is not None):
             if now_s < self._next_output_s:
                 return NOTHING
             self._next_output_s = now_s + self.output.refresh_period_s - TIMER_SLACK_S
-            return _new_outbox(((), (), self._last_override))
+            return new_outbox(((), (), self._last_override))
         vehicle = self.vehicle
         vehicle.update(now_s)
         executor = self.autopilot.executor
@@ -370,9 +201,9 @@ class RoverCore:
             log.exception("error computing the output")
             self.faulted = True
             self.say(Severity.ERROR, "Error computing output: neutral")
-            wheels, pulses = _NEUTRAL_WHEELS, self.pwm.neutral()
+            wheels, pulses = NEUTRAL_WHEELS, self.pwm.neutral()
         self._output_wheels = wheels
-        if self._new_input or pulses != self.pulses_us or now_s >= self._next_output_s:
+        if self.new_input or pulses != self.pulses_us or now_s >= self._next_output_s:
             # (timers are set TIMER_SLACK_S early: a clock that adds in floating point,
             # like the lockstep harness's, must not miss a period by 1e-17 s)
             return self._take(self._override(pulses, now_s))
@@ -384,7 +215,7 @@ class RoverCore:
 
         A wake that finds no timer due and nothing to report (a stick, a setpoint, a control
         tick) integrates the commanded wheels and stops there."""
-        self._now_s = now_s
+        self.now_s = now_s
         self._wheels_held(self._output_wheels, now_s)
         executor = self.autopilot.executor
         if (now_s < self._housekeeping_due_s and not self.vehicle.events
@@ -393,39 +224,22 @@ class RoverCore:
             if not (self._lane_driving and now_s < self._lane_until_s):
                 self._settle()  # (after a stick in its lane the lane's bounds still hold)
             return NOTHING
-        if self.vehicle.fc_lost:
-            self._fc_streams_asked = False  # ask a rebooted flight controller again
-            self._rc_stream_asked = False
-        if now_s >= self.fc_check.next_due_s:
-            again, verdict = self.fc_check.tick(self.params, now_s)
-            self._ask_fc_params(again)
-            if verdict is not None:
-                self.say(Severity.NOTICE if self.fc_check.state in _FC_CHECK_FINE
-                         else Severity.WARNING, verdict)
+        if self.vehicle.fc_lost or now_s >= self.fc_check.next_due_s:
+            self._fc.housekeeping(now_s)  # the board lost and back; the setup check's timers
         # Telemetry and heartbeats ride the output refresh's wake-ups: each goes on the first
         # wake within half a refresh period of its time, early or late (see _ride), on its grid.
         ride_s = self.output.refresh_period_s / 2
         due = self.streams.due(now_s, ride_s)
         if due:
-            state = self._telemetry_state(now_s)
-            for name in due:
-                build(name, self.to_gcs, state)
+            self._reports.send_streams(due, now_s)
         if now_s + ride_s >= self._next_heartbeat_s:
-            self._update_drop_rate()
-            vehicle = self.vehicle
-            send_rover_heartbeat(self.to_gcs, vehicle.mode, armed=vehicle.armed,
-                                 failsafe=vehicle.failsafe)
-            send_gcs_heartbeat(self.to_fc)
+            self._reports.send_heartbeats()
             self.mission.send_current()  # MISSION_CURRENT at 1 Hz, as ArduPilot
             self._next_heartbeat_s = next_on_grid(self._next_heartbeat_s, HEARTBEAT_PERIOD_S,
                                                   now_s)
         self.mission.tick(now_s)
         if self.vehicle.events:
-            for event in self.vehicle.take_events():
-                if event.refusal is None:
-                    self.say(event.severity, event.text)
-                else:
-                    self.refuse(event.refusal, event.text)
+            self.tell_vehicle_events()
         timers_s = min(self.fc_check.next_due_s, self.mission.next_due_s())
         periodic_s = min(self._next_heartbeat_s, self.streams.next_due_s())
         self._housekeeping_timers_s = min(timers_s, self._ride(periodic_s, ride_s))
@@ -440,12 +254,6 @@ class RoverCore:
         idle rover wakes at the refresh rate only, not also at each stream's."""
         late_s = periodic_s + ride_s
         return late_s if self._next_output_s <= late_s else periodic_s
-
-    def _wheels_held(self, wheels: tuple[float, float, float, float], now_s: float) -> None:
-        """The odometry of the wheels commanded until ``now_s``; ``wheels`` from then on."""
-        if self._wheels_s is not None:
-            self.estimator.on_commanded(self.wheels, now_s - self._wheels_s, now_s)
-        self.wheels, self._wheels_s = wheels, now_s
 
     def _settle(self) -> None:
         """After housekeeping: until when a tick may take its short way, and the lane answer
@@ -500,8 +308,8 @@ class RoverCore:
             return
         self._lane_answer = None
         _, stick, wheels, pulses, fields = answer
-        self._now_s = now_s
-        self._take_stick(stick, now_s)
+        self.now_s = now_s
+        self.take_stick(stick, now_s)
         self._override(pulses, now_s, fields)
         self._output_wheels = wheels
         self._wheels_held(wheels, now_s)  # (after the send: the odometry up to now)
@@ -527,7 +335,7 @@ class RoverCore:
         (device gone, closed by the peer) and is being reopened: said once (WARNING), and that
         link's failsafe fires now (:meth:`Vehicle.on_fc_link_down`,
         :meth:`Vehicle.on_gcs_link_down`); returns what to send (on the other link)."""
-        self._now_s = now_s
+        self.now_s = now_s
         self._unsettle()
         self.say(Severity.WARNING, f"{_LINK_LABELS.get(link, link)} link down: {reason}; "
                                    f"reconnecting")
@@ -542,7 +350,7 @@ class RoverCore:
         """The shell's ``link`` is open again at ``now_s``: said once (NOTICE). On the flight
         controller's, the first thing sent is neutral, never what was output before the break
         (driving needs the flight controller's HEARTBEAT and arming again)."""
-        self._now_s = now_s
+        self.now_s = now_s
         self._unsettle()
         self.say(Severity.NOTICE, f"{_LINK_LABELS.get(link, link)} link reconnected")
         if link == "fc":
@@ -551,7 +359,7 @@ class RoverCore:
 
     def next_due_s(self) -> float:
         """When :meth:`tick` must run next if no message arrives first (monotonic s)."""
-        now_s = self._now_s
+        now_s = self.now_s
         if now_s < self._housekeeping_due_s:  # its timers as housekeeping left them
             if now_s < self._lane_until_s and self._lane_driving:
                 # Driving in MANUAL (no control ticks), and the vehicle's timeouts only move
@@ -565,450 +373,26 @@ class RoverCore:
                    self.streams.next_due_s(), self.autopilot.next_due_s(),
                    self.mission.next_due_s(), self.fc_check.next_due_s)
 
-    def shutdown(self) -> list[RcOverride]:
-        """The last overrides before the companion lets go: neutral (twice, the wheels stop),
-        then the channels released to the flight controller's radio."""
-        neutral = self.pwm.neutral()
-        self.pulses_us = neutral
-        target = self.identity.fc_sysid, self.identity.fc_compid
-        hold = RcOverride(*target, override_fields(self.pwm.channels, neutral))
-        return [hold, hold, RcOverride(*target, release_fields(self.pwm.channels))]
-
     def reconfigure(self) -> None:
         """Re-read the parameter views the loop uses (after a parameter changed)."""
         self._unsettle()
-        p = self.params
-        self.pwm = PwmMap.from_params(p)
-        # SYSID_THISMAV is reboot_required: the links keep the id they were opened with.
-        self.identity = replace(IdentityConfig.from_params(p), sysid=self._boot_sysid)
-        self.input = InputConfig.from_params(p)
+        self.read_views()  # identity, input, rc_input, receiver_config, pwm, output
         self._lane = compile_stick_lane(self.input, self.pwm, self.identity, FC_LINK_COMPID)
-        self.output = OutputConfig.from_params(p)
-        self.rc_input = RcInputConfig.from_params(p)
-        self.receiver_config = ReceiverConfig.from_params(p)
         if not self.receiver_config.enabled:
-            self._rc_stream_asked = False  # (asked again when it is turned on)
-        lat, lon = float(p["ORIGIN_LAT"]), float(p["ORIGIN_LON"])
-        self._origin_param = None if lat == lon == 0.0 else GlobalOrigin.from_degrees(lat, lon)
-        self.vehicle.reconfigure(p)
-        self.estimator.reconfigure(p)
-        self.autopilot.reconfigure(p)
-
-    def say(self, severity: Severity, text: str) -> None:
-        """A STATUSTEXT to the ground station (and the log); long texts go in chunks."""
-        log.log(logging.WARNING if severity <= Severity.WARNING else logging.INFO, "%s", text)
-        self.to_gcs.messages.extend(statustext_messages(severity, text))
-
-    def refuse(self, kind: Refusal, text: str, count: int = 1) -> None:
-        """Count ``count`` refused inputs of ``kind`` and say why (WARNING), at most once a
-        second per kind (:class:`~mecanum_mav.control.refusals.RefusalLog`)."""
-        if self.refusals.add(kind, self._now_s, count):
-            self.say(Severity.WARNING, text)
-
-    def refuse_unsigned(self, rejected: Mapping[Check, int], now_s: float, *,
-                        from_fc: bool = False) -> None:
-        """Packets a link's signature check dropped before they became messages (per kind,
-        :meth:`~mecanum_mav.protocol.signing.SignatureCheck.take_rejections`): counted as
-        :attr:`Refusal.SIGNATURE`; none of them reached :meth:`handle`, so none armed, drove
-        or kept the ground-station failsafe from firing (or, ``from_fc``, brought the
-        flight-controller link up)."""
-        self._now_s = now_s
-        texts = _FC_SIGNATURE_REFUSED if from_fc else REFUSED_TEXTS
-        for kind, count in rejected.items():
-            self.refuse(Refusal.SIGNATURE, texts[kind], count)
+            self._fc.rc_stream_asked = False  # (asked again when it is turned on)
+        for part in (self._gcs, self.vehicle, self.estimator, self.autopilot):
+            part.reconfigure(self.params)
 
     def status_line(self) -> str:
-        """One line of counts for people: messages received, packets dropped as malformed,
-        failed sends, and the refusals per kind."""
-        c = self.link_counts()
-        return (f"received {c.received}, malformed {c.malformed}, send failures "
-                f"{c.send_failed}, refused {self.refusals.total} "
-                f"({self.refusals.summary()})")
+        """One line of counts for people (:mod:`~mecanum_mav.control.reports`)."""
+        return self._reports.status_line()
 
     @property
     def origin(self) -> GlobalOrigin | None:
         """Where local (0, 0) is on the earth: SET_GPS_GLOBAL_ORIGIN, else ORIGIN_LAT/LON."""
-        return self._origin_param if self.origin_set is None else self.origin_set
+        return self._gcs.origin()
 
-    # ================================================================== mode hooks
-
-    def refuse_entry(self, mode: Mode, now_s: float) -> str | None:
-        """:class:`~mecanum_mav.control.vehicle.ModeHooks`: the autopilot decides."""
-        return self.autopilot.refuse_entry(mode, now_s)
-
-    def on_mode_change(self, before: Mode, after: Mode, now_s: float) -> None:
-        """A mode change clears an exception's neutral latch and starts the controllers."""
-        self.faulted = False
-        self.autopilot.on_mode_change(before, after, now_s)
-
-    # ================================================================== output
-
-    def _compute_output(self, now_s: float) -> Output:
-        vehicle = self.vehicle
-        if self.faulted:
-            self._autopilot_active = False
-            self.autopilot.idle()
-            return _NEUTRAL_WHEELS, self.pwm.neutral()
-        if vehicle.autonomous():
-            self._autopilot_active = True
-            return self.autopilot.output(vehicle.mode is Mode.AUTO, now_s, self.output,
-                                         self.input.desaturation, self.pwm)
-        if self._autopilot_active:
-            self._autopilot_active = False
-            self.autopilot.idle()
-        if not vehicle.driving():
-            return _NEUTRAL_WHEELS, self.pwm.neutral()
-        x, y, r = self.stick
-        return manual_output(x, y, r, self.input, self.pwm)
-
-    def _override(self, pulses: tuple[int, ...], now_s: float,
-                  fields: list[int] | None = None) -> RcOverride:
-        """The override setting the wheels to ``pulses`` (its ``fields`` if already made)."""
-        self.pulses_us = pulses
-        self._new_input = False
-        self._autopilot_active = False
-        self._next_output_s = now_s + self.output.refresh_period_s - TIMER_SLACK_S
-        identity = self.identity
-        if fields is None:
-            fields = override_fields(self.pwm.channels, pulses)
-        override = self._last_override = _new_override((identity.fc_sysid, identity.fc_compid,
-                                                        fields))
-        return override
-
-    def _take(self, override: RcOverride | None) -> Outbox:
-        gcs, fc = self.to_gcs, self.to_fc
-        if not (gcs.messages or fc.messages or override):
-            return NOTHING
-        return _new_outbox((gcs.take() if gcs.messages else (),
-                            fc.take() if fc.messages else (), override))
-
-    def _telemetry_state(self, now_s: float) -> TelemetryState:
-        est = self.estimator
-        counts = self.link_counts()
-        errors = counts.malformed + self.refusals.total + counts.send_failed
-        fresh = now_s - self._battery_s <= BATTERY_FRESH_S
-        battery = self._battery if fresh else UNKNOWN_BATTERY
-        sensors = sensor_bits(fc_link_up=not self.vehicle.fc_lost, battery_known=fresh)
-        return TelemetryState(now_s, self.boot_s, est.pose, est.velocity_body, est.yaw_rate,
-                              est.reset_counter, est.wheel_distances_m, self.pwm.channels,
-                              self.pulses_us, errors, self._drop_rate_cpct, self.origin,
-                              sensors, battery)
-
-    def _update_drop_rate(self) -> None:
-        """SYS_STATUS ``drop_rate_comm`` (c%): of the packets that arrived since the last
-        heartbeat, the share dropped as malformed or refused."""
-        counts = self.link_counts()
-        arrived = counts.received + counts.malformed
-        dropped = counts.malformed + self.refusals.total
-        arrived_before, dropped_before = self._drop_window
-        self._drop_window = arrived, dropped
-        if arrived > arrived_before:
-            share = (dropped - dropped_before) / (arrived - arrived_before)
-            self._drop_rate_cpct = min(10_000, round(10_000 * share))
-        else:
-            self._drop_rate_cpct = 0
-
-    # ================================================================== addressing
-
-    def _for_us(self, target_system: int, target_component: int | None = None) -> bool:
-        if target_system != 0 and target_system != self.identity.sysid:
-            return False
-        return target_component is None or target_component in (0, COMPANION_COMPID)
-
-    def _from_pilot(self, msg: Any) -> bool:
-        gcs = self.identity.gcs_sysid
-        return gcs == 0 or msg.get_srcSystem() == gcs
-
-    # ================================================================== the flight controller
-
-    def _on_fc_heartbeat(self, msg: Received, now_s: float) -> None:
-        self.vehicle.on_fc_heartbeat(now_s)
-        if not self._fc_streams_asked:  # the link came up: the battery and the setup check
-            self._fc_streams_asked = True
-            self._ask_fc_params(self.fc_check.start(self.params, now_s))
-            self.to_fc.command_long_send(
-                self.identity.fc_sysid, self.identity.fc_compid,
-                mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, 0, mavlink.MAVLINK_MSG_ID_SYS_STATUS,
-                FC_SYS_STATUS_INTERVAL_US, 0, 0, 0, 0, 0)
-        if self.receiver_config.enabled and not self._rc_stream_asked:
-            self._rc_stream_asked = True  # the receiver's channels, when it is read
-            self.to_fc.command_long_send(
-                self.identity.fc_sysid, self.identity.fc_compid,
-                mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, 0, mavlink.MAVLINK_MSG_ID_RC_CHANNELS,
-                RC_CHANNELS_INTERVAL_US, 0, 0, 0, 0, 0)
-
-    def _on_rc_channels(self, msg: RcChannelsMsg, now_s: float) -> None:
-        """The receiver through the flight controller (:mod:`mecanum_mav.control.rcinput`):
-        its sticks drive unless a ground station's are fresh; its switches set the mode and
-        arm; its failsafe stops the wheels at once and takes ``FS_RC_ACTION``."""
-        config = self.receiver_config
-        if not config.enabled:
-            return
-        pulses = [getattr(msg, f"chan{i}_raw") for i in range(1, 19)]
-        frame = self.receiver.frame(msg.chancount, pulses, msg.rssi, config, self.rc_input,
-                                    now_s)
-        vehicle = self.vehicle
-        vehicle.on_receiver(frame.problem, now_s)
-        gcs_driving = now_s - self._gcs_stick_s <= vehicle.config.input_timeout_s
-        if frame.stick is None:
-            if not gcs_driving:
-                self.stick = _NEUTRAL_WHEELS[:3]  # the wheels stop now, whatever the action
-                self._new_input = True
-            return
-        if frame.mode is not None:
-            vehicle.request_mode(frame.mode, now_s)
-        if frame.arm is True:
-            vehicle.update(now_s)
-            vehicle.request_arm(now_s, self._prearm_problems(frame.stick))
-        elif frame.arm is False:
-            vehicle.request_disarm(now_s, "by RC switch")
-        if not gcs_driving:
-            self.stick = frame.stick
-            self.faulted = False
-            vehicle.on_stick_input(now_s)
-            self._new_input = True
-
-    def _on_fc_param_value(self, msg: FcParamValueMsg, now_s: float) -> None:
-        self._ask_fc_params(self.fc_check.on_value(msg.param_id.rstrip("\x00"),
-                                                   float(msg.param_value), now_s))
-
-    def _ask_fc_params(self, names: Sequence[str]) -> None:
-        target = self.identity.fc_sysid, self.identity.fc_compid
-        for name in names:
-            self.to_fc.param_request_read_send(*target, name.encode("ascii"), -1)
-
-    def _on_fc_sys_status(self, msg: FcSysStatusMsg, now_s: float) -> None:
-        if msg.voltage_battery not in (0, UNKNOWN_BATTERY.voltage_mv):  # 0: no monitor
-            self._battery = Battery(msg.voltage_battery, msg.current_battery,
-                                    msg.battery_remaining)
-            self._battery_s = now_s
-
-    def _on_attitude(self, msg: AttitudeMsg, now_s: float) -> None:
-        problem = self.estimator.on_attitude(msg.yaw, msg.yawspeed, now_s)
-        if problem is not None:
-            self.refuse(Refusal.SENSOR, f"Ignored: {problem}")
-
-    def _on_wheel_distance(self, msg: WheelDistanceMsg, now_s: float) -> None:
-        if msg.count >= 4:
-            problem = self.estimator.on_wheel_distance(msg.distance[:4], now_s)
-            if problem is not None:
-                self.refuse(Refusal.SENSOR, f"Ignored: {problem}")
-
-    # ================================================================== sticks and setpoints
-
-    def _on_gcs_heartbeat(self, msg: Received, now_s: float) -> None:
-        if self._from_pilot(msg):
-            self.vehicle.on_gcs_heartbeat(now_s)
-
-    def _take_stick(self, stick: tuple[float, float, float], now_s: float) -> None:
-        self.stick = stick
-        self._gcs_stick_s = now_s  # a ground station's stick: the receiver's wait
-        self.faulted = False
-        self.vehicle.on_stick_input(now_s)
-        self._new_input = True
-
-    def _on_manual_control(self, msg: ManualControlMsg, now_s: float) -> None:
-        if not (self._for_us(msg.target) and self._from_pilot(msg)):
-            return
-        try:
-            stick = stick_from_manual_control(msg.x, msg.y, msg.r, msg.z,
-                                              z_scale=self.input.z_scale)
-        except InputError as exc:
-            self.refuse(Refusal.STICK, f"Rejected: {exc}")
-            return
-        self._take_stick(stick, now_s)
-
-    def _on_rc_override(self, msg: Addressed, now_s: float) -> None:
-        if not (self._for_us(msg.target_system, msg.target_component) and self._from_pilot(msg)):
-            return
-        channels = [getattr(msg, f"chan{i}_raw") for i in range(1, 19)]
-        try:
-            self.rc_sticks.apply(channels)
-        except InputError as exc:
-            self.refuse(Refusal.STICK, f"Rejected: {exc}")
-            return
-        if self.rc_sticks.touches_sticks(channels, self.rc_input):
-            self._take_stick(self.rc_sticks.stick(self.rc_input), now_s)
-
-    def _on_position_target(self, msg: SetpointMsg, now_s: float) -> None:
-        if not (self._for_us(msg.target_system, msg.target_component) and self._from_pilot(msg)):
-            return
-        if self.vehicle.mode is not Mode.GUIDED:
-            self.refuse(Refusal.SETPOINT, "Rejected: setpoint: not in GUIDED")
-            return
-        pose = self.estimator.pose
-        try:
-            setpoint = decode_setpoint(msg.coordinate_frame, msg.type_mask, msg.x, msg.y,
-                                       msg.vx, msg.vy, msg.yaw, msg.yaw_rate, pose, now_s)
-        except SetpointError as exc:
-            self.refuse(Refusal.SETPOINT, f"Rejected: setpoint: {exc}")
-            return
-        self.autopilot.guided.accept(setpoint, pose)
-        self.faulted = False
-        self._new_input = True
-
-    # ================================================================== commands
-
-    def _on_command(self, msg: CommandMsg, now_s: float) -> None:
-        if not (self._for_us(msg.target_system, msg.target_component) and self._from_pilot(msg)):
-            return
-        command = self._commands.get(int(msg.command))
-        params = (msg.param1, msg.param2, msg.param3, msg.param4)
-        result = Result.UNSUPPORTED if command is None else command(params, now_s)
-        self.to_gcs.command_ack_send(msg.command, result, 0, 0, msg.get_srcSystem(),
-                                     msg.get_srcComponent())
-
-    @staticmethod
-    def _result(decision: Decision) -> Result:
-        return Result.ACCEPTED if decision.accepted else Result.DENIED
-
-    def _cmd_arm_disarm(self, p: tuple[float, ...], now_s: float) -> Result:
-        if p[0] == 1.0:
-            self.vehicle.update(now_s)
-            return self._result(self.vehicle.request_arm(
-                now_s, self._prearm_problems(), force=p[1] == FORCE_ARM_MAGIC))
-        if p[0] == 0.0:
-            return self._result(self.vehicle.request_disarm(now_s, "by command"))
-        self.refuse(Refusal.COMMAND, f"Arm/disarm: param1 must be 0 or 1, got {p[0]}")
-        return Result.DENIED
-
-    def _prearm_problems(self, stick: tuple[float, float, float] | None = None) -> list[str]:
-        """The core's pre-arm checks: the flight controller's setup (when it was checked)
-        must be safe, and a pilot's fresh stick (or ``stick``, the receiver's) must be
-        centred (within the deadband), or arming would drive off at once."""
-        problems = []
-        fc_problem, ask = self.fc_check.arm_problem(self._now_s)
-        self._ask_fc_params(ask)
-        if fc_problem is not None:
-            problems.append(fc_problem)
-        if stick is None and not self.vehicle.input_stale:
-            stick = self.stick
-        if stick is not None:
-            deflected = [f"{name} {value:+.2f}" for name, value in zip("xyr", stick,
-                                                                        strict=True)
-                         if abs(value) > self.input.deadband]
-            if deflected:
-                problems.append(f"sticks not centred ({', '.join(deflected)})")
-        return problems
-
-    def _cmd_set_mode(self, p: tuple[float, ...], now_s: float) -> Result:
-        return self._set_mode(p[0], p[1], now_s)
-
-    def _cmd_set_message_interval(self, p: tuple[float, ...], now_s: float) -> Result:
-        ok = math.isfinite(p[0]) and self.streams.set_interval(int(p[0]), p[1])
-        return Result.ACCEPTED if ok else Result.DENIED
-
-    def _cmd_get_message_interval(self, p: tuple[float, ...], now_s: float) -> Result:
-        interval = self.streams.get_interval_us(int(p[0])) if math.isfinite(p[0]) else None
-        if interval is None:
-            return Result.DENIED
-        self.to_gcs.message_interval_send(int(p[0]), interval)
-        return Result.ACCEPTED
-
-    def _cmd_request_message(self, p: tuple[float, ...], now_s: float) -> Result:
-        name = REQUESTABLE.get(int(p[0])) if math.isfinite(p[0]) else None
-        if name is None:
-            return Result.DENIED
-        build(name, self.to_gcs, self._telemetry_state(now_s))
-        return Result.ACCEPTED
-
-    def _cmd_set_home(self, p: tuple[float, ...], now_s: float) -> Result:
-        if p[0] != 1.0:
-            self.refuse(Refusal.COMMAND, "Set home: only 'use current position' (param1=1)")
-            return Result.DENIED
-        self.estimator.reset(now_s=now_s)
-        self.say(Severity.INFO, "Home and odometry origin set here")
-        return Result.ACCEPTED
-
-    def _set_mode(self, base_mode: float, custom_mode: float, now_s: float) -> Result:
-        if not (math.isfinite(base_mode) and math.isfinite(custom_mode)):
-            self.refuse(Refusal.COMMAND, "Set mode: base and custom mode must be numbers")
-            return Result.DENIED
-        if not int(base_mode) & mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED:
-            self.refuse(Refusal.COMMAND, "Set mode: only custom (Rover) modes are supported")
-            return Result.UNSUPPORTED
-        return self._result(self.vehicle.request_mode(int(custom_mode), now_s))
-
-    def _on_set_mode(self, msg: SetModeMsg, now_s: float) -> None:
-        if not (self._for_us(msg.target_system) and self._from_pilot(msg)):
-            return
-        result = self._set_mode(float(msg.base_mode), float(msg.custom_mode), now_s)
-        # ArduPilot acknowledges SET_MODE with COMMAND_ACK whose command is SET_MODE's id (11).
-        self.to_gcs.command_ack_send(mavlink.MAVLINK_MSG_ID_SET_MODE, result, 0, 0,
-                                     msg.get_srcSystem(), msg.get_srcComponent())
-
-    def _on_ping(self, msg: PingMsg, now_s: float) -> None:
-        if msg.target_system == 0:  # a request (an answer names its target)
-            self.to_gcs.ping_send(msg.time_usec, msg.seq, msg.get_srcSystem(),
-                                  msg.get_srcComponent())
-
-    def _on_ftp(self, msg: FtpMsg, now_s: float) -> None:
-        if self._for_us(msg.target_system, msg.target_component):
-            self.to_gcs.file_transfer_protocol_send(0, msg.get_srcSystem(),
-                                                    msg.get_srcComponent(),
-                                                    ftp_nak(msg.payload))
-
-    def _on_setup_signing(self, msg: Addressed, now_s: float) -> None:
-        if self._for_us(msg.target_system, msg.target_component):
-            # the key is changed in the file, and takes effect at the next start
-            self.refuse(Refusal.COMMAND, "SETUP_SIGNING refused: key is from --signing-key")
-
-    # ================================================================== parameters
-
-    def _send_param(self, value: ParamValue) -> None:
-        self.to_gcs.param_value_send(value.param_id, value.param_value, value.param_type,
-                                     value.param_count, value.param_index)
-
-    def _on_param_request_list(self, msg: Addressed, now_s: float) -> None:
-        if self._for_us(msg.target_system, msg.target_component):
-            for value in self.param_service.all_values():
-                self._send_param(value)
-
-    def _on_param_request_read(self, msg: ParamReadMsg, now_s: float) -> None:
-        if self._for_us(msg.target_system, msg.target_component):
-            value = self.param_service.read(msg.param_id, msg.param_index)
-            if value is not None:
-                self._send_param(value)
-
-    def _on_param_set(self, msg: ParamSetMsg, now_s: float) -> None:
-        if not (self._for_us(msg.target_system, msg.target_component) and self._from_pilot(msg)):
-            return
-        value, problem = self.param_service.set(msg.param_id, msg.param_value)
-        if value is None:
-            return  # unknown name: no answer, as the protocol specifies
-        self._send_param(value)
-        name = value.param_id.decode()
-        if problem:
-            self.refuse(Refusal.PARAM, f"Param refused: {problem}")
-            return
-        self.reconfigure()
-        if name in RESTART_REQUIRED:
-            self.say(Severity.NOTICE, f"{name} takes effect after a restart")
-        if self.storage is not None:
-            try:
-                self.storage.save_params(self.params)
-            except OSError as exc:
-                self.say(Severity.ERROR, f"Param save failed: {exc.strerror}")
-
-    # ================================================================== missions
-
-    def _on_mission_message(self, msg: Received, now_s: float) -> None:
-        if self._from_pilot(msg):
-            self.mission.on_message(msg, now_s)
-
-    def _on_mission_set_current(self, msg: MissionSetCurrentMsg, now_s: float) -> None:
-        if self._for_us(msg.target_system, msg.target_component) and self._from_pilot(msg):
-            self.mission.on_set_current(msg, now_s)
-
-    def _on_set_origin(self, msg: OriginMsg, now_s: float) -> None:
-        if not (self._for_us(msg.target_system) and self._from_pilot(msg)):
-            return
-        try:
-            origin = GlobalOrigin(msg.latitude, msg.longitude, msg.altitude)
-        except ValueError as exc:
-            self.refuse(Refusal.ORIGIN, f"Rejected: origin: {exc}")
-            return
-        self.origin_set = origin
-        self.to_gcs.gps_global_origin_send(origin.lat_e7, origin.lon_e7, origin.alt_mm,
-                                           int((now_s - self.boot_s) * 1e6))
-        self.say(Severity.INFO, f"Origin {origin.lat_e7 / 1e7:.7f} {origin.lon_e7 / 1e7:.7f}")
+    @property
+    def origin_set(self) -> GlobalOrigin | None:
+        """The global origin from SET_GPS_GLOBAL_ORIGIN (overrides ORIGIN_LAT/LON)."""
+        return self._gcs.origin_set

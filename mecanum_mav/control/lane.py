@@ -103,7 +103,7 @@ def compile_stick_lane(config: InputConfig, pwm: PwmMap, identity: IdentityConfi
             x, y, z, r, _buttons, to = axes_from(datagram, 10)
         else:  # MAVLink 2 dropped trailing zero bytes: put them back
             x, y, z, r, _buttons, to = axes_from(datagram[10:end] + bytes(axes_size - length))
-        # For us, from the pilot, valid axes (as RoverCore._for_us, _from_pilot and
+        # For us, from the pilot, valid axes (as Context.for_us, from_pilot and
         # stick_from_manual_control; else the general path refuses it, saying why).
         if (to and to != sysid) or (pilot and datagram[5] != pilot):
             return None

@@ -16,13 +16,14 @@ import math
 from collections.abc import Callable, Sequence
 from typing import Any, Protocol
 
+from mecanum_mav.control.context import Handler
 from mecanum_mav.control.executor import MissionExecutor
 from mecanum_mav.control.refusals import Refusal
 from mecanum_mav.control.vehicle import Vehicle
 from mecanum_mav.mecanum.geometry import Pose2d
 from mecanum_mav.protocol.messages import MissionSetCurrentMsg, Result
 from mecanum_mav.protocol.mission import MissionItem
-from mecanum_mav.protocol.missionlink import MissionLink
+from mecanum_mav.protocol.missionlink import MISSION_MESSAGES, MissionLink
 from mecanum_mav.protocol.missionservice import MissionService
 from mecanum_mav.protocol.modes import Mode
 from mecanum_mav.protocol.statustext import Severity
@@ -47,6 +48,8 @@ class MissionControl:
         items: the mission to start with (item 0 is home).
         to_gcs: the ground station's outbox (a pymavlink ``MAVLink`` that collects).
         for_us: the core's addressing rule, ``(target_system, target_component) -> bool``.
+        from_pilot: the core's rule for who commands, ``(message) -> bool``: only the
+            pilot's ground station's mission messages count.
         vehicle: the mode state machine (AUTO, HOLD).
         executor: the mission executor that drives the mission.
         pose: returns the rover's pose now (local NED).
@@ -56,12 +59,15 @@ class MissionControl:
     """
 
     def __init__(self, items: Sequence[MissionItem], to_gcs: Any,
-                 for_us: Callable[[int, int], bool], vehicle: Vehicle,
+                 for_us: Callable[[int, int], bool], from_pilot: Callable[[Any], bool],
+                 vehicle: Vehicle,
                  executor: MissionExecutor, pose: Callable[[], Pose2d],
                  say: Callable[[Severity, str], None],
                  refuse: Callable[[Refusal, str], None], store: MissionStore | None) -> None:
         self.service = MissionService(items)
         self.link = MissionLink(self.service, to_gcs, for_us)
+        self._for_us = for_us
+        self._from_pilot = from_pilot
         self.vehicle = vehicle
         self.executor = executor
         self.pose = pose
@@ -81,14 +87,21 @@ class MissionControl:
 
     # ------------------------------------------------------------------ messages
 
+    def routes(self) -> dict[str, Handler]:
+        """The ground station's messages handled here, by type."""
+        return {"MISSION_SET_CURRENT": self.on_set_current,
+                **dict.fromkeys(MISSION_MESSAGES, self.on_message)}
+
     def on_message(self, msg: Any, now_s: float) -> None:
-        """A mission protocol message from the pilot's ground station."""
-        self.link.handle(msg, now_s)
-        self._take_protocol_events(now_s)
+        """A mission protocol message (only the pilot's ground station's count)."""
+        if self._from_pilot(msg):
+            self.link.handle(msg, now_s)
+            self._take_protocol_events(now_s)
 
     def on_set_current(self, msg: MissionSetCurrentMsg, now_s: float) -> None:
-        """MISSION_SET_CURRENT (answered by MISSION_CURRENT)."""
-        self.set_current(msg.seq, now_s)
+        """MISSION_SET_CURRENT for us from the pilot (answered by MISSION_CURRENT)."""
+        if self._for_us(msg.target_system, msg.target_component) and self._from_pilot(msg):
+            self.set_current(msg.seq, now_s)
 
     def cmd_set_current(self, p: tuple[float, ...], now_s: float) -> Result:
         """MAV_CMD_DO_SET_MISSION_CURRENT: param1 the item (-1 the current one), param2 = 1

@@ -14,10 +14,21 @@ from __future__ import annotations
 import math
 from enum import Enum
 
-__all__ = ["REFUSAL_REPEAT_S", "Refusal", "RefusalLog"]
+from mecanum_mav.protocol.signing import Check
+
+__all__ = ["FC_SIGNATURE_REFUSED", "REFUSAL_REPEAT_S", "Refusal", "RefusalLog"]
 
 REFUSAL_REPEAT_S = 1.0
 """The reason for a refusal of one kind is said at most once per this many seconds."""
+FC_SIGNATURE_REFUSED = {
+    Check.UNSIGNED: "FC sent unsigned: board has no signing key",
+    Check.BAD_SIGNATURE: "FC bad signature: wrong --fc-signing-key?",
+    Check.REPLAYED: "FC replayed signed packet refused",
+    Check.TOO_OLD: "FC signed packet refused: timestamp too old",
+}
+"""What a refused packet from the flight-controller link says (``--fc-signing-key``), per
+kind: unsigned packets from it mean the board has no key (SETUP_SIGNING was never sent to it).
+The ground station's are :data:`mecanum_mav.protocol.signing.REFUSED_TEXTS`."""
 
 
 class Refusal(Enum):
