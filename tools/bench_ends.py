@@ -30,6 +30,7 @@ import termios
 import tty
 from collections.abc import Callable
 from dataclasses import dataclass
+from pathlib import Path
 
 from mecanum_mav.protocol.dialect import mavlink
 
@@ -73,10 +74,15 @@ def core_split(pin: bool) -> CoreSplit:
 
 
 def pin_self(cores: frozenset[int] | None) -> None:
-    """Pin the calling thread to ``cores`` (threads it starts afterwards inherit it); None:
-    leave it."""
-    if cores is not None:
-        os.sched_setaffinity(0, cores)
+    """Pin this process to ``cores``: every thread it has (numpy's BLAS starts some at
+    import) and, inheriting it, every thread and process it starts afterwards; None: leave
+    it."""
+    if cores is None:
+        return
+    for task in Path("/proc/self/task").iterdir():
+        with contextlib.suppress(OSError):  # (a thread that ended meanwhile)
+            os.sched_setaffinity(int(task.name), cores)
+    os.sched_setaffinity(0, cores)
 
 
 # ---------------------------------------------------------------------------- the harness's board

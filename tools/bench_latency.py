@@ -1285,7 +1285,8 @@ PATH_TITLES = {
     "udpin": "--gcs udpin: --fc udpout: (the companion listens for its ground station; the "
              "harness's ground station sends to the companion's port)",
     "serial": "--gcs udpout: --fc PTY,BAUD (a serial flight controller: the harness reads "
-              "and writes the pty's master end)",
+              "and writes the pty's master end; delay = the harness's read time - send time, "
+              "a pty has no kernel stamp)",
 }
 
 
