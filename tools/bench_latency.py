@@ -75,7 +75,7 @@ Paths (issue 24: every path timed)
 
 The report gives percentiles and ratios and says whether each goal was met; the exit status
 is 0 unless a SUT crashed or could not be started/armed (1). A full run of the three paths
-takes about two minutes (``--quick``: about 40 s).
+takes about two minutes (``--quick``: about one).
 
     .venv/bin/python tools/bench_latency.py [--quick] [--profile] [--paths udpout,udpin,serial]
         [--baud 921600] [--no-pin]
