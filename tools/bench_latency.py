@@ -48,13 +48,40 @@ Goals (issue text)
     loop waking at ``OUT_RATE`` costs on this machine: the least any Python process pays for
     waking at the refresh rate.
 
-The report gives percentiles and ratios and says whether each goal was met; the exit status
-is 0 unless a SUT crashed or could not be started/armed (1).
+Paths (issue 24: every path timed)
+    The run above is the ``udpout`` path (the companion's links both ``udpout:``). Two more
+    paths follow, each with its own floor relay on the same transports (:func:`open_floor`:
+    the floor listens, or writes the serial device, as the companion does), the floor and
+    the companion driven in alternating rounds at 50 Hz and 1 kHz as above (no bursts, no
+    idle phase), and each prints issue 13's ratio goals against its own floor:
 
-    .venv/bin/python tools/bench_latency.py [--quick] [--profile]
+    - ``udpin``: ``--gcs udpin:``, the companion listening on a port of its own (it tells
+      the harness which); the harness's ground station sends to it from its own socket, as
+      one that connects to a rover, with a HEARTBEAT a second (the companion answers only a
+      peer it has heard, and its ground-station failsafe then expects them);
+    - ``serial``: ``--fc /dev/pts/N,BAUD``, the flight controller on the master end of a
+      pty (:class:`PtyFcHarness`) at ``--baud`` (default 921600, :data:`bench_ends.
+      SERIAL_BAUD`: an override is 0.33 ms on that wire, so 1 kHz fits and the companion's
+      pacing never holds one back; the floor writes each override at once). A pty has no
+      kernel receive stamp: an override's receive time is taken just before the harness's
+      read that returns it, so the harness's wake-up is in this path's delays, the floor's
+      and the companion's alike.
+
+    By default the harness is pinned to one core and every SUT (the floor relays, the
+    companion, the empty epoll loop) to another (``os.sched_setaffinity``; ``--no-pin``
+    leaves them free), so the harness and the system under test never compete for a core
+    and runs compare. The report ends with one line per path: its five ratios and the goals
+    it missed.
+
+The report gives percentiles and ratios and says whether each goal was met; the exit status
+is 0 unless a SUT crashed or could not be started/armed (1). A full run of the three paths
+takes about two minutes (``--quick``: about one).
+
+    .venv/bin/python tools/bench_latency.py [--quick] [--profile] [--paths udpout,udpin,serial]
+        [--baud 921600] [--no-pin]
 
 ``--profile`` runs the companion's loop under cProfile (its delays are then inflated) and
-prints the top functions after the report.
+prints the top functions after the report (after each path's).
 """
 
 from __future__ import annotations
@@ -84,6 +111,16 @@ from multiprocessing.connection import Connection
 from typing import Any
 
 import numpy as np
+from bench_ends import (
+    PATHS,
+    SERIAL_BAUD,
+    CoreSplit,
+    PtyBoard,
+    core_split,
+    open_floor_fc,
+    open_floor_gcs,
+    pin_self,
+)
 
 from mecanum_mav.config.params import Params
 from mecanum_mav.control.pwm import PwmMap
@@ -111,6 +148,7 @@ RECV_SIZE = 2048
 HARNESS_GCS_ID = (255, 190)  # the ground station the companion accepts (SYSID_MYGCS 0 = any)
 HARNESS_FC_ID = (1, 1)  # the flight controller (FC_SYSID / FC_COMPID defaults)
 FC_HEARTBEAT_PERIOD_S = 0.5
+GCS_HEARTBEAT_PERIOD_S = 1.0  # a ground station's HEARTBEAT (sent to a SUT that listens)
 MANUAL_Z = 500
 BASELINE = "baseline"
 FLOOR = "floor"
@@ -144,6 +182,8 @@ QUICK = PhasePlan(warmup_commands=10, slow_commands=50, fast_commands=1000, idle
                   burst_s=0.25)
 SUTS = (FLOOR, BASELINE, COMPANION, SIGNED, IDLE_FLOOR)
 INPUT_SUTS = (FLOOR, BASELINE, COMPANION, SIGNED)
+PATH_SUTS = (FLOOR, COMPANION)
+"""The SUTs of the ``udpin`` and ``serial`` paths (the ``udpout`` run has them all)."""
 
 
 # ---------------------------------------------------------------------------- stick encoding
@@ -194,12 +234,53 @@ def _udp_out(url: str) -> socket.socket:
 
 
 def run_floor(gcs_url: str, fc_url: str, stop_fd: int) -> None:
-    """The floor: the least a correct Python relay can do. It takes one datagram at a time,
+    """The floor: the least a correct Python relay can do (:func:`serve_floor` on the ends
+    :func:`open_floor` opens)."""
+    serve_floor(open_floor(gcs_url, fc_url), stop_fd)
+
+
+@dataclass
+class FloorEnds:
+    """The floor relay's two ends, on the transports its path gives the companion."""
+
+    gcs: socket.socket
+    listening: bool  # the ground-station socket is bound (udpin), not connected (udpout)
+    send_fc: Callable[[bytes], object]
+    close_fc: Callable[[], None]
+
+    @property
+    def gcs_port(self) -> int:
+        return int(self.gcs.getsockname()[1])
+
+    def close(self) -> None:
+        self.gcs.close()
+        self.close_fc()
+
+
+def open_floor(gcs_url: str, fc_url: str) -> FloorEnds:
+    """Open the floor's ends (:func:`bench_ends.open_floor_gcs`, :func:`bench_ends.open_floor_fc`)
+    and say hello on each that sends first: a listening peer learns where we are from a first
+    datagram; a listening floor (``udpin``) waits for its ground station instead."""
+    gcs, listening = open_floor_gcs(gcs_url)
+    send_fc, close_fc = open_floor_fc(fc_url)
+    hello = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
+    beat = hello.heartbeat_encode(mavlink.MAV_TYPE_GROUND_ROVER, mavlink.MAV_AUTOPILOT_INVALID,
+                                  0, 0, mavlink.MAV_STATE_ACTIVE).pack(hello)
+    for send in ((send_fc,) if listening else (gcs.send, send_fc)):
+        with contextlib.suppress(OSError):
+            send(beat)
+    return FloorEnds(gcs, listening, send_fc, close_fc)
+
+
+def serve_floor(ends: FloorEnds, stop_fd: int) -> None:
+    """The floor: the least a correct Python relay can do. It takes one datagram at a time
+    (listening, it learns its sender's address with each, as a listener must to answer),
     accepts only a whole MAVLink 2 MANUAL_CONTROL with a good CRC (``struct`` and the native
     CRC, the one pymavlink uses), mixes x forward, y right, r clockwise into four wheels
     (normalized so no wheel exceeds full scale), and sends a valid RC_CHANNELS_OVERRIDE
     (channels 1-4 = 1500 + 500 * wheel, the rest left alone; MAVLink 2 payload truncation,
-    sequence numbers, CRC). No arming, no failsafes, no telemetry, no refresh."""
+    sequence numbers, CRC) on its flight-controller end (a datagram, or written to the serial
+    device). No arming, no failsafes, no telemetry, no refresh, no pacing."""
     from fastcrc.crc16 import mcrf4xx
 
     manual, override = mavlink.MAVLink_manual_control_message, (
@@ -207,12 +288,7 @@ def run_floor(gcs_url: str, fc_url: str, stop_fd: int) -> None:
     manual_extra, override_extra = bytes((manual.crc_extra,)), bytes((override.crc_extra,))
     manual_size, unpack = manual.unpacker.size, manual.unpacker.unpack
     pack_override, header = override.unpacker.pack, struct.Struct("<BBBBBBBHB").pack
-    gcs, fc = _udp_out(gcs_url), _udp_out(fc_url)
-    hello = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
-    for sock in (gcs, fc):  # a udpin peer only learns where we are from a first datagram
-        sock.send(hello.heartbeat_encode(mavlink.MAV_TYPE_GROUND_ROVER,
-                                         mavlink.MAV_AUTOPILOT_INVALID, 0, 0,
-                                         mavlink.MAV_STATE_ACTIVE).pack(hello))
+    gcs, listening, send_fc = ends.gcs, ends.listening, ends.send_fc
     leave_high = (0,) * 10
     seq = 0
     selector = selectors.DefaultSelector()
@@ -225,7 +301,10 @@ def run_floor(gcs_url: str, fc_url: str, stop_fd: int) -> None:
                     return
                 while True:
                     try:
-                        data = gcs.recv(RECV_SIZE)
+                        if listening:  # (the sender's address: whom a listener answers)
+                            data, _peer = gcs.recvfrom(RECV_SIZE)
+                        else:
+                            data = gcs.recv(RECV_SIZE)
                     except BlockingIOError:
                         break
                     size = len(data)
@@ -250,11 +329,10 @@ def run_floor(gcs_url: str, fc_url: str, stop_fd: int) -> None:
                     seq = (seq + 1) & 0xFF
                     crc = mcrf4xx(override_extra, mcrf4xx(body[1:], 0xFFFF))
                     with contextlib.suppress(OSError):
-                        fc.send(body + struct.pack("<H", crc))
+                        send_fc(body + struct.pack("<H", crc))
     finally:
         selector.close()
-        gcs.close()
-        fc.close()
+        ends.close()
 
 
 def _idle_duties(params: Params) -> list[tuple[float, str, list[Any]]]:
@@ -377,15 +455,26 @@ def run_relay(gcs_url: str, fc_url: str, stop_fd: int) -> None:
         fc.close()
 
 
-def sut_main(kind: str, gcs_url: str, fc_url: str, ctl: Connection, profile: bool) -> None:
-    """Child process: run one SUT in a thread; answer "cpu" and "stop" on ``ctl``."""
+def sut_main(kind: str, gcs_url: str, fc_url: str, ctl: Connection, profile: bool,
+             cores: frozenset[int] | None = None) -> None:
+    """Child process: pinned to ``cores`` first (every thread it starts inherits that), run
+    one SUT in a thread; answer "cpu" and "stop" on ``ctl``. Its "ready" tells the port its
+    ground-station link listens on (``udpin:``; None otherwise)."""
+    pin_self(cores)
     logging.basicConfig(level=logging.ERROR)
     profiler = cProfile.Profile() if profile else None
+    gcs_port: int | None = None
     try:
         if kind in (BASELINE, FLOOR, IDLE_FLOOR):
             stop_r, stop_w = os.pipe()
-            run = {BASELINE: run_relay, FLOOR: run_floor, IDLE_FLOOR: run_idle_floor}[kind]
-            thread = threading.Thread(target=run, args=(gcs_url, fc_url, stop_r), daemon=True)
+            if kind == FLOOR:
+                ends = open_floor(gcs_url, fc_url)
+                gcs_port = ends.gcs_port if ends.listening else None
+                thread = threading.Thread(target=serve_floor, args=(ends, stop_r), daemon=True)
+            else:
+                run = {BASELINE: run_relay, IDLE_FLOOR: run_idle_floor}[kind]
+                thread = threading.Thread(target=run, args=(gcs_url, fc_url, stop_r),
+                                          daemon=True)
 
             def stop() -> None:
                 os.write(stop_w, b"x")
@@ -395,6 +484,7 @@ def sut_main(kind: str, gcs_url: str, fc_url: str, ctl: Connection, profile: boo
 
             companion = Companion(Params(), gcs_url, fc_url,
                                   gcs_signing_key=BENCH_KEY if kind == SIGNED else None)
+            gcs_port = companion.gcs.local_port if gcs_url.startswith("udpin:") else None
             loop = companion.run if profiler is None else lambda: profiler.runcall(companion.run)
             thread = threading.Thread(target=loop, name="companion", daemon=True)
 
@@ -406,7 +496,7 @@ def sut_main(kind: str, gcs_url: str, fc_url: str, ctl: Connection, profile: boo
     except Exception:
         ctl.send(("error", traceback.format_exc()))
         return
-    ctl.send(("ready", time.process_time()))
+    ctl.send(("ready", {"cpu": time.process_time(), "gcs_port": gcs_port}))
     while True:
         command = ctl.recv()
         if command == "cpu":
@@ -435,15 +525,21 @@ class SutError(RuntimeError):
 class SutProcess:
     """The parent's handle on a SUT child process."""
 
-    def __init__(self, kind: str, gcs_url: str, fc_url: str, profile: bool) -> None:
+    def __init__(self, kind: str, gcs_url: str, fc_url: str, profile: bool,
+                 cores: frozenset[int] | None = None) -> None:
         ctx = mp.get_context("spawn")
         self.kind = kind
         self.ctl, child_ctl = ctx.Pipe()
         self.process = ctx.Process(target=sut_main, args=(kind, gcs_url, fc_url, child_ctl,
-                                                          profile), daemon=True)
+                                                          profile, cores), daemon=True)
         self.process.start()
         child_ctl.close()
-        self._ask(None, "ready", timeout_s=30.0)
+        ready = self._ask(None, "ready", timeout_s=30.0)
+        self.gcs_port: int | None = ready["gcs_port"]
+        """The port its ground-station link listens on (``udpin:``), else None."""
+        self.cores = (frozenset(os.sched_getaffinity(self.process.pid or 0))
+                      if cores is not None else None)
+        """The cores it may run on, as the kernel has them (None: not pinned)."""
 
     def _ask(self, command: str | None, reply: str, timeout_s: float = 5.0) -> Any:
         if command is not None:
@@ -540,18 +636,26 @@ class SutResult:
 # ---------------------------------------------------------------------------- harness
 
 class Harness:
-    """The ground station and the flight controller, in this process."""
+    """The ground station and the flight controller, in this process.
+
+    The SUT's links (:attr:`urls`) send to this harness's listening sockets (``udpout:``),
+    unless ``sut_listens``: then the SUT's ground-station link is ``udpin:`` on a port of its
+    own (told with :meth:`listening_on`), and this ground station sends there first, as one
+    that connects to a rover does (:meth:`connect`)."""
 
     def __init__(self, match_channel: int, encode: Callable[[int], int], cycle: list[int],
-                 signing_key: bytes | None = None) -> None:
+                 signing_key: bytes | None = None, *, sut_listens: bool = False) -> None:
         self.gcs: Link = open_link("udpin:127.0.0.1:0", source_system=HARNESS_GCS_ID[0],
                                    source_component=HARNESS_GCS_ID[1], name="gcs",
                                    signing_key=signing_key)
-        self.fc: Link = open_link("udpin:127.0.0.1:0", source_system=HARNESS_FC_ID[0],
-                                  source_component=HARNESS_FC_ID[1], name="fc")
-        self.fc_sock: socket.socket = self.fc.conn.port
-        self.fc_sock.setsockopt(socket.SOL_SOCKET, SO_TIMESTAMPNS, 1)
         self.gcs_sock: socket.socket = self.gcs.conn.port
+        self.sut_listens = sut_listens
+        self.gcs_peer: tuple[str, int] | None = None
+        self.gcs_heard = False  # the SUT has spoken on its ground-station link
+        self._next_gcs_beat = -math.inf  # (sut_listens: when this ground station beats next)
+        self.fc_peer: Any = None  # where the SUT's flight-controller link is (once known)
+        self.fc: Any  # (set by _open_fc)
+        self._open_fc()
         self.selector = selectors.SelectSelector()  # microsecond timeouts (epoll rounds to ms)
         self.selector.register(self.gcs.fileno(), selectors.EVENT_READ, self.gcs)
         self.selector.register(self.fc.fileno(), selectors.EVENT_READ, self.fc)
@@ -559,8 +663,6 @@ class Harness:
         self.cycle = cycle
         self.expected = [encode(x) for x in cycle]  # the pulse each x must produce
         self.seq = 0  # commands sent so far, all phases (position in the stick cycle)
-        self.gcs_peer: tuple[str, int] | None = None
-        self.fc_peer: tuple[str, int] | None = None
         self.gcs_messages: list[Any] = []
         self.overrides = 0
         self.override_rx_ns: list[int] | None = None  # when a list: every override's rx stamp
@@ -569,11 +671,30 @@ class Harness:
         self._beat_thread = threading.Thread(target=self._beat, daemon=True)
         self._beat_thread.start()
 
+    def _open_fc(self) -> None:
+        """The flight controller's end: a listening UDP link, its receive times stamped by
+        the kernel (``SO_TIMESTAMPNS``)."""
+        self.fc = open_link("udpin:127.0.0.1:0", source_system=HARNESS_FC_ID[0],
+                            source_component=HARNESS_FC_ID[1], name="fc")
+        self.fc_sock: socket.socket = self.fc.conn.port
+        self.fc_sock.setsockopt(socket.SOL_SOCKET, SO_TIMESTAMPNS, 1)
+
+    @property
+    def fc_url(self) -> str:
+        """The SUT's flight-controller URL."""
+        return f"udpout:127.0.0.1:{self.fc.local_port}"
+
     @property
     def urls(self) -> tuple[str, str]:
         """The SUT's (gcs_url, fc_url)."""
-        return (f"udpout:127.0.0.1:{self.gcs.local_port}",
-                f"udpout:127.0.0.1:{self.fc.local_port}")
+        gcs = ("udpin:127.0.0.1:0" if self.sut_listens
+               else f"udpout:127.0.0.1:{self.gcs.local_port}")
+        return gcs, self.fc_url
+
+    def listening_on(self, port: int | None) -> None:
+        """The SUT's ground-station link listens on ``port`` (``sut_listens``): send there."""
+        if self.sut_listens and port:
+            self.gcs_peer = ("127.0.0.1", port)
 
     def close(self) -> None:
         self._closed.set()
@@ -608,7 +729,6 @@ class Harness:
 
     def _read_fc(self) -> None:
         """Every datagram waiting on the FC socket; overrides go to ``_on_override``."""
-        mav = self.fc.mav
         while True:
             try:
                 data, ancillary, _, address = self.fc_sock.recvmsg(RECV_SIZE,
@@ -625,20 +745,28 @@ class Harness:
             if not rx_ns:
                 rx_ns = time.time_ns()
             self.fc_peer = address
-            for msg in mav.parse_buffer(data) or ():
-                if msg.get_type() == "RC_CHANNELS_OVERRIDE":
-                    self.overrides += 1
-                    if self.override_rx_ns is not None:
-                        self.override_rx_ns.append(rx_ns)
-                    self._on_override(getattr(msg, self.chan_attr), rx_ns)
+            self._parse_fc(data, rx_ns)
+
+    def _parse_fc(self, data: bytes, rx_ns: int) -> None:
+        """What the SUT sent its flight controller, received at ``rx_ns`` (wall clock, ns)."""
+        for msg in self.fc.mav.parse_buffer(data) or ():
+            if msg.get_type() == "RC_CHANNELS_OVERRIDE":
+                self.overrides += 1
+                if self.override_rx_ns is not None:
+                    self.override_rx_ns.append(rx_ns)
+                self._on_override(getattr(msg, self.chan_attr), rx_ns)
 
     def _read_gcs(self) -> None:
         self.gcs_messages.extend(self.gcs.read())
         if self.gcs.conn.clients:
             self.gcs_peer = next(iter(self.gcs.conn.clients))
+            self.gcs_heard = True
 
     def pump(self, timeout_s: float) -> None:
-        """Wait up to ``timeout_s`` for either socket and read what is there."""
+        """Wait up to ``timeout_s`` for either socket and read what is there (and, to a SUT
+        that listens, send the ground station's HEARTBEAT when due)."""
+        if self.sut_listens:
+            self._gcs_heartbeat()
         for key, _ in self.selector.select(max(0.0, timeout_s)):
             if key.data is self.fc:
                 self._read_fc()
@@ -665,13 +793,33 @@ class Harness:
 
     # ------------------------------------------------------------------ setup
 
-    def connect(self, timeout_s: float = 10.0) -> None:
-        """Wait until the SUT has spoken on both links (so both udpin sides know its address)."""
+    def connect(self, timeout_s: float = 10.0, *, gcs_answers: bool = True) -> None:
+        """Wait until the SUT has spoken on its flight-controller link and (``gcs_answers``)
+        on its ground-station link, so each side knows the other's address. A SUT that
+        listens for its ground station hears this ground station's HEARTBEAT first (it
+        answers only a peer it has heard; :meth:`pump` sends it); a floor relay never answers
+        (``gcs_answers`` false)."""
         deadline = time.perf_counter() + timeout_s
-        while self.gcs_peer is None or self.fc_peer is None:
+        while self.fc_peer is None or (gcs_answers and not self.gcs_heard):
             if time.perf_counter() > deadline:
                 raise SutError("the SUT never spoke on both links")
             self.pump(0.05)
+
+    def _gcs_heartbeat(self) -> None:
+        """A listening SUT's ground station: its HEARTBEAT every :data:`GCS_HEARTBEAT_PERIOD_S`
+        from :meth:`pump` (this thread: it owns the link's sequence numbers), as a ground
+        station's (one the SUT has heard from is a peer, and its failsafe then watches for
+        them: ``FS_GCS_TMO``)."""
+        now = time.perf_counter()
+        if self.gcs_peer is None or now < self._next_gcs_beat:
+            return
+        self._next_gcs_beat = now + GCS_HEARTBEAT_PERIOD_S
+        mav = self.gcs.mav
+        with contextlib.suppress(OSError):
+            self.gcs_sock.sendto(mav.heartbeat_encode(
+                mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID, 0, 0,
+                mavlink.MAV_STATE_ACTIVE).pack(mav), self.gcs_peer)
+        mav.seq = (mav.seq + 1) % 256
 
     def arm(self, timeout_s: float = 6.0) -> None:
         """Arm the companion (retried until it has heard the flight controller)."""
@@ -745,10 +893,46 @@ class Harness:
         return delays, self.overrides - overrides_before
 
 
+class PtyFcHarness(Harness):
+    """The same peers with the flight controller on a serial line: the master end of a pty
+    (:class:`bench_ends.PtyBoard`), whose slave end the SUT opens at ``baud``
+    (:data:`bench_ends.SERIAL_BAUD`). A pty gives no kernel receive stamp: an override's
+    receive time is taken just before the read that returns it, so the harness's wake-up is
+    in these delays, the floor's and the companion's alike."""
+
+    def __init__(self, *args: Any, baud: int = SERIAL_BAUD, **kwargs: Any) -> None:
+        self.baud = baud
+        super().__init__(*args, **kwargs)
+
+    def _open_fc(self) -> None:
+        self.fc = PtyBoard(self.baud, *HARNESS_FC_ID)
+        self.fc_peer = self.fc.path  # a line is there from the start: the board may talk
+
+    @property
+    def fc_url(self) -> str:
+        return str(self.fc.url)
+
+    def send_fc(self, msg: Any) -> None:
+        mav = self.fc.mav
+        self.fc.write(msg.pack(mav))
+        mav.seq = (mav.seq + 1) % 256
+
+    def _read_fc(self) -> None:
+        while True:
+            rx_ns = time.time_ns()
+            data = self.fc.read(RECV_SIZE)
+            if not data:
+                return
+            self._parse_fc(data, rx_ns)
+
+
 # ---------------------------------------------------------------------------- the machine's wake
 
-def _bare_wakes(rate_hz: float, seconds: float, out: Connection) -> None:
-    """Child: an empty epoll loop waking at ``rate_hz``; sends its CPU per wake (us)."""
+def _bare_wakes(rate_hz: float, seconds: float, out: Connection,
+                cores: frozenset[int] | None = None) -> None:
+    """Child: an empty epoll loop waking at ``rate_hz`` on ``cores``; sends its CPU per wake
+    (us)."""
+    pin_self(cores)
     epoll = select.epoll()
     period, due = 1.0 / rate_hz, time.monotonic()
     count, cpu0, end = 0, time.process_time(), time.monotonic() + seconds
@@ -759,11 +943,14 @@ def _bare_wakes(rate_hz: float, seconds: float, out: Connection) -> None:
     out.send(1e6 * (time.process_time() - cpu0) / max(1, count))
 
 
-def bare_wake_cpu_us(rate_hz: float, seconds: float) -> float:
+def bare_wake_cpu_us(rate_hz: float, seconds: float,
+                     cores: frozenset[int] | None = None) -> float:
     """What one wake of an otherwise empty Python epoll loop at ``rate_hz`` costs in CPU
-    (us, process time, own process): the part of a tick's cost that is the machine's."""
+    (us, process time, own process, on ``cores``): the part of a tick's cost that is the
+    machine's."""
     parent, child = mp.get_context("spawn").Pipe()
-    proc = mp.get_context("spawn").Process(target=_bare_wakes, args=(rate_hz, seconds, child))
+    proc = mp.get_context("spawn").Process(target=_bare_wakes,
+                                           args=(rate_hz, seconds, child, cores))
     proc.start()
     try:
         return float(parent.recv()) if parent.poll(seconds + 30.0) else float("nan")
@@ -780,48 +967,80 @@ def pump_all(harnesses: dict[str, Harness], deadline: float) -> None:
             harness.pump(0.01)
 
 
-def measure_all(plan: PhasePlan, cycle: list[int], profile: bool) -> dict[str, SutResult]:
-    """Run the SUTs side by side and drive them in alternating rounds.
+def open_harness(path: str, kind: str, cycle: list[int], baud: int = SERIAL_BAUD) -> Harness:
+    """The peers for one SUT on ``path`` (:data:`bench_ends.PATHS`): a relay is matched on
+    channel 1 (``relay_pulse``), the companion on its FL channel."""
+    relay = kind in (BASELINE, FLOOR, IDLE_FLOOR)
+    channel, encode = (1, relay_pulse) if relay else companion_pulse_fn(Params())
+    key = BENCH_KEY if kind == SIGNED else None
+    if path == "serial":
+        return PtyFcHarness(channel, encode, cycle, key, baud=baud)
+    return Harness(channel, encode, cycle, key, sut_listens=path == "udpin")
+
+
+def get_ready(harness: Harness, sut: SutProcess, plan: PhasePlan) -> None:
+    """Connect the peers to a started SUT, arm a companion, warm an input SUT up."""
+    harness.listening_on(sut.gcs_port)
+    relay = sut.kind in (BASELINE, FLOOR, IDLE_FLOOR)
+    harness.connect(gcs_answers=not (relay and harness.sut_listens))
+    if not relay:
+        harness.arm()
+    if sut.kind in INPUT_SUTS:
+        harness.run_input(200.0, plan.warmup_commands, drain_s=0.05)
+
+
+def run_rounds(harnesses: dict[str, Harness], suts: dict[str, SutProcess], kinds: list[str],
+               plan: PhasePlan, results: dict[str, SutResult]) -> None:
+    """50 Hz and 1 kHz input to ``kinds`` in alternating rounds, into ``results``."""
+    for name, rate, count, rounds in (("50 Hz", 50.0, plan.slow_commands, SLOW_ROUNDS),
+                                      ("1 kHz", 1000.0, plan.fast_commands, FAST_ROUNDS)):
+        pooled: dict[str, PhaseResult] = {
+            kind: PhaseResult(rate, 0, [], 0.0, 0, []) for kind in kinds}
+        for _ in range(rounds):
+            for kind in kinds:
+                harness = harnesses[kind]
+                cpu0 = suts[kind].cpu_s()
+                delays, overrides = harness.run_input(rate, count // rounds, plan.drain_s)
+                pool = pooled[kind]
+                pool.cpu_s += suts[kind].cpu_s() - cpu0
+                pool.sent += len(delays)
+                pool.delays_us.extend(delays)
+                pool.overrides += overrides
+                pool.round_growths.append(PhaseResult(rate, len(delays), delays, 0.0,
+                                                      0, []).growth())
+        for kind in kinds:
+            results[kind].phases[name] = pooled[kind]
+
+
+def stop_all(suts: dict[str, SutProcess], results: dict[str, SutResult]) -> None:
+    """Stop every SUT; a loop that had died is an error; keep each one's profile."""
+    for kind, sut in suts.items():
+        final = sut.stop()
+        if not final["alive"]:
+            raise SutError(f"{kind}: its loop thread had died")
+        results[kind].profile = final["profile"]
+
+
+def measure_all(plan: PhasePlan, cycle: list[int], profile: bool,
+                sut_cores: frozenset[int] | None = None) -> dict[str, SutResult]:
+    """The ``udpout`` path: run the SUTs side by side and drive them in alternating rounds.
 
     Interleaving puts machine drift (other processes, frequency changes) on both systems
     alike, so the ratio of their medians measures the companion, not the minute it ran in.
     50 Hz input goes in ``SLOW_ROUNDS`` short rounds per SUT; 1 kHz input in ``FAST_ROUNDS``
-    continuous rounds (delay growth is judged within each round).
+    continuous rounds (delay growth is judged within each round). Every SUT runs on
+    ``sut_cores`` (None: anywhere).
     """
     harnesses: dict[str, Harness] = {}
     suts: dict[str, SutProcess] = {}
     results = {kind: SutResult(kind) for kind in SUTS}
     try:
         for kind in results:
-            relay = kind in (BASELINE, FLOOR, IDLE_FLOOR)  # (x -> relay_pulse on channel 1)
-            channel, encode = (1, relay_pulse) if relay else companion_pulse_fn(Params())
-            harnesses[kind] = Harness(channel, encode, cycle,
-                                      signing_key=BENCH_KEY if kind == SIGNED else None)
+            harnesses[kind] = open_harness("udpout", kind, cycle)
             suts[kind] = SutProcess(kind, *harnesses[kind].urls,
-                                    profile=profile and kind == COMPANION)
-            harnesses[kind].connect()
-            if not relay:
-                harnesses[kind].arm()
-            if kind in INPUT_SUTS:
-                harnesses[kind].run_input(200.0, plan.warmup_commands, drain_s=0.05)
-        for name, rate, count, rounds in (("50 Hz", 50.0, plan.slow_commands, SLOW_ROUNDS),
-                                          ("1 kHz", 1000.0, plan.fast_commands, FAST_ROUNDS)):
-            pooled: dict[str, PhaseResult] = {
-                kind: PhaseResult(rate, 0, [], 0.0, 0, []) for kind in INPUT_SUTS}
-            for _ in range(rounds):
-                for kind in INPUT_SUTS:
-                    harness = harnesses[kind]
-                    cpu0 = suts[kind].cpu_s()
-                    delays, overrides = harness.run_input(rate, count // rounds, plan.drain_s)
-                    pool = pooled[kind]
-                    pool.cpu_s += suts[kind].cpu_s() - cpu0
-                    pool.sent += len(delays)
-                    pool.delays_us.extend(delays)
-                    pool.overrides += overrides
-                    pool.round_growths.append(PhaseResult(rate, len(delays), delays, 0.0,
-                                                          0, []).growth())
-            for kind in INPUT_SUTS:
-                results[kind].phases[name] = pooled[kind]
+                                    profile=profile and kind == COMPANION, cores=sut_cores)
+            get_ready(harnesses[kind], suts[kind], plan)
+        run_rounds(harnesses, suts, list(INPUT_SUTS), plan, results)
         # Bursts, the companion alone: newest wins, nothing queues.
         for rate in BURST_RATES_HZ:
             count = int(rate * plan.burst_s)
@@ -840,11 +1059,32 @@ def measure_all(plan: PhasePlan, cycle: list[int], profile: bool) -> dict[str, S
             overrides0, cpu0 = start[kind]
             results[kind].idle_cpu_pct = 100.0 * (suts[kind].cpu_s() - cpu0) / wall
             results[kind].idle_overrides_per_s = (harness.overrides - overrides0) / wall
-        for kind, sut in suts.items():
-            final = sut.stop()
-            if not final["alive"]:
-                raise SutError(f"{kind}: its loop thread had died")
-            results[kind].profile = final["profile"]
+        stop_all(suts, results)
+        return results
+    finally:
+        for sut in suts.values():
+            sut.kill()
+        for harness in harnesses.values():
+            harness.close()
+
+
+def measure_path(path: str, plan: PhasePlan, cycle: list[int], profile: bool,
+                 sut_cores: frozenset[int] | None = None,
+                 baud: int = SERIAL_BAUD) -> dict[str, SutResult]:
+    """The ``udpin`` or ``serial`` path: the floor relay on the same transports and the
+    companion, side by side on ``sut_cores``, 50 Hz and 1 kHz input in alternating rounds
+    (as :func:`measure_all`; no bursts, no idle phase: those are the ``udpout`` run's)."""
+    harnesses: dict[str, Harness] = {}
+    suts: dict[str, SutProcess] = {}
+    results = {kind: SutResult(kind) for kind in PATH_SUTS}
+    try:
+        for kind in PATH_SUTS:
+            harnesses[kind] = open_harness(path, kind, cycle, baud)
+            suts[kind] = SutProcess(kind, *harnesses[kind].urls,
+                                    profile=profile and kind == COMPANION, cores=sut_cores)
+            get_ready(harnesses[kind], suts[kind], plan)
+        run_rounds(harnesses, suts, list(PATH_SUTS), plan, results)
+        stop_all(suts, results)
         return results
     finally:
         for sut in suts.values():
@@ -925,8 +1165,21 @@ def _verdict(ok: bool) -> str:
     return "met" if ok else "NOT MET"
 
 
-def report(results: dict[str, SutResult], plan: PhasePlan, profile: bool,
-           bare_wake_us: float) -> None:
+@dataclass(frozen=True)
+class FloorRatio:
+    """One of issue 13's goals on one path: the companion's figure over its floor's."""
+
+    label: str  # "p50 50 Hz", ..., "CPU 1 kHz"
+    ratio: float
+    goal: float
+
+    @property
+    def met(self) -> bool:
+        return self.ratio <= self.goal
+
+
+def print_table(results: dict[str, SutResult]) -> None:
+    """Each SUT's input phases, one line each."""
     header = (f"{'SUT':<10} {'input':>6} {'sent':>5} {'matched':>7} {'drops%':>6} "
               f"{'p50 us':>7} {'p99 us':>7} {'max us':>7} {'growth':>6} {'CPU/msg us':>10} "
               f"{'overrides':>9}")
@@ -938,6 +1191,32 @@ def report(results: dict[str, SutResult], plan: PhasePlan, profile: bool,
                   f"{ph.drops_pct:>6.1f} {_fmt(ph.pct(50)):>7} {_fmt(ph.pct(99)):>7} "
                   f"{_fmt(max(ph.matched, default=float('nan'))):>7} {_fmt(ph.growth(), 2):>6} "
                   f"{_fmt(ph.cpu_per_msg_us):>10} {ph.overrides:>9}")
+
+
+def print_floor_goals(comp: SutResult, floor: SutResult) -> list[FloorRatio]:
+    """Print issue 13's ratio goals, the companion against its floor; return them."""
+    ratios = []
+    for name in ("50 Hz", "1 kHz"):
+        for q in (50, 99):
+            ratio = comp.phases[name].pct(q) / floor.phases[name].pct(q)
+            ratios.append(FloorRatio(f"p{q} {name}", ratio, GOAL_FLOOR_DELAY_RATIO))
+            print(f"companion/floor p{q} delay at {name}: {ratio:.2f} "
+                  f"({comp.phases[name].pct(q):.0f} / {floor.phases[name].pct(q):.0f} us; "
+                  f"goal <= {GOAL_FLOOR_DELAY_RATIO:.2f}): "
+                  f"{_verdict(ratio <= GOAL_FLOOR_DELAY_RATIO)}")
+    cpu_ratio = comp.phases["1 kHz"].cpu_per_msg_us / floor.phases["1 kHz"].cpu_per_msg_us
+    ratios.append(FloorRatio("CPU 1 kHz", cpu_ratio, GOAL_FLOOR_CPU_RATIO))
+    print(f"companion/floor CPU per message at 1 kHz: {cpu_ratio:.2f} "
+          f"({comp.phases['1 kHz'].cpu_per_msg_us:.0f} / "
+          f"{floor.phases['1 kHz'].cpu_per_msg_us:.0f} us; goal <= {GOAL_FLOOR_CPU_RATIO:.2f}): "
+          f"{_verdict(cpu_ratio <= GOAL_FLOOR_CPU_RATIO)}")
+    return ratios
+
+
+def report(results: dict[str, SutResult], plan: PhasePlan, profile: bool,
+           bare_wake_us: float) -> list[FloorRatio]:
+    """The ``udpout`` run's report; returns its ratios to the floor."""
+    print_table(results)
     for res in results.values():
         print(f"{res.kind:<10} idle {plan.idle_s:.1f} s: CPU {res.idle_cpu_pct:.2f} % of a core, "
               f"{res.idle_overrides_per_s:.1f} overrides/s")
@@ -945,18 +1224,7 @@ def report(results: dict[str, SutResult], plan: PhasePlan, profile: bool,
 
     floor, base, comp = results[FLOOR], results[BASELINE], results[COMPANION]
     print("# issue 13: the companion against the floor (the least a correct Python relay does)")
-    for name in ("50 Hz", "1 kHz"):
-        for q in (50, 99):
-            ratio = comp.phases[name].pct(q) / floor.phases[name].pct(q)
-            print(f"companion/floor p{q} delay at {name}: {ratio:.2f} "
-                  f"({comp.phases[name].pct(q):.0f} / {floor.phases[name].pct(q):.0f} us; "
-                  f"goal <= {GOAL_FLOOR_DELAY_RATIO:.2f}): "
-                  f"{_verdict(ratio <= GOAL_FLOOR_DELAY_RATIO)}")
-    cpu_ratio = comp.phases["1 kHz"].cpu_per_msg_us / floor.phases["1 kHz"].cpu_per_msg_us
-    print(f"companion/floor CPU per message at 1 kHz: {cpu_ratio:.2f} "
-          f"({comp.phases['1 kHz'].cpu_per_msg_us:.0f} / "
-          f"{floor.phases['1 kHz'].cpu_per_msg_us:.0f} us; goal <= {GOAL_FLOOR_CPU_RATIO:.2f}): "
-          f"{_verdict(cpu_ratio <= GOAL_FLOOR_CPU_RATIO)}")
+    ratios = print_floor_goals(comp, floor)
     for rate in BURST_RATES_HZ:
         ph = comp.phases[burst_name(rate)]
         last_served = ph.delays_us[-1] is not None
@@ -1009,6 +1277,51 @@ def report(results: dict[str, SutResult], plan: PhasePlan, profile: bool,
     if profile:
         print("\nNOTE: the companion ran under cProfile; its delays and CPU are inflated.")
         print(f"\n# cProfile of the companion loop (all phases)\n{comp.profile}")
+    return ratios
+
+
+PATH_TITLES = {
+    "udpout": "--gcs udpout: --fc udpout: (the companion sends first; the harness listens)",
+    "udpin": "--gcs udpin: --fc udpout: (the companion listens for its ground station; the "
+             "harness's ground station sends to the companion's port)",
+    "serial": "--gcs udpout: --fc PTY,BAUD (a serial flight controller: the harness reads "
+              "and writes the pty's master end; delay = the harness's read time - send time, "
+              "a pty has no kernel stamp)",
+}
+
+
+def report_path(path: str, results: dict[str, SutResult], profile: bool) -> list[FloorRatio]:
+    """A ``udpin`` or ``serial`` run's report; returns its ratios to the floor."""
+    print_table(results)
+    print()
+    print(f"# path {path}: the companion against the floor on the same transports")
+    ratios = print_floor_goals(results[COMPANION], results[FLOOR])
+    if profile:
+        print("\nNOTE: the companion ran under cProfile; its delays and CPU are inflated.")
+        print(f"\n# cProfile of the companion loop ({path})\n{results[COMPANION].profile}")
+    return ratios
+
+
+def report_summary(by_path: dict[str, list[FloorRatio]]) -> None:
+    """One line per path: its ratios to its floor, and which goals it missed."""
+    labels = [r.label for r in next(iter(by_path.values()))]
+    print(f"# every path: companion/floor (goals: delay <= {GOAL_FLOOR_DELAY_RATIO:.2f}, "
+          f"CPU per message <= {GOAL_FLOOR_CPU_RATIO:.2f})")
+    print(f"{'path':<7} " + " ".join(f"{label:>10}" for label in labels) + "  goals")
+    for path, ratios in by_path.items():
+        missed = [r.label for r in ratios if not r.met]
+        print(f"{path:<7} " + " ".join(f"{_fmt(r.ratio, 2):>10}" for r in ratios) + "  "
+              + ("met" if not missed else f"NOT MET ({', '.join(missed)})"))
+
+
+def parse_paths(text: str) -> list[str]:
+    """``--paths``: a comma-separated list of :data:`bench_ends.PATHS`, in the order given."""
+    paths = [name.strip() for name in text.split(",") if name.strip()]
+    unknown = [name for name in paths if name not in PATHS]
+    if unknown or not paths:
+        raise argparse.ArgumentTypeError(
+            f"unknown path {', '.join(unknown) or '(none)'}: choose from {', '.join(PATHS)}")
+    return list(dict.fromkeys(paths))
 
 
 def main() -> int:
@@ -1016,8 +1329,17 @@ def main() -> int:
     parser.add_argument("--quick", action="store_true", help="short phases (smoke run)")
     parser.add_argument("--profile", action="store_true",
                         help="run the companion's loop under cProfile and print the top entries")
+    parser.add_argument("--paths", type=parse_paths, default=list(PATHS),
+                        help=f"the paths to time, comma-separated (default: {','.join(PATHS)})")
+    parser.add_argument("--baud", type=int, default=SERIAL_BAUD,
+                        help=f"the serial path's baud rate (default {SERIAL_BAUD})")
+    parser.add_argument("--no-pin", action="store_true",
+                        help="leave the harness and the systems under test unpinned")
     args = parser.parse_args()
     plan = QUICK if args.quick else FULL
+    started = time.perf_counter()
+    cores: CoreSplit = core_split(not args.no_pin)
+    pin_self(cores.harness)  # before any thread: the harness's threads inherit it
 
     import pymavlink
 
@@ -1026,21 +1348,39 @@ def main() -> int:
           f"{os.cpu_count()} cores  {'quick' if args.quick else 'full'}: warm-up "
           f"{plan.warmup_commands}, 50 Hz x {plan.slow_commands}, 1 kHz x {plan.fast_commands}, "
           f"idle {plan.idle_s:.0f} s")
+    print(f"# paths: {', '.join(args.paths)}"
+          + (f" (serial at {args.baud} baud)" if "serial" in args.paths else "")
+          + f"; {cores.describe()}")
     params = Params()
     channel, companion_pulse = companion_pulse_fn(params)
     neutral = {PwmMap.from_params(params).neutral()[0], relay_pulse(0)}
     cycle = stick_cycle([companion_pulse, relay_pulse], neutral)
     print(f"# stick cycle: {len(cycle)} distinct x values (matched on companion channel "
           f"{channel}, baseline channel 1); delay = kernel rx stamp - send time")
-    try:
-        results = measure_all(plan, cycle, args.profile)
-    except SutError as exc:
-        print(f"ERROR: {exc}", file=sys.stderr)
-        return 1
-    bare_wake_us = bare_wake_cpu_us(float(params["OUT_RATE"]), plan.idle_s)
-    print()
-    report(results, plan, args.profile, bare_wake_us)
-    return 0
+    by_path: dict[str, list[FloorRatio]] = {}
+    status = 0
+    for path in args.paths:
+        print(f"\n## path {path}: {PATH_TITLES[path]}")
+        try:
+            if path == "udpout":
+                results = measure_all(plan, cycle, args.profile, cores.sut)
+            else:
+                results = measure_path(path, plan, cycle, args.profile, cores.sut, args.baud)
+        except SutError as exc:
+            print(f"ERROR: {path}: {exc}", file=sys.stderr)
+            status = 1
+            continue
+        if path == "udpout":
+            bare_wake_us = bare_wake_cpu_us(float(params["OUT_RATE"]), plan.idle_s, cores.sut)
+            print()
+            by_path[path] = report(results, plan, args.profile, bare_wake_us)
+        else:
+            by_path[path] = report_path(path, results, args.profile)
+    if by_path:
+        print()
+        report_summary(by_path)
+    print(f"# run time: {time.perf_counter() - started:.0f} s")
+    return status
 
 
 if __name__ == "__main__":

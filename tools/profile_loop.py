@@ -23,7 +23,7 @@ GIL) with the companion, which inflates the loop's share, idle most of all: for 
 figures use ``tools/bench_latency.py`` (the companion in its own process); this tool is for
 where the time goes.
 
-    python tools/profile_loop.py [--seconds 3]
+    python tools/profile_loop.py [--seconds 3] [--path udpout|udpin|serial]
 """
 
 from __future__ import annotations
@@ -38,7 +38,15 @@ from typing import Any
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from bench_latency import Harness, companion_pulse_fn, relay_pulse, stick_cycle
+from bench_ends import PATHS
+from bench_latency import (
+    COMPANION,
+    Harness,
+    companion_pulse_fn,
+    open_harness,
+    relay_pulse,
+    stick_cycle,
+)
 
 from mecanum_mav.app import companion as companion_module
 from mecanum_mav.config.params import Params
@@ -114,13 +122,16 @@ def measure(clock: Clock, harness: Harness, comp_thread_cpu: Callable[[], int],
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=3.0, help="length of each phase")
+    parser.add_argument("--path", choices=PATHS, default="udpout",
+                        help="the companion's transports, as bench_latency's --paths")
     args = parser.parse_args()
     params = Params()
-    channel, encode = companion_pulse_fn(params)
+    _, encode = companion_pulse_fn(params)
     cycle = stick_cycle([encode, relay_pulse], {1500, relay_pulse(0)})
-    harness = Harness(channel, encode, cycle)
+    harness = open_harness(args.path, COMPANION, cycle)
     clock = Clock()
     comp = instrumented(clock, params, *harness.urls)
+    harness.listening_on(comp.gcs.local_port)
     thread = threading.Thread(target=comp.run, name="companion", daemon=True)
     thread.start()
     assert thread.ident is not None
@@ -133,7 +144,8 @@ def main() -> int:
         harness.connect()
         harness.arm()
         harness.run_input(50.0, 50, 0.05)
-        print(f"# profile_loop: the companion's loop thread, {args.seconds:g} s per phase; "
+        print(f"# profile_loop: the companion's loop thread, path {args.path}, "
+              f"{args.seconds:g} s per phase; "
               f"us of its CPU per input message (and per loop pass)")
         phases: list[tuple[str, Callable[[], int]]] = [
             ("50 Hz", lambda: harness.run_input(50.0, int(50 * args.seconds), 0.05)[0].__len__()),
