@@ -139,8 +139,6 @@ MAX_MODULE_LINES = 600
 """The longest a module of the package may grow (issue 24): one concern each, readable whole."""
 
 
-# Until every split of issue 24 is merged (io/links.py, control/core.py, config/params.py are
-# split on their own branches), the cases of those three modules fail here; the rest pass.
 @pytest.mark.parametrize("path", modules(), ids=lambda p: str(p.relative_to(PACKAGE)))
 def test_no_module_in_the_package_is_over_600_lines(path):
     lines = len(path.read_text().splitlines())

@@ -1,6 +1,6 @@
 """A link with a signing key checks every datagram it receives: none of them may take the
-unchecked way (the stick lane answers datagrams straight from their bytes, io/links.py
-``Link.unchecked``), and an unsigned stick is dropped."""
+unchecked way (the stick lane answers datagrams straight from their bytes,
+``Link.unchecked`` in io/links/), and an unsigned stick is dropped."""
 
 from __future__ import annotations
 
