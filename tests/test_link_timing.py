@@ -15,12 +15,12 @@ import contextlib
 import os
 import select
 import socket
-import tty
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import pytest
+from support import RawPty
 from test_links import FakeClock
 
 from mecanum_mav.io import links
@@ -32,16 +32,12 @@ START_S = 100.0
 """Where :class:`FakeClock` starts (seconds)."""
 
 
-class Pty:
+class Pty(RawPty):
     """A pty behind ``path`` (a symlink, as udev names a USB serial device); its master is
     read only when the test asks (:meth:`take`)."""
 
     def __init__(self, path: Path) -> None:
-        self.path = path
-        self.master, self.slave = os.openpty()
-        tty.setraw(self.slave)  # no echo, no CR/LF translation
-        os.set_blocking(self.master, False)
-        path.symlink_to(os.ttyname(self.slave))
+        super().__init__(path)
         self.mav = mavlink.MAVLink(None)
         self.mav.robust_parsing = True
 
@@ -65,10 +61,7 @@ class Pty:
 
     def unplug(self) -> None:
         """The cable is pulled: the node vanishes, the link's end reads EIO."""
-        self.path.unlink(missing_ok=True)
-        for fd in (self.master, self.slave):
-            with contextlib.suppress(OSError):
-                os.close(fd)
+        self.close()
 
 
 @contextlib.contextmanager
@@ -189,7 +182,7 @@ def test_an_unplugged_serial_link_tries_to_reopen_exactly_every_half_second_unti
         assert not link.up
         plugged_s = START_S + 2.25  # back between two tries
         clock.now = plugged_s
-        back = Pty(pty.path)
+        back = Pty(Path(pty.path))
         try:
             tried = step_reopen(link, clock, START_S + 5.0)
             assert tried == [START_S + 2.5]  # the next try after the plug opens it
