@@ -1062,10 +1062,15 @@ def measure_all(plan: PhasePlan, cycle: list[int], profile: bool,
         stop_all(suts, results)
         return results
     finally:
-        for sut in suts.values():
-            sut.kill()
-        for harness in harnesses.values():
-            harness.close()
+        tear_down(suts, harnesses)
+
+
+def tear_down(suts: dict[str, SutProcess], harnesses: dict[str, Harness]) -> None:
+    """Kill the systems under test, then close their harnesses (whatever a run got to)."""
+    for sut in suts.values():
+        sut.kill()
+    for harness in harnesses.values():
+        harness.close()
 
 
 def measure_path(path: str, plan: PhasePlan, cycle: list[int], profile: bool,
@@ -1087,10 +1092,7 @@ def measure_path(path: str, plan: PhasePlan, cycle: list[int], profile: bool,
         stop_all(suts, results)
         return results
     finally:
-        for sut in suts.values():
-            sut.kill()
-        for harness in harnesses.values():
-            harness.close()
+        tear_down(suts, harnesses)
 
 
 # ---------------------------------------------------------------------------- signing cost
