@@ -141,6 +141,20 @@ def mavlink_sender(key: bytes | None = None, *, sysid: int = 255, compid: int = 
     return mav
 
 
+def lane_answers(link: Link) -> list[bytes]:
+    """Every datagram ``link``'s loop answers in the stick lane from now on (it calls
+    ``link.answered``, which still counts it): a list that fills as they come."""
+    answered: list[bytes] = []
+    real_answered = link.answered
+
+    def spy(data: bytes, address: object) -> None:
+        answered.append(data)
+        real_answered(data, address)
+
+    link.answered = spy  # type: ignore[method-assign]
+    return answered
+
+
 def override_channels(msg: Any) -> list[int]:
     """The 18 ``chanN_raw`` fields of an RC_CHANNELS_OVERRIDE (us; 0 and 65535 as sent)."""
     return [getattr(msg, f"chan{i}_raw") for i in range(1, 19)]

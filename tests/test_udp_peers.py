@@ -11,7 +11,7 @@ import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 
-from support import deliver, wait_until
+from support import deliver, lane_answers, wait_until
 
 from mecanum_mav.app.companion import Companion
 from mecanum_mav.config.params import Params
@@ -153,14 +153,7 @@ def test_the_companions_loop_answers_a_pilots_sticks_in_the_lane_on_real_sockets
     board = SimFlightController("udpin:127.0.0.1:0", Params())
     board.start()
     companion = Companion(Params(), port.url, f"udpout:127.0.0.1:{board.local_port}")
-    answered: list[bytes] = []
-    real_answered = companion.gcs.answered
-
-    def spy(data: bytes, address: object) -> None:
-        answered.append(data)
-        real_answered(data, address)
-
-    companion.gcs.answered = spy  # type: ignore[method-assign]
+    answered = lane_answers(companion.gcs)
     companion.start()
     try:
         assert gcs.wait("STATUSTEXT", lambda m: m.text == "Flight controller link up", 5.0)

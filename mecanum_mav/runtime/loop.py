@@ -21,15 +21,20 @@ One pass, top to bottom:
    On a datagram link from the ground station the first datagram is answered before the rest
    are read: the pilot's MANUAL_CONTROL takes the core's lane (``core.stick_lane``, compiled
    in :mod:`mecanum_mav.control.lane`: the datagram to the override's packet in one call) and
-   the packet goes out before anything else is done (unsigned links only). Then the shell's
-   slow timer, if due.
+   the packet goes out before anything else is done (unsigned links only, and only when the
+   flight controller's link takes it at once: on a stream link nothing may wait in it and
+   the wire must be free, ``takes_packet``; else the stick takes the general way and the
+   tick's override waits its turn, newest wins). Then the shell's slow timer, if due.
 3. ``core.tick``: its RC_CHANNELS_OVERRIDE goes out at once; then ``core.housekeeping``:
    odometry, telemetry, heartbeats and status texts (after a stick the lane answered the
    tick has nothing to do, and housekeeping takes the odometry, after the send). Each is
    skipped while the core is :meth:`~mecanum_mav.control.core.RoverCore.settled` (no timer
-   due, nothing new): an idle rover's refresh wake is the refresh alone. (Not with a
-   stream link, whose pacing needs step 4 every pass.)
-4. Each stream link hands over what still waits in it (:func:`~mecanum_mav.io.links.follow`).
+   due, nothing new) and the stream links are idle: an idle rover's refresh wake, or a
+   stick the lane answered, is that alone.
+4. Each stream link hands over what still waits in it (:func:`~mecanum_mav.io.links.follow`)
+   and is watched on its current descriptor, for writing too while the kernel refuses more.
+   Skipped with step 3 while every stream link is idle (:meth:`ControlLoop._streams_idle`):
+   up, nothing waiting, watched for reading only on the descriptor it has now.
 
 :meth:`ControlLoop.shutdown` is the way out: neutral, then the channels released, all of them
 in order.
@@ -104,6 +109,10 @@ class LoopLink(Protocol):
         """Watch its descriptor for writing too (:func:`~mecanum_mav.io.links.follow`)."""
 
     @property
+    def pending(self) -> bool:
+        """Whether anything waits in it to be handed over (stream links)."""
+
+    @property
     def received(self) -> int:
         """Messages received."""
 
@@ -132,6 +141,10 @@ class LoopLink(Protocol):
 
     def take_rejections(self) -> Mapping[Any, int]:
         """What the signature check dropped since the last call, per kind."""
+
+    def takes_packet(self) -> bool:
+        """Whether a packet given to :meth:`send_packet` now goes out at once, ahead of
+        nothing (a stream link: up, nothing waiting, the wire free)."""
 
     def send_packet(self, packet: bytes) -> None:
         """Send a packet packed with ``mav.seq`` (the lane's override); ``seq`` advances."""
@@ -213,8 +226,10 @@ class ControlLoop:
         self._timer: Callable[[float], float] | None = None
         self._timer_due_s = math.inf
         registered = {link: _follow(poller, link, None, link) for link in (gcs, fc)}
-        self._streams = {link: fd for link, fd in registered.items() if not link.steady}
-        """The stream links and their registered descriptors (followed every pass)."""
+        self._streams = {link: (fd, link.wants_write) for link, fd in registered.items()
+                         if not link.steady}
+        """The stream links, their registered descriptors and whether those are watched for
+        writing too (followed on every pass that is not idle, :meth:`_streams_idle`)."""
 
     def set_timer(self, action: Callable[[float], float]) -> None:
         """Call ``action(now_s)`` on the next pass and then whenever the time it returned
@@ -239,7 +254,7 @@ class ControlLoop:
             return  # woken before anything is due, with nothing to read
         if now >= self._timer_due_s and self._timer is not None:
             self._timer_due_s = self._timer(now)
-        if not streams and core.settled(now):
+        if core.settled(now) and self._streams_idle():
             return  # nothing arrived and nothing is due
         for link in streams:  # (a datagram link never goes down)
             if not link.up and link.reopen(now):
@@ -247,14 +262,23 @@ class ControlLoop:
         out = core.tick(now)
         if out is not NOTHING:
             self._write(out)  # the override first,
-        if not streams and core.settled(now):
-            return  # the pass was the output's refresh: nothing else is due
+        if core.settled(now) and self._streams_idle():
+            return  # the pass was the output's refresh (or the lane's): nothing else is due
         out = core.housekeeping(now)
         if out is not NOTHING:
             self._write(out)  # then everything else
-        for link, fd in streams.items():
+        for link, (fd, _) in streams.items():
             self._report(link, now)
-            streams[link] = _follow(self.poller, link, fd, link)
+            streams[link] = (_follow(self.poller, link, fd, link), link.wants_write)
+
+    def _streams_idle(self) -> bool:
+        """Whether following the stream links would change nothing: each is up, nothing
+        waits in it, and the poller watches its descriptor (a ``tcpin`` link swaps it when a
+        client comes) for reading only. True without stream links."""
+        for link, (fd, writing) in self._streams.items():
+            if writing or link.pending or not link.up or link.wait_fd() != fd:
+                return False
+        return True
 
     def shutdown(self) -> None:
         """The last words to the flight controller: neutral, then the channels released, all
@@ -275,7 +299,7 @@ class ControlLoop:
             if got is not None:
                 data, address = got
                 packet = (self.core.stick_lane(data, now, self._fc_mav.seq)
-                          if self._lane_links else None)
+                          if self._lane_links and self.fc.takes_packet() else None)
                 if packet is not None:  # the pilot's stick, in its lane: sent at once
                     self.fc.send_packet(packet)
                     self.core.stick_sent()

@@ -107,6 +107,7 @@ class VirtualLink:
     next_reopen_s = math.inf
     next_send_s = math.inf
     wants_write = False
+    pending = False
     send_errors = 0
 
     def __init__(self, name: str, inbound: Wire, outbound: Wire) -> None:
@@ -174,6 +175,10 @@ class VirtualLink:
         return self.up
 
     # ------------------------------------------------------------------ sending
+
+    def takes_packet(self) -> bool:
+        """A datagram link's answer: a packet goes at once."""
+        return True
 
     def send_packet(self, packet: bytes) -> None:
         mav = self.mav

@@ -147,10 +147,15 @@ class Link:
 
     @property
     def unchecked(self) -> bool:
-        """A datagram link that neither checks nor makes signatures: what it receives may be
-        answered straight from the datagram, and it may send a packet packed elsewhere
-        (:meth:`send_packet`). Not a stream link."""
-        return False
+        """It neither checks nor makes signatures: what it receives may be answered straight
+        from the datagram (the loop's stick lane), and it may send a packet packed elsewhere
+        (:meth:`send_packet`)."""
+        return self.signature_check is None and not self.conn.mav.signing.sign_outgoing
+
+    def takes_packet(self) -> bool:
+        """Whether a packet given to :meth:`send_packet` now goes to the kernel at once, ahead
+        of nothing (the stick lane asks before it answers). A datagram link: always."""
+        return True
 
     def record_to(self, tlog: BinaryIO) -> None:
         """Record every message received and sent to ``tlog`` (:class:`~mecanum_mav.io.links.
@@ -263,7 +268,7 @@ class Link:
     def send_packet(self, packet: bytes) -> None:
         """Send a packet packed elsewhere with this link's next sequence number (the stick
         lane's override), which then advances; never raises. An :attr:`unchecked` link
-        only."""
+        only, right after :meth:`takes_packet` said yes."""
         raise NotImplementedError
 
     def _pack_override(self, target_system: int, target_component: int,

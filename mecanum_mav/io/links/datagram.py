@@ -9,7 +9,7 @@ the kernel at once (:meth:`DatagramLink.send_all` puts whole packets together, a
 (:meth:`DatagramLink.receive_datagram`) and parsed whole by the fast codec; the stick lane of
 the loop may answer one straight from its bytes (:meth:`DatagramLink.answered`) and send the
 override packed elsewhere (:meth:`DatagramLink.send_packet`) when the link is
-:attr:`~DatagramLink.unchecked`.
+:attr:`~mecanum_mav.io.links.base.Link.unchecked`.
 
 A ``udpout:`` link's socket is connected to its destination, as ArduPilot's UDP client
 connects its own: the kernel keeps the route and takes no address apart per datagram
@@ -62,13 +62,6 @@ class DatagramLink(Link):
         self._recvfrom: Any = getattr(conn.port, "recvfrom", None)
         self._sendto: Any = getattr(conn.port, "sendto", None)
         self._batch: list[bytes] | None = None  # packets send_all() writes together
-
-    @property
-    def unchecked(self) -> bool:
-        """It neither checks nor makes signatures: what it receives may be answered straight
-        from the datagram (:meth:`receive_datagram`), and it may send a packet packed
-        elsewhere (:meth:`send_packet`)."""
-        return self.signature_check is None and not self.conn.mav.signing.sign_outgoing
 
     # ----------------------------------------------------------------- reading
 

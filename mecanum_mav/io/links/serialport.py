@@ -8,6 +8,8 @@ the baud rate (the time the bytes handed over need on the wire) and from the tty
 output queue (``TIOCOUTQ``), whichever is longer; a pty, a USB-CDC board or any device faster
 than its nominal rate is thus paced to the nominal rate too. At most :data:`QUEUE_S` of the
 wire (at least :data:`QUEUE_MIN_BYTES`) waits in the link besides the newest override.
+The stick lane's packet (``takes_packet``, ``send_packet``) is judged by the baud rate alone,
+and the kernel's queue read after it, at most every :data:`KERNEL_LOOK_S`.
 
 A device that vanishes (USB unplugged, board rebooting: reads and writes fail with
 EIO/ENXIO) puts the link down ("device gone"); its port is closed, and the same path is
@@ -18,6 +20,7 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import math
 import os
 import termios
 from collections.abc import Callable
@@ -32,12 +35,17 @@ from mecanum_mav.protocol.dialect import mavutil
 
 log = logging.getLogger("mecanum_mav.io.links")
 
-__all__ = ["QUEUE_MIN_BYTES", "QUEUE_S", "SerialLink"]
+__all__ = ["KERNEL_LOOK_S", "QUEUE_MIN_BYTES", "QUEUE_S", "SerialLink"]
 
 QUEUE_S = 1.0
 """A serial link queues at most this much wire time (seconds; at least
 :data:`QUEUE_MIN_BYTES`) of packets other than the newest override; more is dropped."""
 QUEUE_MIN_BYTES = 4096
+KERNEL_LOOK_S = 0.01
+"""The stick lane's packets go to the kernel judged by the baud rate alone; after them the
+link asks the kernel what it still holds (``TIOCOUTQ``) at most this often (seconds): a
+device slower than its baud rate can run ahead of it by at most this much of the lane's
+packets before the link follows the device."""
 
 
 class SerialLink(StreamLink):
@@ -51,6 +59,7 @@ class SerialLink(StreamLink):
         self.bytes_per_s = baud / 10.0 if baud > 0 else None
         """The wire's capacity (8N1 at the URL's baud rate; None: not known)."""
         self._wire_free_s = 0.0  # when what was handed over is on the wire (clock s)
+        self._next_look_s = -math.inf  # when the lane's path next asks the kernel (clock s)
         limit = (max(QUEUE_MIN_BYTES, int(QUEUE_S * self.bytes_per_s))
                  if self.bytes_per_s is not None else QUEUE_MIN_BYTES)
         super().__init__(conn, url=url, name=name, signing_key=signing_key, clock=clock,
@@ -76,6 +85,17 @@ class SerialLink(StreamLink):
         if in_kernel:  # the device is slower than its baud rate says: follow the device
             self._wire_free_s = max(self._wire_free_s, now + in_kernel / rate)
         return self._wire_free_s - now - PACING_LEAD_S
+
+    def _free_in_s(self, now: float) -> float:
+        """From the baud rate alone; :meth:`_sent_now` follows the device after the write."""
+        return self._wire_free_s - now - PACING_LEAD_S
+
+    def _sent_now(self, now: float) -> None:
+        """After the lane's write: what the kernel holds, at most every
+        :data:`KERNEL_LOOK_S` (a syscall costs about as much as the write)."""
+        if self.bytes_per_s is not None and now >= self._next_look_s:
+            self._next_look_s = now + KERNEL_LOOK_S
+            self._backlog_s(now)  # a device slower than its baud rate: follow the device
 
     def _handed(self, n: int, now: float) -> None:
         rate = self.bytes_per_s

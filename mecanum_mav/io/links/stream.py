@@ -110,6 +110,15 @@ class StreamLink(Link):
         """How long (s) before the kernel may take the next packet: > 0 waits."""
         raise NotImplementedError
 
+    def _free_in_s(self, now: float) -> float:
+        """:meth:`_backlog_s` from what the link already knows, if the transport can say
+        without asking the kernel (the stick lane's question, before its write)."""
+        return self._backlog_s(now)
+
+    def _sent_now(self, now: float) -> None:
+        """A packet went to the kernel at once (:meth:`send_packet`): learn what the kernel
+        holds, if :meth:`_free_in_s` did not ask."""
+
     def _handed(self, n: int, now: float) -> None:
         """The kernel took ``n`` bytes at ``now``."""
 
@@ -216,11 +225,48 @@ class StreamLink(Link):
         else:
             self.sent += 1
 
+    def takes_packet(self) -> bool:
+        """Whether a packet given to :meth:`send_packet` now goes to the kernel at once: the
+        link is open, nothing waits in it (an override waiting is newer than nothing; the
+        lane must not pass it) and pacing lets it go (:meth:`_free_in_s`, from what is known
+        without asking the kernel)."""
+        return self._takes_at(self.clock())
+
+    def _takes_at(self, now: float) -> bool:
+        if self._head or self._override is not None or self._queue:
+            return False
+        try:
+            self._check_open()
+        except LinkDownError:
+            return False
+        return self._free_in_s(now) <= 0.0
+
     def send_packet(self, packet: bytes) -> None:
-        """Queue a packet packed elsewhere with this link's next sequence number, which then
-        advances; never raises. (The stick lane uses datagram links only.)"""
+        """Send a packet packed elsewhere with this link's next sequence number, which then
+        advances; never raises. When :meth:`takes_packet` says yes (the stick lane asked
+        just before), it goes to the kernel at once, and the transport then looks at what
+        the kernel holds (:meth:`_sent_now`), after the latency-critical write. Otherwise it
+        is queued, and, being the lane's override, supersedes the override waiting (newest
+        wins: the board never gets an older command after it)."""
         mav = self.conn.mav
         mav.seq = (mav.seq + 1) & 0xFF
+        now = self.clock()
+        if self._takes_at(now):
+            self._head = packet  # (what the kernel does not take stays: follow() hands it)
+            self._hand_over(packet, now)
+            if self.down_reason is None:  # (a break now counted it unsent)
+                self.sent += 1
+                self._sent_now(now)
+        else:
+            if self._override is not None:
+                self.superseded += 1
+                self._override = None
+            self._send_queued(packet)
+        recorder = self.recorder
+        if recorder is not None:
+            recorder.packet(packet)
+
+    def _send_queued(self, packet: bytes) -> None:
         try:
             self.write(packet)
         except LinkDownError:
@@ -229,9 +275,6 @@ class StreamLink(Link):
             self._send_failed(exc)
         else:
             self.sent += 1
-        recorder = self.recorder
-        if recorder is not None:
-            recorder.packet(packet)
 
     # ----------------------------------------------------------------- pacing
 
