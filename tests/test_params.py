@@ -297,7 +297,7 @@ def test_a_copy_is_independent_of_its_original():
 def test_the_committed_default_file_is_generated_from_the_schema_defaults():
     expected = format_text(Params(), header=DEFAULTS_FILE_HEADER)
     assert DEFAULT_FILE.read_text(encoding="utf-8") == expected, (
-        "params/default.parm is stale: python -m mecanum_mav.config.params "
+        "params/default.parm is stale: python -m mecanum_mav.params "
         "--write-defaults params/default.parm"
     )
     assert load(DEFAULT_FILE) == Params()

@@ -71,6 +71,7 @@ from mecanum_mav.config.params import (
 from mecanum_mav.io.keyfile import KeyFileError, load_signing_key
 from mecanum_mav.io.paramfile import load, save
 from mecanum_mav.mecanum.mixing import ALGORITHM_NAMES
+from mecanum_mav.sim.physics import DEFAULT_PHYSICS, PHYSICS
 
 __all__ = [  # the command line, and what it re-exports from the modules that do the work
     "CSV_COLUMNS", "DEFAULT_GCS_URL", "DESAT_NAMES", "INSTANCE_PORT_BASE", "INSTANCE_PORT_STEP",
@@ -152,7 +153,8 @@ def cmd_sim(args: argparse.Namespace, params: Params) -> int:
               f"{params['SYSID_THISMAV']}, sending to UDP {host_port}: one --master="
               f"udpin:{host_port} of the router (see docs/fleet.md)",
               flush=True)
-    return serve(params, gcs, "sim", args.params, args.tlog, args.keys, quiet=args.quiet)
+    return serve(params, gcs, "sim", args.params, args.tlog, args.keys, quiet=args.quiet,
+                 physics=args.physics)
 
 
 def cmd_demo(args: argparse.Namespace, params: Params) -> int:
@@ -262,6 +264,10 @@ def build_parser() -> argparse.ArgumentParser:
                      f"{INSTANCE_PORT_BASE}+{INSTANCE_PORT_STEP}N (--gcs wins), for a router "
                      f"such as MAVProxy. Give each rover its own --params and --tlog file")
     sim.add_argument("--tlog", type=Path, metavar="FILE", help="record all traffic (tlog)")
+    sim.add_argument("--physics", choices=PHYSICS, default=DEFAULT_PHYSICS,
+                     help="the chassis model: kinematic (default; exact wheel kinematics, "
+                     "no inertia) or mujoco (a rigid body on rollers in MuJoCo; needs "
+                     "pip install 'mecanum-mav[physics]')")
     sim.add_argument("--params-reset", action="store_true", help=PARAMS_RESET_HELP)
     sim.add_argument("--signing-key", type=Path, metavar="FILE", help=SIGNING_KEY_HELP)
     sim.add_argument("--quiet", action="store_true", help=QUIET_HELP)

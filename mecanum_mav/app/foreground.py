@@ -17,8 +17,9 @@ __all__ = ["serve", "serve_simfc"]
 def serve(params: Params, gcs_url: str, fc_url: str, param_path: Path | None,
           tlog_path: Path | None,
           keys: tuple[bytes | None, bytes | None] = (None, None), *,
-          quiet: bool = False) -> int:
-    """Run the companion in the foreground until SIGINT/SIGTERM; ``fc_url`` may be ``sim``.
+          quiet: bool = False, physics: str = "kinematic") -> int:
+    """Run the companion in the foreground until SIGINT/SIGTERM; ``fc_url`` may be ``sim``
+    (the built-in board, its chassis model ``physics``).
 
     The status line (:meth:`~mecanum_mav.control.core.RoverCore.status_line`: messages
     received, malformed packets, failed sends, refusals per kind) goes to stderr on SIGUSR1
@@ -43,7 +44,7 @@ def serve(params: Params, gcs_url: str, fc_url: str, param_path: Path | None,
             # one rover per system id and ground station (and per listening port)
             stack.enter_context(claim_ground_station(int(params["SYSID_THISMAV"]), gcs_url))
             if fc_url == "sim":
-                sim = SimFlightController("udpin:127.0.0.1:0", params)
+                sim = SimFlightController("udpin:127.0.0.1:0", params, physics=physics)
                 sim.start()
                 stack.callback(sim.stop)
                 fc_url = f"udpout:127.0.0.1:{sim.local_port}"

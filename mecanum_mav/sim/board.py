@@ -62,11 +62,12 @@ from mecanum_mav.protocol.dialect import mavlink
 from mecanum_mav.protocol.fcsetup import safe_settings
 from mecanum_mav.protocol.modes import Mode
 from mecanum_mav.protocol.rcoverride import CHANNELS, LEAVE, RELEASE, field_action
-from mecanum_mav.sim.chassis import SimChassis
+from mecanum_mav.sim.chassis import ORIGIN_POSE
+from mecanum_mav.sim.physics import DEFAULT_PHYSICS, make_chassis
 
 __all__ = ["ORIGIN", "RcOverrides", "SimBoard", "SimState", "board_parameters"]
 
-ORIGIN = Pose2d(0.0, 0.0, 0.0)
+ORIGIN = ORIGIN_POSE
 """Where the chassis starts unless told otherwise: the local origin, facing north."""
 SERVO_OUTPUTS = 16
 """Outputs SERVO_OUTPUT_RAW reports."""
@@ -179,19 +180,21 @@ class SimBoard:
     Args:
         params: read once here: ``FC_SYSID``/``FC_COMPID`` (its own ids), ``SIM_GCS_SYSID``,
             ``SIM_RC_TMO``, ``SIM_RATE``, the ``MOT_*`` channel map and the chassis
-            parameters (see :meth:`SimChassis.from_params`).
+            parameters (see :func:`~mecanum_mav.sim.physics.make_chassis`).
         now_s: the time the board boots, seconds.
         pose: where the chassis starts (local NED, yaw clockwise from north).
+        physics: the chassis model (:data:`~mecanum_mav.sim.physics.PHYSICS`).
     """
 
-    def __init__(self, params: Params, now_s: float = 0.0, pose: Pose2d = ORIGIN) -> None:
+    def __init__(self, params: Params, now_s: float = 0.0, pose: Pose2d = ORIGIN,
+                 physics: str = DEFAULT_PHYSICS) -> None:
         self.sysid = int(params["FC_SYSID"])
         self.compid = int(params["FC_COMPID"])
         self._gcs_sysid = int(params["SIM_GCS_SYSID"])
         self.physics_period_s = 1.0 / float(params["SIM_RATE"])
         self._outputs = PwmMap.from_params(params)
         self._trims = {w.channel: w.trim for w in self._outputs.wheels}
-        self.chassis = SimChassis.from_params(params, pose)
+        self.chassis = make_chassis(params, pose, physics)
         self._origin = GlobalOrigin.from_degrees(float(params["ORIGIN_LAT"]),
                                                  float(params["ORIGIN_LON"]))
         self._overrides = RcOverrides(float(params["SIM_RC_TMO"]))
@@ -333,11 +336,13 @@ class SimBoard:
                            base_mode, int(Mode.MANUAL), mavlink.MAV_STATE_STANDBY)
 
     def _attitude(self, mav: Any, now_s: float) -> None:
-        """ATTITUDE: level, true yaw (rad clockwise from north; the pose keeps it in [-pi, pi))
-        and true yaw rate (rad/s clockwise)."""
+        """ATTITUDE: the chassis's true roll and pitch (level on the kinematic one), true yaw
+        (rad clockwise from north; the pose keeps it in [-pi, pi)) and true yaw rate (rad/s
+        clockwise)."""
         c = self.chassis
         time_boot_ms = (self._boot_us(now_s) // 1000) & 0xFFFFFFFF
-        mav.attitude_send(time_boot_ms, 0.0, 0.0, c.pose.yaw_rad, 0.0, 0.0, c.yaw_rate)
+        roll, pitch = c.roll_pitch
+        mav.attitude_send(time_boot_ms, roll, pitch, c.pose.yaw_rad, 0.0, 0.0, c.yaw_rate)
 
     def _wheel_distance(self, mav: Any, now_s: float) -> None:
         """WHEEL_DISTANCE: cumulative encoder metres FL, FR, RL, RR, then zeros."""

@@ -33,11 +33,12 @@ from mecanum_mav.mecanum.kinematics import MecanumKinematics
 if TYPE_CHECKING:
     from mecanum_mav.config.params import Params
 
-__all__ = ["SimChassis"]
+__all__ = ["ORIGIN_POSE", "SimChassis"]
 
 Wheels = tuple[float, float, float, float]
 
-_ORIGIN = Pose2d(0.0, 0.0, 0.0)
+ORIGIN_POSE = Pose2d(0.0, 0.0, 0.0)
+"""Where a chassis starts unless told otherwise: the local origin, facing north."""
 
 
 def _wheels(values: Sequence[float]) -> Wheels:
@@ -74,7 +75,7 @@ class SimChassis:
         motor_tau_s: float,
         slip: float = 0.0,
         seed: int = 0,
-        pose: Pose2d = _ORIGIN,
+        pose: Pose2d = ORIGIN_POSE,
     ) -> None:
         if not (math.isfinite(max_wheel_speed_mps) and max_wheel_speed_mps > 0.0):
             raise ValueError(f"max wheel speed must be > 0 m/s, got {max_wheel_speed_mps}")
@@ -95,7 +96,7 @@ class SimChassis:
         self._time = 0.0
 
     @classmethod
-    def from_params(cls, params: Params, pose: Pose2d = _ORIGIN) -> SimChassis:
+    def from_params(cls, params: Params, pose: Pose2d = ORIGIN_POSE) -> SimChassis:
         """Build from ``GEO_HALF_LEN/WID``, ``WHL_MAX_SPD``, ``SIM_MOTOR_TAU/SLIP/SEED``."""
         return cls(
             MecanumKinematics.from_half_extents(params["GEO_HALF_LEN"], params["GEO_HALF_WID"]),
@@ -120,6 +121,11 @@ class SimChassis:
     def yaw_rate(self) -> float:
         """True yaw rate, rad/s, clockwise seen from above."""
         return self._yaw_rate
+
+    @property
+    def roll_pitch(self) -> tuple[float, float]:
+        """True roll and pitch, radians: always level (a kinematic chassis has no tilt)."""
+        return (0.0, 0.0)
 
     @property
     def wheel_speeds_mps(self) -> Wheels:

@@ -42,6 +42,7 @@ from mecanum_mav.protocol.outbox import MessageOutbox
 from mecanum_mav.runtime.loop import ControlLoop, link_counts
 from mecanum_mav.sim.board import SimBoard, SimState
 from mecanum_mav.sim.groundstation import GCS_COMPID, GCS_SYSID, ScriptedGroundStation
+from mecanum_mav.sim.physics import DEFAULT_PHYSICS
 from mecanum_mav.sim.wires import (
     SIGNING_START_TICKS,
     TLOG_EPOCH_S,
@@ -102,11 +103,13 @@ class Lockstep:
             only correctly signed packets (:meth:`inject` puts others on the wire).
         tlog: record every packet the parties send to this open binary file (see the module
             docstring; what :meth:`inject` puts on the wire is not recorded).
+        physics: the board's chassis model (:data:`~mecanum_mav.sim.physics.PHYSICS`).
     """
 
     def __init__(self, params: Params | None = None, *, dt_s: float = 0.002,
                  mission: Sequence[MissionItem] = (), storage: Storage | None = None,
-                 signing_key: bytes | None = None, tlog: BinaryIO | None = None) -> None:
+                 signing_key: bytes | None = None, tlog: BinaryIO | None = None,
+                 physics: str = DEFAULT_PHYSICS) -> None:
         self.params = params if params is not None else Params()
         self.dt_s = dt_s
         self.now_s = 0.0
@@ -128,7 +131,7 @@ class Lockstep:
         self.loop = ControlLoop(self.core, gcs_link, fc_link, clock=self._now,
                                 poller=VirtualPoller())
         """The companion's loop (the shipped one), on the virtual links."""
-        self.board = SimBoard(p, 0.0)
+        self.board = SimBoard(p, 0.0, physics=physics)
         self._board_out = MessageOutbox()
         self.gcs = ScriptedGroundStation(_GcsPort(self))
         self.overrides: list[OverrideSeen] = []

@@ -19,6 +19,7 @@ from mecanum_mav.config.params import Params
 from mecanum_mav.io.links import Link, follow, open_link
 from mecanum_mav.mecanum.geometry import Pose2d
 from mecanum_mav.sim.board import ORIGIN, RcOverrides, SimBoard, SimState
+from mecanum_mav.sim.physics import DEFAULT_PHYSICS
 
 __all__ = ["RcOverrides", "SimFlightController", "SimState"]
 
@@ -30,13 +31,15 @@ class SimFlightController:
         url: pymavlink connection string to serve on, e.g. ``udpin:127.0.0.1:0``.
         params: the board's parameters (see :class:`~mecanum_mav.sim.board.SimBoard`).
         pose: where the simulated chassis starts (local NED, yaw clockwise from north).
+        physics: the chassis model (:data:`~mecanum_mav.sim.physics.PHYSICS`).
 
     Raises ``OSError``/``ValueError`` when the link cannot be opened. Use :meth:`start` /
     :meth:`stop` (or ``with``, which stops on exit) or run :meth:`run` in your own thread.
     """
 
-    def __init__(self, url: str, params: Params, pose: Pose2d = ORIGIN) -> None:
-        self.board = SimBoard(params, time.monotonic(), pose)
+    def __init__(self, url: str, params: Params, pose: Pose2d = ORIGIN,
+                 physics: str = DEFAULT_PHYSICS) -> None:
+        self.board = SimBoard(params, time.monotonic(), pose, physics)
         self._cond = threading.Condition()
         self._state = self.board.state()
         self._stop_event = threading.Event()

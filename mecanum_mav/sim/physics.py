@@ -1,0 +1,94 @@
+"""Which chassis the simulated board drives: :data:`PHYSICS` names them, :func:`make_chassis`
+builds one from the parameters.
+
+``kinematic`` (the default) is :class:`~mecanum_mav.sim.chassis.SimChassis`: motors with lag,
+encoders, slip as noise, the pose moved by the wheels' forward kinematics; fast and exact,
+with no inertia or roller contact. ``mujoco`` is the physics-grade chassis
+(:mod:`mecanum_mav.sim.mujocochassis`): a rigid body on four wheels with passive rollers in
+contact with the floor, simulated by MuJoCo; it needs the optional extra
+(``pip install 'mecanum-mav[physics]'``). Both have the interface :class:`Chassis` states,
+so the board, its telemetry and every harness work with either.
+"""
+
+from __future__ import annotations
+
+import importlib
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Protocol
+
+from mecanum_mav.mecanum.geometry import Pose2d
+from mecanum_mav.sim.chassis import ORIGIN_POSE, SimChassis
+
+if TYPE_CHECKING:
+    from mecanum_mav.config.params import Params
+
+__all__ = ["DEFAULT_PHYSICS", "PHYSICS", "Chassis", "PhysicsUnavailableError", "make_chassis"]
+
+PHYSICS = ("kinematic", "mujoco")
+"""The chassis models, by name (``sim --physics NAME``)."""
+DEFAULT_PHYSICS = "kinematic"
+
+
+class PhysicsUnavailableError(RuntimeError):
+    """The chassis asked for needs a package that is not installed (the message says which
+    and how to install it)."""
+
+
+class Chassis(Protocol):
+    """What the simulated board uses of a chassis. Frames and units as
+    :class:`~mecanum_mav.sim.chassis.SimChassis`: pose local NED (m, yaw rad clockwise from
+    north), velocities body FRD, wheels FL, FR, RL, RR, positive rolls the robot forward."""
+
+    @property
+    def pose(self) -> Pose2d:
+        """True pose, local NED."""
+
+    @property
+    def velocity_body(self) -> tuple[float, float]:
+        """True velocity of the robot centre, body FRD (forward, right m/s)."""
+
+    @property
+    def yaw_rate(self) -> float:
+        """True yaw rate, rad/s clockwise seen from above."""
+
+    @property
+    def roll_pitch(self) -> tuple[float, float]:
+        """True roll and pitch, radians (FRD: roll right side down, pitch nose up)."""
+
+    @property
+    def wheel_speeds_mps(self) -> tuple[float, float, float, float]:
+        """Wheel surface speeds, m/s (wheel, not ground)."""
+
+    @property
+    def wheel_distances_m(self) -> tuple[float, float, float, float]:
+        """Cumulative encoder distances, metres rolled (wheel, not ground)."""
+
+    @property
+    def time_s(self) -> float:
+        """Simulated time, seconds."""
+
+    def step(self, dt_s: float, wheel_commands: Sequence[float]) -> None:
+        """Advance ``dt_s`` seconds with four normalized wheel commands held (limited to
+        [-1, 1]; non-finite reads 0)."""
+
+
+def make_chassis(params: Params, pose: Pose2d = ORIGIN_POSE,
+                 physics: str = DEFAULT_PHYSICS) -> Chassis:
+    """The chassis named ``physics`` (:data:`PHYSICS`), built from ``params``, at ``pose``.
+
+    Raises:
+        ValueError: an unknown name.
+        PhysicsUnavailableError: ``mujoco`` without the ``physics`` extra installed.
+    """
+    if physics == "kinematic":
+        return SimChassis.from_params(params, pose)
+    if physics == "mujoco":
+        try:  # (imported only when asked for: mujoco is an optional extra)
+            module = importlib.import_module("mecanum_mav.sim.mujocochassis")
+        except ImportError as exc:  # (mujoco itself missing)
+            raise PhysicsUnavailableError(
+                f"the MuJoCo chassis needs the 'mujoco' package ({exc}): "
+                "pip install 'mecanum-mav[physics]'") from exc
+        chassis: Chassis = module.MujocoChassis.from_params(params, pose)
+        return chassis
+    raise ValueError(f"unknown physics {physics!r}: one of {', '.join(PHYSICS)}")
