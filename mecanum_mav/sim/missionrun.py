@@ -41,6 +41,9 @@ __all__ = ["WATCH_PERIOD_S", "LegReport", "MissionRun", "OnLeg", "Waypoint", "fl
 Vec = tuple[float, float]
 WATCH_PERIOD_S = 0.02
 """The ground station looks at the rover at least this often while the mission runs."""
+MISSION_COMPLETE = "Mission complete"
+"""The companion's STATUSTEXT as the mission ends (the HOLD after it shows in the next 1 Hz
+HEARTBEAT: the mission's time ends at the text)."""
 
 
 @dataclass(frozen=True)
@@ -123,7 +126,7 @@ class MissionRun:
     final_truth: Vec | None = None
     """The true position when :attr:`final_estimate` arrived."""
     total_s: float = 0.0
-    """From AUTO to the HOLD at the end, seconds."""
+    """From AUTO to the end: the "Mission complete" text (or, without it, the HOLD), s."""
     max_yaw_deg: float = 0.0
     """The largest true heading away from north, degrees."""
 
@@ -211,9 +214,11 @@ def _watch(gcs: ScriptedGroundStation, truth: Callable[[], SimState], waypoints:
                 on_leg(len(out.legs), out.legs[-1])
                 leg_start_s, leg_cross = now, 0.0
                 k = len(out.legs)
+            elif kind == "STATUSTEXT" and msg.text == MISSION_COMPLETE and not out.total_s:
+                out.total_s = now - start_s
             elif kind == "HEARTBEAT" and msg.get_srcSystem() == 1 and msg.custom_mode == Mode.HOLD:
                 if len(out.legs) == len(waypoints):
-                    out.total_s = now - start_s
+                    out.total_s = out.total_s or now - start_s
                     return out
                 raise RuntimeError(f"the rover stopped after {len(out.legs)} legs")
     raise RuntimeError("the mission did not finish in time")
