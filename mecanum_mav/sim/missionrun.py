@@ -5,7 +5,7 @@ what truly happened.
 CONDITION_YAW that sets the heading, each waypoint optionally with its own heading (param4).
 :func:`fly` is a scripted ground station's whole run on any port (the lockstep harness in
 virtual time, or UDP in real time): upload, arm, AUTO, then watch until the rover holds at the
-end. The watch records into a :class:`MissionRun`:
+end. The watch (:class:`MissionWatch`, one look at a time) records into a :class:`MissionRun`:
 
 - the true pose (from the simulator: ``truth()``) at least every :data:`WATCH_PERIOD_S` and
   whenever a message arrives, with its time and its cross-track error: the distance from the
@@ -26,17 +26,18 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 from mecanum_mav.control.pathfollow import Leg
-from mecanum_mav.mecanum.geometry import wrap_pi
+from mecanum_mav.mecanum.geometry import Pose2d, wrap_pi
 from mecanum_mav.protocol.dialect import mavlink
 from mecanum_mav.protocol.mission import MissionItem
 from mecanum_mav.protocol.modes import Mode
 from mecanum_mav.sim.board import SimState
 from mecanum_mav.sim.groundstation import ScriptedGroundStation
 
-__all__ = ["WATCH_PERIOD_S", "LegReport", "MissionRun", "OnLeg", "Waypoint", "fly",
-           "ignore_leg", "waypoint_mission"]
+__all__ = ["MISSION_COMPLETE", "WATCH_PERIOD_S", "LegReport", "MissionRun", "MissionWatch",
+           "OnLeg", "Waypoint", "fly", "ignore_leg", "waypoint_mission"]
 
 Vec = tuple[float, float]
 WATCH_PERIOD_S = 0.02
@@ -172,31 +173,59 @@ def fly(gcs: ScriptedGroundStation, truth: Callable[[], SimState], items: list[M
         raise RuntimeError("arming refused") from None
     if gcs.set_mode(Mode.AUTO) != mavlink.MAV_RESULT_ACCEPTED:
         raise RuntimeError("AUTO refused")
-    out = into if into is not None else MissionRun([], [])
-    out.planned = [(0.0, 0.0), *(w.point for w in waypoints)]
-    return _watch(gcs, truth, list(waypoints), timeout_s, on_leg, out)
+    return _watch(gcs, truth, list(waypoints), timeout_s, on_leg, into)
 
 
 def _watch(gcs: ScriptedGroundStation, truth: Callable[[], SimState], waypoints: list[Waypoint],
-           timeout_s: float, on_leg: OnLeg, out: MissionRun) -> MissionRun:
-    planned = out.planned
+           timeout_s: float, on_leg: OnLeg, into: MissionRun | None) -> MissionRun:
     clock = gcs.port.now
-    start_s = clock()
-    leg_start_s, leg_cross = start_s, 0.0
-    deadline = start_s + timeout_s
+    watch = MissionWatch(waypoints, clock(), on_leg, into)
+    deadline = clock() + timeout_s
     while clock() < deadline:
         messages = gcs.pump(WATCH_PERIOD_S)
-        now = clock()
-        pose = truth().pose
+        if watch.look(clock(), truth().pose, messages):
+            return watch.run
+    raise RuntimeError("the mission did not finish in time")
+
+
+class MissionWatch:
+    """Measures a mission while it is driven, one look at a time (:meth:`look`), into
+    :attr:`run` (see the module docstring).
+
+    Args:
+        waypoints: the mission's waypoints as planned, in order.
+        start_s: when the mission started (AUTO), in the clock :meth:`look` is given.
+        on_leg: told each leg as soon as it ends.
+        into: the record to fill (its :attr:`MissionRun.planned` is set here), or None.
+    """
+
+    def __init__(self, waypoints: Sequence[Waypoint], start_s: float = 0.0,
+                 on_leg: OnLeg = ignore_leg, into: MissionRun | None = None) -> None:
+        self.waypoints = list(waypoints)
+        self.run = into if into is not None else MissionRun([], [])
+        self.run.planned = [(0.0, 0.0), *(w.point for w in self.waypoints)]
+        self.start_s = start_s
+        self.on_leg = on_leg
+        self._leg_start_s = start_s
+        self._leg_cross = 0.0
+
+    def look(self, now_s: float, pose: Pose2d, messages: Sequence[Any]) -> bool:
+        """The true ``pose`` at ``now_s`` and the messages that arrived since the last look;
+        True once the mission has ended (the rover holds after its last waypoint).
+
+        Raises:
+            RuntimeError: the rover holds before its last waypoint.
+        """
+        out, waypoints, planned = self.run, self.waypoints, self.run.planned
         here = (pose.x_m, pose.y_m)
         out.true_path.append((pose.x_m, pose.y_m, pose.yaw_rad))
-        out.times_s.append(now - start_s)
+        out.times_s.append(now_s - self.start_s)
         out.max_yaw_deg = max(out.max_yaw_deg, abs(math.degrees(pose.yaw_rad)))
         k = len(out.legs)
         cross = math.nan
         if k < len(waypoints):
             cross = Leg(planned[k], planned[k + 1]).distance_m(here)
-            leg_cross = max(leg_cross, cross)
+            self._leg_cross = max(self._leg_cross, cross)
         out.cross_track_m.append(cross)
         for msg in messages:
             kind = msg.get_type()
@@ -205,20 +234,23 @@ def _watch(gcs: ScriptedGroundStation, truth: Callable[[], SimState], waypoints:
                 out.final_estimate, out.final_truth = (msg.x, msg.y), here
             elif kind == "MISSION_ITEM_REACHED" and k < len(waypoints) \
                     and msg.seq == waypoints[k].seq:
-                wp = waypoints[k]
-                heading = math.nan if wp.yaw_deg is None else math.degrees(
-                    wrap_pi(pose.yaw_rad - math.radians(wp.yaw_deg)))
-                out.legs.append(LegReport(msg.seq, planned[k], planned[k + 1],
-                                          now - leg_start_s, leg_cross,
-                                          math.dist(here, wp.point), heading))
-                on_leg(len(out.legs), out.legs[-1])
-                leg_start_s, leg_cross = now, 0.0
+                self._reached(k, now_s, pose)
                 k = len(out.legs)
             elif kind == "STATUSTEXT" and msg.text == MISSION_COMPLETE and not out.total_s:
-                out.total_s = now - start_s
+                out.total_s = now_s - self.start_s
             elif kind == "HEARTBEAT" and msg.get_srcSystem() == 1 and msg.custom_mode == Mode.HOLD:
                 if len(out.legs) == len(waypoints):
-                    out.total_s = out.total_s or now - start_s
-                    return out
+                    out.total_s = out.total_s or now_s - self.start_s
+                    return True
                 raise RuntimeError(f"the rover stopped after {len(out.legs)} legs")
-    raise RuntimeError("the mission did not finish in time")
+        return False
+
+    def _reached(self, k: int, now_s: float, pose: Pose2d) -> None:
+        wp, planned = self.waypoints[k], self.run.planned
+        heading = math.nan if wp.yaw_deg is None else math.degrees(
+            wrap_pi(pose.yaw_rad - math.radians(wp.yaw_deg)))
+        self.run.legs.append(LegReport(wp.seq, planned[k], planned[k + 1],
+                                       now_s - self._leg_start_s, self._leg_cross,
+                                       math.dist((pose.x_m, pose.y_m), wp.point), heading))
+        self.on_leg(len(self.run.legs), self.run.legs[-1])
+        self._leg_start_s, self._leg_cross = now_s, 0.0
