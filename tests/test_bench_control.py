@@ -214,3 +214,14 @@ def test_the_cli_prints_the_table_the_waypoints_and_the_goals_and_draws_the_pict
     assert "square 1 m/s kinematic: arrival cm [" in out
     assert "goals met in" in out and "wall time" in out
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_a_mission_that_does_not_finish_is_a_row_that_says_where_it_stopped(monkeypatch):
+    monkeypatch.setattr(bench_control, "time_allowed_s", lambda points, speed: 1.0)
+    row = bench_control.run_mission("square", 1.0)
+    assert row.failure is not None and "did not finish in time" in row.failure
+    assert "from waypoint 1 of 4" in row.failure
+    assert row.run.legs == [] and row.fig.time_s == pytest.approx(1.0, abs=0.05)
+    first = row.verdicts()[0]
+    assert (first.name, first.met) == ("finished", False)
+    assert "DID NOT FINISH" in bench_control.table_row(row)

@@ -159,6 +159,8 @@ class Verdict:
 
     def describe(self) -> str:
         word = "met" if self.met else "NOT MET"
+        if self.name == "finished":
+            return f"finished: reached {self.value:.0f} of {self.limit:.0f} waypoints: {word}"
         return f"{self.name} {self.value:.2f} (goal {self.limit:.2f}): {word}"
 
 
@@ -197,6 +199,9 @@ class Row:
     run: MissionRun
     fig: RunFigures
     time_ratio: float | None = None
+    failure: str | None = None
+    """Why the mission did not run to its end (None: it did); the figures are then of the
+    part it drove."""
 
     @property
     def judged(self) -> bool:
@@ -204,7 +209,13 @@ class Row:
         return math.isclose(self.speed_mps, GOAL_SPEED)
 
     def verdicts(self) -> list[Verdict]:
-        return judge(self.fig, goals_for(self.friction), self.time_ratio) if self.judged else []
+        if not self.judged:
+            return []
+        verdicts = judge(self.fig, goals_for(self.friction), self.time_ratio)
+        if self.failure is not None:
+            reached = Verdict("finished", len(self.run.legs), len(self.run.planned) - 1, False)
+            verdicts.insert(0, reached)
+        return verdicts
 
     @property
     def label(self) -> str:
@@ -235,8 +246,10 @@ def run_mission(name: str, speed_mps: float, physics: str = "kinematic",
     """Fly mission ``name`` at ``speed_mps`` on the chassis ``physics`` and floor
     ``friction`` (None: the kinematic chassis's own) in the lockstep harness.
 
+    A mission that does not run to its end (the rover stops short, or takes more than
+    :func:`time_allowed_s`) is a row with its :attr:`Row.failure`.
+
     Raises:
-        RuntimeError: the mission did not run to its end.
         PhysicsUnavailableError: the chassis needs a package that is not installed.
     """
     mission = MISSIONS[name]()
@@ -244,10 +257,29 @@ def run_mission(name: str, speed_mps: float, physics: str = "kinematic",
                                         heading_deg=mission.heading_deg)
     harness = Lockstep(bench_params(speed_mps, friction, overrides), dt_s=dt_s,
                        physics=physics)
-    planned = path_length_m(((0.0, 0.0), *mission.points))
-    run = fly(harness.gcs, harness.truth, items, waypoints,
-              timeout_s=30.0 + 10.0 * planned / speed_mps)
-    return Row(name, speed_mps, physics, friction, run, figures(run))
+    run = MissionRun([], [])
+    failure = None
+    try:
+        fly(harness.gcs, harness.truth, items, waypoints,
+            time_allowed_s(((0.0, 0.0), *mission.points), speed_mps), into=run)
+    except RuntimeError as exc:
+        failure = f"{exc}{_where(run)}"
+    return Row(name, speed_mps, physics, friction, run, figures(run), failure=failure)
+
+
+def time_allowed_s(points: Sequence[Vec], speed_mps: float) -> float:
+    """How long a mission through ``points`` at ``speed_mps`` may take: 10 s plus three
+    times its length at that speed (the kinematic chassis takes under twice)."""
+    return 10.0 + 3.0 * path_length_m(points) / speed_mps
+
+
+def _where(run: MissionRun) -> str:
+    """Where a run that did not finish ended: the true distance to its next waypoint."""
+    k = len(run.legs)
+    if not run.true_path or k + 1 >= len(run.planned):
+        return ""
+    gap = math.dist(run.true_path[-1][:2], run.planned[k + 1])
+    return f" ({gap * 100:.1f} cm from waypoint {k + 1} of {len(run.planned) - 1})"
 
 
 def chassis_and_floors(physics: str, floors: Sequence[float]) -> list[tuple[str, float | None]]:
@@ -262,17 +294,17 @@ def chassis_and_floors(physics: str, floors: Sequence[float]) -> list[tuple[str,
 def run_all(missions: Sequence[str], speeds: Sequence[float], physics: str,
             floors: Sequence[float], overrides: Sequence[tuple[str, float]] = (),
             on_row: Callable[[Row], None] = lambda row: None) -> list[Row]:
-    """Every mission x speed x chassis x floor; MuJoCo rows get their time ratio to the
-    kinematic row of the same mission and speed."""
+    """Every mission x speed x chassis x floor; finished MuJoCo rows get their time ratio to
+    the finished kinematic row of the same mission and speed."""
     rows: list[Row] = []
     base: dict[tuple[str, float], float] = {}
     for chassis, friction in chassis_and_floors(physics, floors):
         for mission in missions:
             for speed in speeds:
                 row = run_mission(mission, speed, chassis, friction, overrides)
-                if chassis == "kinematic":
+                if row.failure is None and chassis == "kinematic":
                     base[mission, speed] = row.fig.time_s
-                elif (mission, speed) in base:
+                elif row.failure is None and (mission, speed) in base:
                     row.time_ratio = row.fig.time_s / base[mission, speed]
                 rows.append(row)
                 on_row(row)
@@ -294,6 +326,8 @@ def table_row(row: Row) -> str:
     verdicts = row.verdicts()
     missed = [v.name.split()[0] for v in verdicts if not v.met]
     goals = "-" if not verdicts else "met" if not missed else "NOT MET: " + ", ".join(missed)
+    if row.failure is not None:
+        goals = f"DID NOT FINISH: {row.failure}"
     return (f"{row.mission:<14}{row.speed_mps:>4.1f} {row.physics:<10}{mu:>4}{f.time_s:8.2f}"
             f"{ratio:>6}{f.worst_cross_track_m * 100:10.2f}{f.rms_cross_track_m * 100:10.2f}"
             f"{f.worst_arrival_m * 100:8.2f}{_number(f.worst_heading_deg):>8}"
@@ -439,12 +473,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         rows = run_all(args.missions, speeds, args.physics, args.friction, args.overrides,
                        on_row=lambda row: print(table_row(row), flush=True))
-    except (RuntimeError, PhysicsUnavailableError, ParamError) as exc:
+    except (PhysicsUnavailableError, ParamError) as exc:
         print(f"bench_control: {exc}", file=sys.stderr)
         return 1
     print("\nper waypoint (true, at MISSION_ITEM_REACHED):")
     for row in rows:
         print(arrivals_line(row))
+        if row.failure is not None:
+            print(f"  did not finish: {row.failure}")
     print(f"\ngoals at {GOAL_SPEED:g} m/s (friction {HIGH_FRICTION:g}; below it twice the "
           "errors):")
     for line in summary(rows):

@@ -59,7 +59,7 @@ class RunFigures:
     """One run's figures (see the module docstring). Lengths metres, angles degrees."""
 
     time_s: float
-    """From AUTO to HOLD at the end."""
+    """From AUTO to the end (a run that did not finish: to its last look)."""
     worst_cross_track_m: float
     rms_cross_track_m: float
     arrivals_m: tuple[float, ...]
@@ -90,7 +90,8 @@ def figures(run: MissionRun) -> RunFigures:
     drift = math.nan
     if run.final_estimate is not None and run.final_truth is not None:
         drift = drift_percent(run.final_estimate, run.final_truth, distance)
-    return RunFigures(run.total_s, max(crossing, default=math.nan),
+    time_s = run.total_s or (run.times_s[-1] if run.times_s else 0.0)  # unfinished: so far
+    return RunFigures(time_s, max(crossing, default=math.nan),
                       time_weighted_rms(run.times_s, run.cross_track_m),
                       tuple(leg.arrival_error_m for leg in run.legs),
                       tuple(leg.arrival_heading_deg for leg in run.legs), distance, drift)
