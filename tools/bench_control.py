@@ -17,7 +17,11 @@ end (LOCAL_POSITION_NED minus truth, % of the distance truly driven), then every
 arrival error. Goals (issue 25) are judged at 1.0 m/s: arrival under 2 cm and 1 degree, worst
 cross-track under 3 cm, drift under 1 %; on friction 0.4 (any floor below 0.8) twice those;
 on the MuJoCo chassis the mission time at most 10 % over the kinematic chassis's (both are run
-with ``--physics mujoco``). The kinematic chassis ignores friction: it is run once.
+with ``--physics mujoco``). The kinematic chassis ignores friction: it is run once. A mission
+that does not run to its end (the rover stops short of a waypoint, or takes longer than
+:func:`time_allowed_s`) is a row that says where it stopped ("DID NOT FINISH"); the bench goes
+on with the next. The picture (``--plot``) has one panel per mission at 1.0 m/s: the planned
+path, and the true and the estimated path of every chassis and floor.
 
 Each run sets ``WP_SPEED`` to its speed, ``GUID_SPD_MAX`` to the speed plus
 :data:`SPEED_MARGIN_MPS` (room for the cross-track correction), ``WHL_MAX_SPD`` to
@@ -401,7 +405,9 @@ def _panel(ax: Any, rows: Sequence[Row]) -> None:
     ax.set_ylabel("north (m)")
     ax.grid(True, alpha=0.3)
     if max(pe) - min(pe) < 0.2 * (max(pn) - min(pn)):  # a straight line north
-        ax.set_xlim(min(pe) - 0.1, max(pe) + 0.1)
+        east = [abs(p[1]) for r in rows for p in (*r.run.true_path, *r.run.odometry_path)]
+        half = max(0.1, 1.2 * max(east, default=0.0))
+        ax.set_xlim(-half, half)
         ax.set_xlabel("east (m, stretched)")
     else:
         ax.set_aspect("equal")
