@@ -71,6 +71,10 @@ SPEED_MARGIN_MPS = 0.2
 speed along the leg)."""
 DT_S = 0.002
 """The harness's time step, seconds."""
+SHOWN = ("WP_ACCEL", "WP_RADIUS", "WP_OVERSHOOT", "GUID_ACC_MAX", "GUID_POS_P", "GUID_YAW_P",
+         "GUID_YAW_RATE", "SIM_MOTOR_TAU", "SIM_ESC_DZ")
+"""Parameters the figures depend on, printed at the start (as every run has them; those this
+build has)."""
 
 
 # ---------------------------------------------------------------------------- missions
@@ -466,6 +470,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     print(f"bench_control: missions {', '.join(args.missions)}; speeds "
           f"{', '.join(f'{s:g}' for s in speeds)} m/s; WHL_MAX_SPD {WHEEL_MAX_MPS:g}, "
           f"GUID_SPD_MAX speed + {SPEED_MARGIN_MPS:g}" + (f"; --set {sets}" if sets else ""))
+    shown = bench_params(GOAL_SPEED, None, args.overrides)
+    print("with " + ", ".join(f"{n} {shown[n]:g}" for n in SHOWN if n in shown))
     if args.physics == "mujoco":
         print(f"MuJoCo chassis on friction {', '.join(f'{f:g}' for f in args.friction)}; "
               "the kinematic chassis ignores friction: run once, for the time ratio")
