@@ -16,6 +16,7 @@ from mecanum_mav.mecanum.kinematics import MecanumKinematics
 from mecanum_mav.sim.chassis import ORIGIN_POSE
 from mecanum_mav.sim.mujocomodel import ROLLERS, ChassisSpec, mjcf
 
+mujoco = pytest.importorskip("mujoco")
 mujoco_chassis = pytest.importorskip("mecanum_mav.sim.mujocochassis")
 MujocoChassis = mujoco_chassis.MujocoChassis
 
@@ -167,18 +168,21 @@ def test_at_rest_with_zero_commands_nothing_creeps_in_10_s():
     assert max(map(abs, chassis.wheel_distances_m)) < 0.001
 
 
-def test_energy_never_appears_from_nowhere_after_a_push_with_the_motors_idle():
+def test_energy_never_appears_from_nowhere_after_a_push_with_the_motors_off():
     chassis = MujocoChassis.from_params(Params())
+    chassis.model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_ACTUATION  # motors off
     chassis.push(1.0, 0.5, 1.5)
-    chassis.step(0.002, STOP)  # (MuJoCo reports the energy of its last step's start)
-    start = chassis.energy_j
+    chassis.step(0.002, STOP)  # (MuJoCo reports the energy of its last timestep's start)
+    start = chassis.kinetic_energy_j
     energies = []
-    for _ in range(300):
-        chassis.step(DT, STOP)
-        energies.append(chassis.energy_j)
-    assert max(energies) <= start + 1e-3
-    assert energies[-1] < start - 1.0  # the push's kinetic energy (~2.5 J) went into friction
-    assert chassis.pose.x_m > 0.01  # it was pushed
+    for _ in range(500):
+        chassis.step(0.002, STOP)
+        energies.append(chassis.kinetic_energy_j)
+    print(f"kinetic energy after a push, motors off: {start:.3f} J, at most "
+          f"{max(energies):.3f} J after, {energies[-1]:.3f} J 1 s later")
+    assert max(energies) <= start + 1e-6
+    assert energies[-1] < 0.8 * start  # friction (gearboxes, rollers) takes it
+    assert chassis.pose.x_m > 0.5  # it was pushed, and coasted
 
 
 def test_a_command_inside_the_esc_dead_band_does_not_drive_the_wheels():

@@ -162,10 +162,10 @@ class MujocoChassis:
         return self._time
 
     @property
-    def energy_j(self) -> float:
-        """Mechanical energy (kinetic + gravitational potential), joules, as MuJoCo computed
-        it at the start of its last timestep."""
-        return float(self.data.energy[0] + self.data.energy[1])
+    def kinetic_energy_j(self) -> float:
+        """Kinetic energy of the whole robot (body, wheels, rollers), joules, as MuJoCo
+        computed it at the start of its last timestep."""
+        return float(self.data.energy[1])
 
     def push(self, forward_mps: float, right_mps: float, yaw_rate: float) -> None:
         """Set the body's velocity at once (a shove), body FRD and clockwise rad/s; the
