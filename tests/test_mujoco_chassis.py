@@ -14,7 +14,7 @@ from mecanum_mav.config.params import Params
 from mecanum_mav.mecanum.geometry import Pose2d
 from mecanum_mav.mecanum.kinematics import MecanumKinematics
 from mecanum_mav.sim.chassis import ORIGIN_POSE
-from mecanum_mav.sim.mujocomodel import ROLLERS, ChassisSpec, mjcf
+from mecanum_mav.sim.mujocomodel import ROLLER_SHORT_FRACTION, ROLLERS, ChassisSpec, mjcf
 
 mujoco = pytest.importorskip("mujoco")
 mujoco_chassis = pytest.importorskip("mecanum_mav.sim.mujocochassis")
@@ -80,6 +80,18 @@ def test_the_floor_friction_is_sim_friction():
     root = ET.fromstring(mjcf(ChassisSpec.from_params(params(SIM_FRICTION=0.4))))
     friction = root.find("default/geom").get("friction")
     assert float(friction.split()[0]) == 0.4
+
+
+@pytest.mark.parametrize("top_speed", [1.0, 3.0, 10.0, 20.0])
+def test_a_roller_passes_the_floor_in_at_least_one_and_a_half_integration_steps(top_speed):
+    spec = ChassisSpec.from_params(params(WHL_MAX_SPD=top_speed))
+    step = float(ET.fromstring(mjcf(spec)).find("option").get("timestep"))
+    assert step == spec.timestep_s <= 0.002
+    rho = spec.wheel_radius_m * (1 - ROLLER_SHORT_FRACTION)  # where the rollers' centres are
+    roller_pass_s = 2 * math.pi * rho / ROLLERS / top_speed
+    assert roller_pass_s / step >= 1.5 - 1e-9
+    if top_speed <= 3.0:
+        assert step == 0.002  # (the common robots keep the fast step)
 
 
 # --------------------------------------------------------------------------- driving

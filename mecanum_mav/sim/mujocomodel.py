@@ -24,7 +24,7 @@ The model:
   roller centre's distance from the wheel axis, r: its short semi-axis), so the wheel rolls
   smoothly; only rollers and the floor plane collide (contype/conaffinity);
 - per wheel, a velocity servo behind a first-order filter (``dyntype="filterexact"``, time
-  constant ``SIM_MOTOR_TAU``), gain :func:`servo_gain` and torque limited to
+  constant ``SIM_MOTOR_TAU``), gain :attr:`ChassisSpec.servo_gain` and torque limited to
   ``SIM_MOT_TORQUE``: the motor and its ESC. Its control is the target wheel speed in rad/s.
 """
 
@@ -44,7 +44,11 @@ __all__ = ["ROLLERS", "ChassisSpec", "mjcf", "roller_frames"]
 ROLLERS = 12
 """Passive rollers per wheel."""
 TIMESTEP_S = 0.002
-"""MuJoCo's integration step, seconds."""
+"""MuJoCo's integration step, seconds, unless the wheels are fast (:attr:`ChassisSpec.
+timestep_s`)."""
+STEPS_PER_ROLLER = 1.5
+"""At least this many integration steps while one roller passes the floor at top wheel
+speed (a faster wheel gets a shorter step)."""
 CONTACT_TIMECONST_S = 0.005
 """Time constant of the roller-floor contact's spring (MuJoCo solref; >= 2 timesteps): the
 stiffer the contact, the less the wheels sink and the closer their rolling radius to
@@ -57,15 +61,14 @@ ROLLER_SHORT_FRACTION = 0.3
 """A roller's short semi-axis as a fraction of the wheel radius."""
 BODY_HALF_HEIGHT_M = 0.04
 """Half the chassis box's height, metres."""
-WHEEL_FRICTION_NM = 0.01
-"""Dry friction of each wheel's gearbox, N.m."""
-ROLLER_DAMPING = 2e-5
-"""Viscous friction of each roller bearing, N.m.s/rad."""
-ROLLER_FRICTION_NM = 0.002
-"""Dry friction of each roller bearing, N.m (what makes a mecanum robot strafe slower than it
-drives)."""
-ROLLER_ARMATURE = 2e-6
-"""Rotor inertia added to each roller joint, kg.m^2 (keeps the light rollers stable)."""
+GRAVITY_MPS2 = 9.81
+"""MuJoCo's default gravity, m/s^2."""
+GEARBOX_FRICTION_FRACTION = 1.0 / 60.0
+"""Dry friction of each wheel's gearbox, as a fraction of ``SIM_MOT_TORQUE``."""
+ROLLER_RESISTANCE = 0.015
+"""Dry friction of each roller's bearing, as the force it takes at the roller's surface over
+the wheel's share of the robot's weight (what makes a mecanum robot strafe slower than it
+drives; scaled so a light robot or a small wheel behaves alike)."""
 SERVO_SATURATION_FRACTION = 0.05
 """The speed error, as a fraction of top wheel speed, at which a motor reaches its torque
 limit (sets :func:`servo_gain`)."""
@@ -121,6 +124,18 @@ class ChassisSpec:
         return self.motor_torque_nm / (SERVO_SATURATION_FRACTION * self.max_wheel_rate)
 
     @property
+    def timestep_s(self) -> float:
+        """MuJoCo's integration step, seconds: :data:`TIMESTEP_S`, shorter if the wheels' top
+        speed would pass a roller over the floor in under :data:`STEPS_PER_ROLLER` steps."""
+        pitch = 2.0 * math.pi * self.wheel_radius_m * (1.0 - ROLLER_SHORT_FRACTION) / ROLLERS
+        return min(TIMESTEP_S, pitch / (STEPS_PER_ROLLER * self.max_wheel_speed_mps))
+
+    @property
+    def gearbox_friction_nm(self) -> float:
+        """Dry friction of each wheel's gearbox, N.m."""
+        return GEARBOX_FRICTION_FRACTION * self.motor_torque_nm
+
+    @property
     def wheel_mass_kg(self) -> float:
         """One wheel's mass, kg."""
         return WHEEL_MASS_FRACTION * self.mass_kg
@@ -171,10 +186,11 @@ def _wheel_xml(spec: ChassisSpec, index: int) -> str:
     hub_radial = 0.25 * hub_mass * (0.5 * r) ** 2
     roller_radial = roller_mass * (short * short + long * long) / 5.0
     roller_axial = 2.0 * roller_mass * short * short / 5.0
+    roller_friction = ROLLER_RESISTANCE * spec.mass_kg * GRAVITY_MPS2 / 4.0 * short
     lines = [
         f'    <body name="wheel_{key}" pos="{_v(pos)}">',
         f'      <joint name="wheel_{key}" type="hinge" axis="0 1 0" '
-        f'frictionloss="{WHEEL_FRICTION_NM!r}"/>',
+        f'frictionloss="{spec.gearbox_friction_nm!r}"/>',
         f'      <inertial pos="0 0 0" mass="{hub_mass!r}" '
         f'diaginertia="{_v((hub_radial, hub_axial, hub_radial))}"/>',
     ]
@@ -182,8 +198,7 @@ def _wheel_xml(spec: ChassisSpec, index: int) -> str:
         lines += [
             f'      <body name="roller_{key}{k}" pos="{_v(centre)}" zaxis="{_v(axis)}">',
             f'        <joint name="roller_{key}{k}" type="hinge" axis="0 0 1" '
-            f'damping="{ROLLER_DAMPING!r}" frictionloss="{ROLLER_FRICTION_NM!r}" '
-            f'armature="{ROLLER_ARMATURE!r}"/>',
+            f'frictionloss="{roller_friction!r}"/>',
             f'        <inertial pos="0 0 0" mass="{roller_mass!r}" '
             f'diaginertia="{_v((roller_radial, roller_radial, roller_axial))}"/>',
             f'        <geom class="roller" size="{_v((short, short, long))}"/>',
@@ -215,7 +230,7 @@ def mjcf(spec: ChassisSpec) -> str:
     motors = "\n".join(_actuator_xml(spec, i) for i in range(4))
     return f"""<mujoco model="mecanum_chassis">
   <compiler angle="radian" inertiafromgeom="false"/>
-  <option timestep="{TIMESTEP_S!r}" integrator="implicitfast" cone="elliptic">
+  <option timestep="{spec.timestep_s!r}" integrator="implicitfast" cone="elliptic">
     <flag energy="enable"/>
   </option>
   <default>
