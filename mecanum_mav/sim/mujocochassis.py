@@ -32,15 +32,13 @@ import numpy as np
 
 from mecanum_mav.mecanum.geometry import Pose2d
 from mecanum_mav.mecanum.wheels import WHEEL_KEYS
-from mecanum_mav.sim.chassis import ORIGIN_POSE, _clean_command
+from mecanum_mav.sim.chassis import ORIGIN_POSE, Wheels, _clean_command
 from mecanum_mav.sim.mujocomodel import ChassisSpec, mjcf
 
 if TYPE_CHECKING:
     from mecanum_mav.config.params import Params
 
 __all__ = ["SETTLE_S", "MujocoChassis", "real_time_factor"]
-
-Wheels = tuple[float, float, float, float]
 
 SETTLE_S = 0.3
 """Simulated seconds the chassis settles onto the floor (braked) before its time 0."""

@@ -71,7 +71,7 @@ the wheel's share of the robot's weight (what makes a mecanum robot strafe slowe
 drives; scaled so a light robot or a small wheel behaves alike)."""
 SERVO_SATURATION_FRACTION = 0.05
 """The speed error, as a fraction of top wheel speed, at which a motor reaches its torque
-limit (sets :func:`servo_gain`)."""
+limit (sets :attr:`ChassisSpec.servo_gain`)."""
 
 Vec3 = tuple[float, float, float]
 
