@@ -86,6 +86,7 @@ def test_the_schema_has_exactly_the_parameters_the_rest_of_the_code_reads():
         "TLM_POS_RATE",
         "TLM_EXT_RATE",
         "SIM_MOTOR_TAU", "SIM_SLIP", "SIM_RC_TMO", "SIM_GCS_SYSID", "SIM_RATE", "SIM_SEED",
+        "SIM_FRICTION", "SIM_MASS", "SIM_WHL_RAD", "SIM_MOT_TORQUE", "SIM_ESC_DZ",
     ]
     assert [s.name for s in SCHEMA] == list(SPECS)
     assert SPECS["MIX_ALGO"].values == {
@@ -115,7 +116,8 @@ def test_every_default_lies_in_its_range_and_has_its_kind(spec):
     for number in (spec.default, spec.minimum, spec.maximum):
         assert type(number) is spec.kind
     assert spec.description.endswith(".")
-    assert spec.units in ("", "m", "m/s", "us", "s", "Hz", "m/s/s", "deg/s", "1/s", "deg")
+    assert spec.units in ("", "m", "m/s", "us", "s", "Hz", "m/s/s", "deg/s", "1/s", "deg",
+                          "kg", "N.m")
 
 
 @pytest.mark.parametrize("spec", [s for s in SCHEMA if s.values], ids=lambda s: s.name)

@@ -98,6 +98,7 @@ T = "tests/"
 CO = T + "test_companion.py::"
 FCS = T + "test_fcsetup.py::"
 PAR = T + "test_params.py::"
+MJ = T + "test_mujoco_chassis.py::"
 
 MUTATIONS: tuple[Mutation, ...] = (
     # ---------------------------------------------------------------- neutral on every way out
@@ -803,8 +804,39 @@ MUTATIONS: tuple[Mutation, ...] = (
       "            due = self.fc_seen_s + c.fc_timeout_s\n",
       "            due = self.fc_seen_s + 2 * c.fc_timeout_s\n",
       T + "test_failsafe_deadlines.py"),
+    # ---------------------------------------------------------------- the MuJoCo chassis
+    M("mujoco-roller-sense", "each wheel's rollers lie along (1, s_i) in FRD at the contact "
+      "(the X pattern the kinematics assume)",
+      PKG + "sim/mujocomodel.py",
+      "ax, ay = 1.0 / math.sqrt(2.0), -lateral_sign / math.sqrt(2.0)",
+      "ax, ay = 1.0 / math.sqrt(2.0), lateral_sign / math.sqrt(2.0)",
+      MJ + "test_strafe_wheel_speeds_strafe_right_at_a_measured_efficiency",
+      MJ + "test_the_model_has_four_wheels_of_twelve_rollers_at_45_degrees_in_the_x_pattern"),
+    M("mujoco-friction", "the floor's friction is SIM_FRICTION",
+      PKG + "sim/mujocomodel.py",
+      'friction="{mu!r} 0.005 0.0001"',
+      'friction="0.8 0.005 0.0001"',
+      MJ + "test_the_floor_friction_is_sim_friction",
+      MJ + "test_a_slippery_floor_slides_further_than_a_grippy_one"),
+    M("mujoco-encoder-wheel", "encoders count what the wheel rolled, not the ground",
+      PKG + "sim/mujocochassis.py",
+      "        fl, fr, rl, rr = ((float(self.data.qpos[i]) - zero) * r\n"
+      "                          for i, zero in zip(self._wheel_q, self._wheel_zero, "
+      "strict=True))\n",
+      "        fl = fr = rl = rr = math.hypot(self.pose.x_m, self.pose.y_m) + 0.0 * r\n",
+      MJ + "test_a_hard_brake_from_1_m_s_slides_further_than_the_wheels_roll"),
+    M("mujoco-dead-band", "a command inside the ESC dead band does not drive the wheel",
+      PKG + "sim/mujocochassis.py",
+      "if abs(c) < self.spec.esc_dead_band:",
+      "if abs(c) < 0.0 * self.spec.esc_dead_band:",
+      MJ + "test_a_command_inside_the_esc_dead_band_does_not_drive_the_wheels"),
+    M("mujoco-yaw-sign", "the chassis's yaw is clockwise from north (MuJoCo's is counter-"
+      "clockwise)",
+      PKG + "sim/mujocochassis.py",
+      "return Pose2d(float(x), -float(y), _wrap(-yaw_up))",
+      "return Pose2d(float(x), -float(y), _wrap(yaw_up))",
+      MJ + "test_forward_moves_along_the_heading_in_ned"),
 )
-
 
 # ====================================================================== running
 

@@ -71,7 +71,13 @@ from mecanum_mav.config.params import (
 from mecanum_mav.io.keyfile import KeyFileError, load_signing_key
 from mecanum_mav.io.paramfile import load, save
 from mecanum_mav.mecanum.mixing import ALGORITHM_NAMES
-from mecanum_mav.sim.physics import DEFAULT_PHYSICS, PHYSICS
+from mecanum_mav.sim.physics import (
+    DEFAULT_PHYSICS,
+    MIN_REAL_TIME_FACTOR,
+    PHYSICS,
+    PhysicsUnavailableError,
+    mujoco_real_time_factor,
+)
 
 __all__ = [  # the command line, and what it re-exports from the modules that do the work
     "CSV_COLUMNS", "DEFAULT_GCS_URL", "DESAT_NAMES", "INSTANCE_PORT_BASE", "INSTANCE_PORT_STEP",
@@ -153,6 +159,17 @@ def cmd_sim(args: argparse.Namespace, params: Params) -> int:
               f"{params['SYSID_THISMAV']}, sending to UDP {host_port}: one --master="
               f"udpin:{host_port} of the router (see docs/fleet.md)",
               flush=True)
+    if args.physics == "mujoco":
+        try:
+            factor = mujoco_real_time_factor(params)
+        except PhysicsUnavailableError as exc:
+            print(f"mecanum-mav sim: {exc}", file=sys.stderr)
+            return 2
+        print(f"MuJoCo chassis: {factor:.1f}x real time", flush=True)
+        if factor < MIN_REAL_TIME_FACTOR:
+            print(f"mecanum-mav sim: warning: the MuJoCo chassis runs only {factor:.1f}x real "
+                  f"time (under {MIN_REAL_TIME_FACTOR:g}x): a busy machine may make it fall "
+                  "behind", file=sys.stderr, flush=True)
     return serve(params, gcs, "sim", args.params, args.tlog, args.keys, quiet=args.quiet,
                  physics=args.physics)
 

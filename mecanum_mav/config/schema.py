@@ -455,6 +455,38 @@ SCHEMA: tuple[ParamSpec, ...] = (
         reboot_required=True,
         description="Simulator: random seed of the slip noise, for repeatable runs.",
     ),
+    ParamSpec(
+        "SIM_FRICTION", float, default=0.8, minimum=0.05, maximum=2.0, units="",
+        reboot_required=True,
+        description="Simulator, MuJoCo chassis (sim --physics mujoco): Coulomb friction "
+        "coefficient between the rollers and the floor (0.8 a grippy floor, 0.4 a slippery "
+        "one).",
+    ),
+    ParamSpec(
+        "SIM_MASS", float, default=4.0, minimum=0.2, maximum=200.0, units="kg",
+        reboot_required=True,
+        description="Simulator, MuJoCo chassis: mass of the whole robot, wheels included.",
+    ),
+    ParamSpec(
+        "SIM_WHL_RAD", float, default=0.04, minimum=0.01, maximum=0.5, units="m",
+        reboot_required=True,
+        description="Simulator, MuJoCo chassis: wheel radius to the rollers' outer surface "
+        "(the companion itself needs none: WHL_MAX_SPD is a surface speed).",
+    ),
+    ParamSpec(
+        "SIM_MOT_TORQUE", float, default=0.6, minimum=0.01, maximum=100.0, units="N.m",
+        reboot_required=True,
+        description="Simulator, MuJoCo chassis: the most torque each wheel's motor gives "
+        "(its ESC's current limit).",
+    ),
+    ParamSpec(
+        "SIM_ESC_DZ", float, default=0.02, minimum=0.0, maximum=0.3, units="",
+        reboot_required=True,
+        description="Simulator, MuJoCo chassis: each ESC's dead band around neutral, as a "
+        "fraction of full command; a smaller command leaves the motor unpowered, its windings "
+        "shorted (the usual brake neutral: the wheel is braked to a stop, within "
+        "SIM_MOT_TORQUE).",
+    ),
 )
 """Every parameter, in file, table and MAVLink index order."""
 # fmt: on

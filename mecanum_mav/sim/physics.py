@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import importlib
 from collections.abc import Sequence
-from typing import TYPE_CHECKING, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 from mecanum_mav.mecanum.geometry import Pose2d
 from mecanum_mav.sim.chassis import ORIGIN_POSE, SimChassis
@@ -22,11 +22,15 @@ from mecanum_mav.sim.chassis import ORIGIN_POSE, SimChassis
 if TYPE_CHECKING:
     from mecanum_mav.config.params import Params
 
-__all__ = ["DEFAULT_PHYSICS", "PHYSICS", "Chassis", "PhysicsUnavailableError", "make_chassis"]
+__all__ = ["DEFAULT_PHYSICS", "MIN_REAL_TIME_FACTOR", "PHYSICS", "Chassis",
+           "PhysicsUnavailableError", "make_chassis", "mujoco_real_time_factor"]
 
 PHYSICS = ("kinematic", "mujoco")
 """The chassis models, by name (``sim --physics NAME``)."""
 DEFAULT_PHYSICS = "kinematic"
+MIN_REAL_TIME_FACTOR = 3.0
+"""The MuJoCo chassis must run at least this many times faster than real time (room for the
+tests and for a digital twin); ``sim --physics mujoco`` warns below it."""
 
 
 class PhysicsUnavailableError(RuntimeError):
@@ -83,12 +87,28 @@ def make_chassis(params: Params, pose: Pose2d = ORIGIN_POSE,
     if physics == "kinematic":
         return SimChassis.from_params(params, pose)
     if physics == "mujoco":
-        try:  # (imported only when asked for: mujoco is an optional extra)
-            module = importlib.import_module("mecanum_mav.sim.mujocochassis")
-        except ImportError as exc:  # (mujoco itself missing)
-            raise PhysicsUnavailableError(
-                f"the MuJoCo chassis needs the 'mujoco' package ({exc}): "
-                "pip install 'mecanum-mav[physics]'") from exc
-        chassis: Chassis = module.MujocoChassis.from_params(params, pose)
+        chassis: Chassis = _mujoco().MujocoChassis.from_params(params, pose)
         return chassis
     raise ValueError(f"unknown physics {physics!r}: one of {', '.join(PHYSICS)}")
+
+
+def mujoco_real_time_factor(params: Params, seconds: float = 2.0) -> float:
+    """Simulated seconds per wall second of the MuJoCo chassis stepped at ``SIM_RATE``
+    (:func:`mecanum_mav.sim.mujocochassis.real_time_factor`).
+
+    Raises:
+        PhysicsUnavailableError: without the ``physics`` extra installed.
+    """
+    factor: float = _mujoco().real_time_factor(params, seconds)
+    return factor
+
+
+def _mujoco() -> Any:
+    """The module :mod:`mecanum_mav.sim.mujocochassis`, imported only when asked for (mujoco
+    is an optional extra); PhysicsUnavailableError with the install hint without it."""
+    try:
+        return importlib.import_module("mecanum_mav.sim.mujocochassis")
+    except ImportError as exc:  # (mujoco itself missing)
+        raise PhysicsUnavailableError(
+            f"the MuJoCo chassis needs the 'mujoco' package ({exc}): "
+            "pip install 'mecanum-mav[physics]'") from exc

@@ -1,0 +1,249 @@
+"""The MuJoCo mecanum chassis (sim/mujocomodel.py, sim/mujocochassis.py): the model generated
+from the parameters, its motors, its frames, and how it drives on a grippy and a slippery
+floor."""
+
+from __future__ import annotations
+
+import math
+import xml.etree.ElementTree as ET
+
+import numpy as np
+import pytest
+
+from mecanum_mav.config.params import Params
+from mecanum_mav.mecanum.geometry import Pose2d
+from mecanum_mav.mecanum.kinematics import MecanumKinematics
+from mecanum_mav.sim.chassis import ORIGIN_POSE
+from mecanum_mav.sim.mujocomodel import ROLLER_SHORT_FRACTION, ROLLERS, ChassisSpec, mjcf
+
+mujoco = pytest.importorskip("mujoco")
+mujoco_chassis = pytest.importorskip("mecanum_mav.sim.mujocochassis")
+MujocoChassis = mujoco_chassis.MujocoChassis
+
+DT = 0.01  # the board's step at SIM_RATE 100 Hz
+STOP = (0.0, 0.0, 0.0, 0.0)
+
+
+def params(**values: float) -> Params:
+    p = Params()
+    p.update(values)
+    return p
+
+
+def wheel_commands(p: Params, vx: float, vy: float, yaw_rate: float) -> list[float]:
+    """The project's inverse kinematics, as normalized commands (FRD, m/s, rad/s cw)."""
+    kin = MecanumKinematics.from_half_extents(p["GEO_HALF_LEN"], p["GEO_HALF_WID"])
+    return [w / p["WHL_MAX_SPD"] for w in kin.to_wheel_speeds(vx, vy, yaw_rate)]
+
+
+def run(chassis, seconds: float, commands) -> None:
+    for _ in range(round(seconds / DT)):
+        chassis.step(DT, commands)
+
+
+def driven(twist: tuple[float, float, float], seconds: float = 2.0, pose=ORIGIN_POSE,
+           **values: float):
+    p = params(**values)
+    chassis = MujocoChassis.from_params(p, pose)
+    run(chassis, seconds, wheel_commands(p, *twist))
+    return chassis
+
+
+# --------------------------------------------------------------------------- the model text
+
+
+def test_the_model_has_four_wheels_of_twelve_rollers_at_45_degrees_in_the_x_pattern():
+    p = Params()
+    root = ET.fromstring(mjcf(ChassisSpec.from_params(p)))
+    wheels = {b.get("name"): b for b in root.iter("body") if b.get("name", "").startswith("w")}
+    assert list(wheels) == ["wheel_fl", "wheel_fr", "wheel_rl", "wheel_rr"]
+    length, width = p["GEO_HALF_LEN"], p["GEO_HALF_WID"]
+    # (MuJoCo's frame is FLU: y left; FL is forward and left)
+    assert [tuple(map(float, w.get("pos").split()))[:2] for w in wheels.values()] == [
+        (length, width), (length, -width), (-length, width), (-length, -width)]
+    for name, wheel in wheels.items():
+        assert wheel.find("joint").get("axis") == "0 1 0"
+        rollers = wheel.findall("body")
+        assert len(rollers) == ROLLERS == 12
+        for roller in rollers:
+            axis = np.array([float(v) for v in roller.get("zaxis").split()])
+            # 45 degrees to the wheel axis (y)
+            assert math.degrees(math.acos(abs(axis[1]))) == pytest.approx(45.0)
+        bottom = np.array([float(v) for v in rollers[0].get("zaxis").split()])
+        # at the contact point the roller axis is along (1, s) in FRD: (1, -s) in FLU, with
+        # s = +1 for FL and RR (they roll at vx + vy), -1 for FR and RL
+        s = 1.0 if name in ("wheel_fl", "wheel_rr") else -1.0
+        assert bottom == pytest.approx([1 / math.sqrt(2), -s / math.sqrt(2), 0.0])
+
+
+def test_the_floor_friction_is_sim_friction():
+    root = ET.fromstring(mjcf(ChassisSpec.from_params(params(SIM_FRICTION=0.4))))
+    friction = root.find("default/geom").get("friction")
+    assert float(friction.split()[0]) == 0.4
+
+
+@pytest.mark.parametrize("top_speed", [1.0, 3.0, 10.0, 20.0])
+def test_a_roller_passes_the_floor_in_at_least_one_and_a_half_integration_steps(top_speed):
+    spec = ChassisSpec.from_params(params(WHL_MAX_SPD=top_speed))
+    step = float(ET.fromstring(mjcf(spec)).find("option").get("timestep"))
+    assert step == spec.timestep_s <= 0.002
+    rho = spec.wheel_radius_m * (1 - ROLLER_SHORT_FRACTION)  # where the rollers' centres are
+    roller_pass_s = 2 * math.pi * rho / ROLLERS / top_speed
+    assert roller_pass_s / step >= 1.5 - 1e-9
+    if top_speed <= 3.0:
+        assert step == 0.002  # (the common robots keep the fast step)
+
+
+# --------------------------------------------------------------------------- driving
+
+
+def settled_twist(twist: tuple[float, float, float]) -> tuple[float, float, float]:
+    """The mean true (forward, right m/s, clockwise rad/s) over the second after one second of
+    the wheel speeds ``twist`` gives, from a robot at the origin facing north (on 0.8)."""
+    p = Params()
+    chassis = MujocoChassis.from_params(p)
+    commands = wheel_commands(p, *twist)
+    run(chassis, 1.0, commands)
+    x0, y0, yaw0 = chassis.pose
+    run(chassis, 1.0, commands)
+    x1, y1, yaw1 = chassis.pose
+    assert abs(yaw1) < 0.05 or twist[2] != 0.0  # (straight legs keep facing north)
+    turned = math.remainder(yaw1 - yaw0, 2 * math.pi)
+    return (x1 - x0, y1 - y0, turned)
+
+
+def test_forward_wheel_speeds_give_the_kinematic_forward_speed_within_5_percent():
+    forward, right, yaw_rate = settled_twist((0.5, 0.0, 0.0))
+    error = forward / 0.5 - 1.0
+    print(f"forward 0.5 m/s on friction 0.8: {forward:.4f} m/s ({error:+.1%})")
+    assert abs(error) < 0.05
+    assert abs(right) < 0.005 and abs(yaw_rate) < 0.01
+
+
+def test_rotate_wheel_speeds_give_the_kinematic_yaw_rate_within_5_percent():
+    forward, right, yaw_rate = settled_twist((0.0, 0.0, 1.0))
+    error = yaw_rate / 1.0 - 1.0
+    print(f"rotate 1 rad/s on friction 0.8: {yaw_rate:.4f} rad/s ({error:+.1%})")
+    assert abs(error) < 0.05
+    assert math.hypot(forward, right) < 0.005  # on the spot
+
+
+def test_strafe_wheel_speeds_strafe_right_at_a_measured_efficiency():
+    forward, right, yaw_rate = settled_twist((0.0, 0.5, 0.0))
+    efficiency = right / 0.5
+    print(f"strafe efficiency on friction 0.8: {efficiency:.3f} (achieved / commanded)")
+    assert 0.6 < efficiency <= 1.01  # east: right of a robot facing north
+    assert abs(forward) < 0.005 and abs(yaw_rate) < 0.01
+
+
+def test_forward_moves_along_the_heading_in_ned():
+    chassis = driven((0.5, 0.0, 0.0), seconds=1.0, pose=Pose2d(1.0, 2.0, math.pi / 2))
+    assert chassis.pose.y_m > 2.3  # facing east, it went east
+    assert chassis.pose.x_m == pytest.approx(1.0, abs=0.01)
+    assert chassis.pose.yaw_rad == pytest.approx(math.pi / 2, abs=0.01)
+    assert chassis.roll_pitch == pytest.approx((0.0, 0.0), abs=0.01)
+
+
+@pytest.mark.parametrize("friction", [0.4, 0.8])
+def test_a_hard_brake_from_1_m_s_slides_further_than_the_wheels_roll(friction):
+    chassis = driven((1.0, 0.0, 0.0), seconds=1.5, SIM_FRICTION=friction)
+    start, rolled = chassis.pose.x_m, chassis.wheel_distances_m
+    run(chassis, 2.0, STOP)
+    slid = chassis.pose.x_m - start
+    wheels = max(d - r for d, r in zip(chassis.wheel_distances_m, rolled, strict=True))
+    print(f"brake from 1 m/s on friction {friction}: the body slid {slid * 100:.1f} cm, "
+          f"the wheels rolled {wheels * 100:.1f} cm")
+    assert slid > wheels + 0.03  # the encoders count the wheel, not the ground
+    # it stops no sooner than friction allows (v^2 / 2 mu g), and not much later
+    assert 1.0 / (2 * friction * 9.81) < slid < 2.0 / (2 * friction * 9.81)
+    assert abs(chassis.velocity_body[0]) < 0.001
+
+
+def test_a_slippery_floor_slides_further_than_a_grippy_one():
+    def slide(friction: float) -> float:
+        chassis = driven((1.0, 0.0, 0.0), seconds=1.5, SIM_FRICTION=friction)
+        start = chassis.pose.x_m
+        run(chassis, 1.5, STOP)
+        return chassis.pose.x_m - start
+
+    assert slide(0.4) > 1.5 * slide(0.8)
+
+
+def test_at_rest_with_zero_commands_nothing_creeps_in_10_s():
+    chassis = MujocoChassis.from_params(Params(), Pose2d(3.0, -1.0, 0.5))
+    run(chassis, 10.0, STOP)
+    x, y, yaw = chassis.pose
+    creep = math.hypot(x - 3.0, y + 1.0)
+    print(f"creep in 10 s at rest: {creep * 1000:.4f} mm, {math.degrees(yaw - 0.5):.5f} deg")
+    assert creep < 0.001
+    assert abs(math.degrees(yaw - 0.5)) < 0.1
+    assert max(map(abs, chassis.wheel_distances_m)) < 0.001
+
+
+def test_energy_never_appears_from_nowhere_after_a_push_with_the_motors_off():
+    chassis = MujocoChassis.from_params(Params())
+    chassis.model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_ACTUATION  # motors off
+    chassis.push(1.0, 0.5, 1.5)
+    chassis.step(0.002, STOP)  # (MuJoCo reports the energy of its last timestep's start)
+    start = chassis.kinetic_energy_j
+    energies = []
+    for _ in range(500):
+        chassis.step(0.002, STOP)
+        energies.append(chassis.kinetic_energy_j)
+    print(f"kinetic energy after a push, motors off: {start:.3f} J, at most "
+          f"{max(energies):.3f} J after, {energies[-1]:.3f} J 1 s later")
+    assert max(energies) <= start + 1e-6
+    assert energies[-1] < 0.8 * start  # friction (gearboxes, rollers) takes it
+    assert chassis.pose.x_m > 0.5  # it was pushed, and coasted
+
+
+def test_a_command_inside_the_esc_dead_band_does_not_drive_the_wheels():
+    idle = MujocoChassis.from_params(params(SIM_ESC_DZ=0.05))
+    run(idle, 1.0, (0.04, 0.04, 0.04, 0.04))
+    assert max(map(abs, idle.wheel_distances_m)) < 1e-4
+    moving = MujocoChassis.from_params(params(SIM_ESC_DZ=0.05))
+    run(moving, 1.0, (0.06, 0.06, 0.06, 0.06))
+    assert min(moving.wheel_distances_m) > 0.03  # ~0.06 m/s for ~0.9 s
+
+
+def test_the_wheels_follow_the_command_with_the_motor_lag():
+    tau = 0.2
+    chassis = MujocoChassis.from_params(params(SIM_MOTOR_TAU=tau))
+    run(chassis, tau, (0.5, 0.5, 0.5, 0.5))
+    # one time constant: 1 - 1/e of the 0.5 m/s target (the servo trails the filter a bit)
+    assert np.mean(chassis.wheel_speeds_mps) == pytest.approx(0.5 * (1 - math.exp(-1)), rel=0.1)
+    run(chassis, 5 * tau, (0.5, 0.5, 0.5, 0.5))
+    assert np.mean(chassis.wheel_speeds_mps) == pytest.approx(0.5, rel=0.02)
+
+
+def test_splitting_a_step_changes_nothing_beyond_rounding():
+    whole, split = MujocoChassis.from_params(Params()), MujocoChassis.from_params(Params())
+    commands = wheel_commands(Params(), 0.4, 0.2, 0.5)
+    for _ in range(50):
+        whole.step(0.02, commands)
+        split.step(0.007, commands)
+        split.step(0.013, commands)
+    assert split.time_s == pytest.approx(whole.time_s)
+    assert split.pose == pytest.approx(whole.pose, abs=1e-9)
+    assert split.wheel_distances_m == pytest.approx(whole.wheel_distances_m, abs=1e-9)
+
+
+def test_non_finite_commands_stop_and_out_of_range_ones_are_limited():
+    def after(commands):
+        chassis = MujocoChassis.from_params(Params())
+        run(chassis, 0.5, commands)
+        return chassis.pose
+
+    assert after((math.nan, math.inf, -math.inf, math.nan)) == after(STOP)
+    assert after((5.0, 5.0, 5.0, 5.0)) == after((1.0, 1.0, 1.0, 1.0))
+    assert after((-7.0, 3.0, 3.0, -7.0)) == after((-1.0, 1.0, 1.0, -1.0))
+    with pytest.raises(ValueError, match="4 wheel"):
+        MujocoChassis.from_params(Params()).step(DT, (0.0, 0.0))
+    with pytest.raises(ValueError, match="finite"):
+        MujocoChassis.from_params(Params()).step(math.nan, STOP)
+
+
+def test_the_chassis_runs_at_least_3_times_faster_than_real_time():
+    factor = mujoco_chassis.real_time_factor(Params(), seconds=2.0)
+    print(f"MuJoCo chassis: {factor:.1f}x real time")
+    assert factor >= 3.0
