@@ -26,8 +26,10 @@ path, and the true and the estimated path of every chassis and floor.
 Each run sets ``WP_SPEED`` to its speed, ``GUID_SPD_MAX`` to the speed plus
 :data:`SPEED_MARGIN_MPS` (room for the cross-track correction), ``WHL_MAX_SPD`` to
 :data:`WHEEL_MAX_MPS` (a diagonal at 1.5 m/s needs 2.1 m/s at a wheel before any turn) and
-``SIM_FRICTION`` to the floor's; every other parameter keeps its default unless ``--set``
-changes it.
+``SIM_FRICTION`` to the floor's; on the MuJoCo chassis also ``MOT_DZ`` (the companion's ESC
+dead-band compensation) to ``SIM_ESC_DZ`` plus :data:`DEAD_BAND_MARGIN` (as a user sets it for
+the ESCs they have: the largest command that does not turn a wheel, a little above); every
+other parameter keeps its default unless ``--set`` changes it (a ``--set MOT_DZ`` wins).
 
 Usage::
 
@@ -49,7 +51,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from mecanum_mav.config.params import ParamError, Params, parse_assignment
+from mecanum_mav.config.params import SPECS, ParamError, Params, parse_assignment
 from mecanum_mav.sim.lockstep import Lockstep
 from mecanum_mav.sim.missionrun import MissionRun, fly, waypoint_mission
 from mecanum_mav.sim.physics import PHYSICS, PhysicsUnavailableError
@@ -69,10 +71,13 @@ wheel, turning at 90 deg/s another 0.47 m/s (default geometry); 3.0 leaves contr
 SPEED_MARGIN_MPS = 0.2
 """``GUID_SPD_MAX`` is the run's speed plus this (the cross-track correction adds to the
 speed along the leg)."""
+DEAD_BAND_MARGIN = 0.002
+"""``MOT_DZ`` on the MuJoCo chassis is ``SIM_ESC_DZ`` plus this: one microsecond of PWM above
+the ESC's band, so rounding to whole microseconds never lands a command inside it."""
 DT_S = 0.002
 """The harness's time step, seconds."""
 SHOWN = ("WP_ACCEL", "WP_RADIUS", "WP_OVERSHOOT", "GUID_ACC_MAX", "GUID_POS_P", "GUID_YAW_P",
-         "GUID_YAW_RATE", "SIM_MOTOR_TAU", "SIM_ESC_DZ")
+         "GUID_YAW_RATE", "SIM_MOTOR_TAU", "SIM_ESC_DZ", "MOT_DZ")
 """Parameters the figures depend on, printed at the start (as every run has them; those this
 build has)."""
 
@@ -233,7 +238,9 @@ class Row:
 
 def bench_params(speed_mps: float, friction: float | None,
                  overrides: Sequence[tuple[str, float]] = ()) -> Params:
-    """The parameters of one run (module docstring), then ``overrides`` in order.
+    """The parameters of one run (module docstring), then ``overrides`` in order; on the
+    MuJoCo chassis (a ``friction``) ``MOT_DZ`` follows ``SIM_ESC_DZ`` as overridden, unless an
+    override sets it.
 
     Raises:
         ParamError: an override the store refuses.
@@ -245,6 +252,10 @@ def bench_params(speed_mps: float, friction: float | None,
         params.set("SIM_FRICTION", friction)
     for name, value in overrides:
         params.set(name, value)
+    if (friction is not None and "MOT_DZ" in params and "SIM_ESC_DZ" in params
+            and "MOT_DZ" not in dict(overrides)):
+        params.set("MOT_DZ", min(params["SIM_ESC_DZ"] + DEAD_BAND_MARGIN,
+                                 SPECS["MOT_DZ"].maximum))
     return params
 
 
@@ -470,8 +481,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     print(f"bench_control: missions {', '.join(args.missions)}; speeds "
           f"{', '.join(f'{s:g}' for s in speeds)} m/s; WHL_MAX_SPD {WHEEL_MAX_MPS:g}, "
           f"GUID_SPD_MAX speed + {SPEED_MARGIN_MPS:g}" + (f"; --set {sets}" if sets else ""))
-    shown = bench_params(GOAL_SPEED, None, args.overrides)
-    print("with " + ", ".join(f"{n} {shown[n]:g}" for n in SHOWN if n in shown))
+    shown = bench_params(GOAL_SPEED, args.friction[0] if args.physics == "mujoco" else None,
+                         args.overrides)
+    print("with " + ", ".join(f"{n} {shown[n]:g}" for n in SHOWN if n in shown)
+          + (" (MOT_DZ on the MuJoCo chassis; the kinematic one has no dead band: 0)"
+             if args.physics == "mujoco" and "MOT_DZ" in shown else ""))
     if args.physics == "mujoco":
         print(f"MuJoCo chassis on friction {', '.join(f'{f:g}' for f in args.friction)}; "
               "the kinematic chassis ignores friction: run once, for the time ratio")

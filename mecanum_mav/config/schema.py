@@ -38,6 +38,7 @@ GROUP_TITLES: dict[str, str] = {
     "INP": "Stick input shaping",
     "GEO": "Geometry (metres)",
     "WHL": "Wheel speed",
+    "MOT_DZ": "Motor output, all wheels",
     **{f"MOT_{w}": f"Motor output, {_WHEEL_WORDS[w]} wheel" for w in WHEELS},
     "SYSID": "MAVLink identity",
     "FC": "Flight-controller link",
@@ -149,6 +150,17 @@ SCHEMA: tuple[ParamSpec, ...] = (
         "WHL_MAX_SPD", float, default=1.0, minimum=0.01, maximum=20.0, units="m/s",
         description="Wheel surface speed at full PWM (MOT_x_MIN or MOT_x_MAX), which maps a "
         "wheel command of 1 to m/s and back.",
+    ),
+
+    # ---- MOT_DZ: Motor output, all wheels
+    ParamSpec(
+        "MOT_DZ", float, default=0.0, minimum=0.0, maximum=0.3, units="",
+        description="ESC dead band compensation, a fraction of full command (0 = off): a "
+        "wheel command c beyond a tiny threshold (0.002) is sent as sign(c) * (MOT_DZ + "
+        "(1 - MOT_DZ) * |c|), so the slowest commanded speeds clear the band in which the ESCs "
+        "do not drive; 0 and the smallest commands stay neutral (the wheels stop and brake). "
+        "Set it to the largest command at which a wheel on the floor does not yet turn (or a "
+        "little above). One value for all wheels: MOT_x_TRIM centres each ESC's band.",
     ),
 
     # ---- MOT_x: Motor output, a group per wheel (FL, FR, RL, RR), entries from _wheel_specs above

@@ -3,6 +3,11 @@
 This is the one place where mirrored motors are handled (per-wheel reverse) and where the
 per-wheel PWM range lives (``MOT_<W>_MIN/TRIM/MAX``). Neutral is each wheel's trim: a stopped
 wheel, and what every failsafe sends.
+
+It is also where the ESCs' dead band is compensated (``MOT_DZ``, :meth:`PwmMap.pulses_us`):
+every wheel command becomes a pulse here, whether from the sticks (the general path and the
+compiled stick lane) or from the GUIDED/AUTO controllers. What a pulse stands for
+(:meth:`WheelOutput.command_from_pulse`, the simulated ESC's view) does not undo it.
 """
 
 from __future__ import annotations
@@ -20,7 +25,14 @@ from mecanum_mav.mecanum.wheels import WHEEL_KEYS
 if TYPE_CHECKING:
     from mecanum_mav.config.params import Params
 
-__all__ = ["WHEEL_KEYS", "PwmMap", "WheelOutput"]
+__all__ = ["DEAD_BAND_LIVE", "WHEEL_KEYS", "PwmMap", "WheelOutput"]
+
+DEAD_BAND_LIVE = 0.002
+"""Wheel commands (normalized) whose size is at most this are not compensated for the dead
+band: they stay inside it, so a wheel told to (all but) stop brakes. One microsecond of the
+usual 500 us half-range: a position controller holding its target (``GUID_POS_P`` 1.5,
+``WHL_MAX_SPD`` 3 m/s) lets the wheels rest within 4 mm of it instead of jumping to the
+band's edge and back."""
 
 
 @dataclass(frozen=True)
@@ -70,13 +82,15 @@ class WheelOutput:
 
 @dataclass(frozen=True)
 class PwmMap:
-    """The four wheels' output channels, in wheel order FL, FR, RL, RR."""
+    """The four wheels' output channels, in wheel order FL, FR, RL, RR, and the ESCs' dead
+    band (``MOT_DZ``, a fraction of full command, 0 = no compensation)."""
 
     wheels: tuple[WheelOutput, WheelOutput, WheelOutput, WheelOutput]
+    dead_band: float = 0.0
 
     @classmethod
     def from_params(cls, params: Params) -> PwmMap:
-        """Build from the ``MOT_<W>_CH/MIN/TRIM/MAX/REV`` parameters."""
+        """Build from the ``MOT_<W>_CH/MIN/TRIM/MAX/REV`` and ``MOT_DZ`` parameters."""
         outs = [
             WheelOutput(
                 channel=int(params[f"MOT_{w}_CH"]),
@@ -87,7 +101,7 @@ class PwmMap:
             )
             for w in WHEEL_KEYS
         ]
-        return cls((outs[0], outs[1], outs[2], outs[3]))
+        return cls((outs[0], outs[1], outs[2], outs[3]), float(params["MOT_DZ"]))
 
     def __post_init__(self) -> None:
         # Precomputed once: the control loop asks for these on every output.
@@ -111,8 +125,16 @@ class PwmMap:
     def pulses_us(self, wheels: Sequence[float] | NDArray[np.float64]) -> tuple[int, int, int, int]:
         """Pulse widths (us) for one set of four normalized wheel commands FL, FR, RL, RR:
         :meth:`WheelOutput.pulse_us` of each, in one call (it runs at the output rate, with
-        cold caches)."""
+        cold caches), with the ESCs' dead band compensated.
+
+        Dead band ``dz`` (:attr:`dead_band`): a command ``c`` (limited to [-1, 1]) larger in
+        size than :data:`DEAD_BAND_LIVE` is sent as ``sign(c) * (dz + (1 - dz) * |c|)``, so
+        an ESC that does not drive under ``dz`` drives it; 1 stays 1; 0 and commands at most
+        :data:`DEAD_BAND_LIVE` in size stay as they are (inside the band: the wheel brakes).
+        """
         isfinite = math.isfinite
+        band = self.dead_band
+        keep, live = 1.0 - band, DEAD_BAND_LIVE
         pulses = []
         for command, (trim, up, down, mirrored) in zip(wheels, self.spans, strict=True):
             c = float(command)
@@ -122,6 +144,11 @@ class PwmMap:
             if mirrored:
                 c = -c
             c = -1.0 if c < -1.0 else (1.0 if c > 1.0 else c)
+            if band:
+                if c > live:
+                    c = band + keep * c
+                elif c < -live:
+                    c = keep * c - band
             pulses.append(round(trim + c * (up if c >= 0.0 else down)))
         return pulses[0], pulses[1], pulses[2], pulses[3]
 
@@ -134,6 +161,9 @@ class PwmMap:
         down = np.array([w.trim - w.minimum for w in self.wheels], dtype=np.float64)
         finite = np.isfinite(c)
         c = np.clip(np.where(finite, c, 0.0) * sign, -1.0, 1.0)
+        if self.dead_band:
+            band = self.dead_band
+            c = np.where(np.abs(c) > DEAD_BAND_LIVE, np.sign(c) * band + (1.0 - band) * c, c)
         pulses: NDArray[np.int64] = np.rint(trim + c * np.where(c >= 0.0, up, down)).astype(
             np.int64)
         return pulses
