@@ -28,7 +28,8 @@ Each run sets ``WP_SPEED`` to its speed, ``GUID_SPD_MAX`` to the speed plus
 :data:`WHEEL_MAX_MPS` (a diagonal at 1.5 m/s needs 2.1 m/s at a wheel before any turn) and
 ``SIM_FRICTION`` to the floor's; on the MuJoCo chassis also ``MOT_DZ`` (the companion's ESC
 dead-band compensation) to ``SIM_ESC_DZ`` plus :data:`DEAD_BAND_MARGIN` (as a user sets it for
-the ESCs they have: the largest command that does not turn a wheel, a little above); every
+the ESCs they have: the largest command that does not turn a wheel, a little above) and
+``WHL_STRAFE_EFF`` to :data:`MUJOCO_STRAFE_EFF` (the chassis's measured strafe efficiency); every
 other parameter keeps its default unless ``--set`` changes it (a ``--set MOT_DZ`` wins).
 
 Usage::
@@ -74,10 +75,14 @@ speed along the leg)."""
 DEAD_BAND_MARGIN = 0.002
 """``MOT_DZ`` on the MuJoCo chassis is ``SIM_ESC_DZ`` plus this: one microsecond of PWM above
 the ESC's band, so rounding to whole microseconds never lands a command inside it."""
+MUJOCO_STRAFE_EFF = 0.986
+"""``WHL_STRAFE_EFF`` on the MuJoCo chassis: true over odometry distance strafing steadily at
+0.5, 1.0 and 1.5 m/s, on friction 0.8 and 0.4 alike (0.9857-0.9866; forward 0.9989-0.9991)."""
 DT_S = 0.002
 """The harness's time step, seconds."""
 SHOWN = ("WP_ACCEL", "WP_RADIUS", "WP_OVERSHOOT", "GUID_ACC_MAX", "GUID_POS_P", "GUID_YAW_P",
-         "GUID_YAW_RATE", "SIM_MOTOR_TAU", "SIM_ESC_DZ", "MOT_DZ")
+         "GUID_YAW_RATE", "SIM_MOTOR_TAU", "SIM_ESC_DZ", "MOT_DZ",
+         "WHL_STRAFE_EFF")
 """Parameters the figures depend on, printed at the start (as every run has them; those this
 build has)."""
 
@@ -239,8 +244,8 @@ class Row:
 def bench_params(speed_mps: float, friction: float | None,
                  overrides: Sequence[tuple[str, float]] = ()) -> Params:
     """The parameters of one run (module docstring), then ``overrides`` in order; on the
-    MuJoCo chassis (a ``friction``) ``MOT_DZ`` follows ``SIM_ESC_DZ`` as overridden, unless an
-    override sets it.
+    MuJoCo chassis (a ``friction``) ``MOT_DZ`` follows ``SIM_ESC_DZ`` as overridden and
+    ``WHL_STRAFE_EFF`` is :data:`MUJOCO_STRAFE_EFF`, unless an override sets them.
 
     Raises:
         ParamError: an override the store refuses.
@@ -252,10 +257,15 @@ def bench_params(speed_mps: float, friction: float | None,
         params.set("SIM_FRICTION", friction)
     for name, value in overrides:
         params.set(name, value)
-    if (friction is not None and "MOT_DZ" in params and "SIM_ESC_DZ" in params
-            and "MOT_DZ" not in dict(overrides)):
-        params.set("MOT_DZ", min(params["SIM_ESC_DZ"] + DEAD_BAND_MARGIN,
-                                 SPECS["MOT_DZ"].maximum))
+    if friction is None:
+        return params
+    chassis = {"WHL_STRAFE_EFF": MUJOCO_STRAFE_EFF}
+    if "SIM_ESC_DZ" in params and "MOT_DZ" in params:
+        chassis["MOT_DZ"] = min(params["SIM_ESC_DZ"] + DEAD_BAND_MARGIN,
+                                SPECS["MOT_DZ"].maximum)
+    for name, value in chassis.items():
+        if name in params and name not in dict(overrides):
+            params.set(name, value)
     return params
 
 
@@ -484,7 +494,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     shown = bench_params(GOAL_SPEED, args.friction[0] if args.physics == "mujoco" else None,
                          args.overrides)
     print("with " + ", ".join(f"{n} {shown[n]:g}" for n in SHOWN if n in shown)
-          + (" (MOT_DZ on the MuJoCo chassis; the kinematic one has no dead band: 0)"
+          + (" (MOT_DZ and WHL_STRAFE_EFF on the MuJoCo chassis; the kinematic one has 0 "
+             "and 1)"
              if args.physics == "mujoco" and "MOT_DZ" in shown else ""))
     if args.physics == "mujoco":
         print(f"MuJoCo chassis on friction {', '.join(f'{f:g}' for f in args.friction)}; "

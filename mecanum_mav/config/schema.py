@@ -151,6 +151,15 @@ SCHEMA: tuple[ParamSpec, ...] = (
         description="Wheel surface speed at full PWM (MOT_x_MIN or MOT_x_MAX), which maps a "
         "wheel command of 1 to m/s and back.",
     ),
+    ParamSpec(
+        "WHL_STRAFE_EFF", float, default=1.0, minimum=0.5, maximum=1.2, units="",
+        reboot_required=True,
+        description="Strafe efficiency: the fraction of the kinematic sideways speed the "
+        "chassis achieves (its rollers slip). GUIDED and AUTO ask the wheels for the lateral "
+        "speed divided by it and the wheel odometry counts the wheels' lateral part times it. "
+        "Measure it: strafe a known distance (several metres, steady speed, WHL_STRAFE_EFF 1) "
+        "and divide the true distance by the one the odometry reports.",
+    ),
 
     # ---- MOT_DZ: Motor output, all wheels
     ParamSpec(

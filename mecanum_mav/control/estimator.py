@@ -59,14 +59,16 @@ class WheelOdometryEstimator:
 
     Args:
         params: the ``ODOM_*`` sources and ``WHL_MAX_SPD`` are read from it here and by
-            :meth:`reconfigure`; the geometry (``GEO_HALF_*``) only here, so a live change
-            cannot bend the odometry's history (it takes effect at the next start).
+            :meth:`reconfigure`; the geometry (``GEO_HALF_*``, ``WHL_STRAFE_EFF``) only here,
+            so a live change cannot bend the odometry's history (it takes effect at the next
+            start).
     """
 
     def __init__(self, params: Params) -> None:
         self.config = OdometryConfig.from_params(params)
-        kinematics = MecanumKinematics.from_half_extents(self.config.half_length_m,
-                                                         self.config.half_width_m)
+        kinematics = MecanumKinematics.from_half_extents(
+            self.config.half_length_m, self.config.half_width_m,
+            strafe_efficiency=float(params["WHL_STRAFE_EFF"]))
         self.odometry = MecanumOdometry(kinematics)
         self._virtual = [0.0, 0.0, 0.0, 0.0]  # cumulative metres fed to the odometry
         self._measured: list[float] | None = None  # last WHEEL_DISTANCE

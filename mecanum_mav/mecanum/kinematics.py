@@ -19,6 +19,7 @@ in NWU (y left, counter-clockwise positive); here y and yaw rate have the opposi
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 import numpy as np
@@ -55,9 +56,15 @@ class MecanumKinematics:
     Chassis quantities are (vx m/s forward, vy m/s right, yaw rate rad/s clockwise);
     wheel quantities are surface speeds in m/s (positive rolls the robot forward),
     ordered FL, FR, RL, RR.
+
+    ``strafe_efficiency`` (``WHL_STRAFE_EFF``) is the fraction of the roller-kinematic lateral
+    speed the chassis achieves (rollers slip sideways; 1.0 = ideal): the inverse kinematics ask
+    the wheels for ``vy / strafe_efficiency`` and the forward kinematics report the wheels'
+    lateral part times it, both ways the same matrix.
     """
 
-    __slots__ = ("_k", "_matrix", "_pinv_rows", "_pinv_t", "positions")
+    __slots__ = ("_k", "_lateral_gain", "_matrix", "_pinv_rows", "_pinv_t", "positions",
+                 "strafe_efficiency")
 
     def __init__(
         self,
@@ -65,13 +72,21 @@ class MecanumKinematics:
         front_right: Sequence[float],
         rear_left: Sequence[float],
         rear_right: Sequence[float],
+        *,
+        strafe_efficiency: float = 1.0,
     ) -> None:
-        """Build the kinematics from the four wheel positions (x, y), metres, FRD.
+        """Build the kinematics from the four wheel positions (x, y), metres, FRD, and the
+        strafe efficiency (class docstring; a finite number in (0, 2]).
 
-        Raises ValueError if a position is not a finite (x, y) pair or the wheels are
+        Raises ValueError if the strafe efficiency is out of range, a position is not a
+        finite (x, y) pair or the wheels are
         placed so that the 4x3 inverse-kinematics matrix does not have rank 3 (the
         chassis motion could not be recovered from the wheel speeds).
         """
+        if not (math.isfinite(strafe_efficiency) and 0.0 < strafe_efficiency <= 2.0):
+            raise ValueError(f"strafe efficiency {strafe_efficiency!r} is not in (0, 2]")
+        self.strafe_efficiency = float(strafe_efficiency)
+        self._lateral_gain = 1.0 / self.strafe_efficiency
         pos = np.asarray((front_left, front_right, rear_left, rear_right), dtype=np.float64)
         if pos.shape != (4, 2):
             raise ValueError("each wheel position must be an (x, y) pair in metres")
@@ -80,7 +95,7 @@ class MecanumKinematics:
         signs = np.asarray(ROLLER_SIGNS)
         # Yaw-rate column for a centre of rotation at the robot centre.
         k = signs * pos[:, 0] - pos[:, 1]
-        matrix = np.column_stack((np.ones(4), signs, k))
+        matrix = np.column_stack((np.ones(4), signs * self._lateral_gain, k))
         if np.linalg.matrix_rank(matrix) < 3:
             raise ValueError(
                 f"wheel positions {pos.tolist()} give a rank-deficient kinematics matrix"
@@ -97,15 +112,16 @@ class MecanumKinematics:
         self._pinv_rows: tuple[tuple[float, ...], ...] = (vx_row, vy_row, w_row)
 
     @classmethod
-    def from_half_extents(cls, half_length_m: float, half_width_m: float) -> MecanumKinematics:
+    def from_half_extents(cls, half_length_m: float, half_width_m: float, *,
+                          strafe_efficiency: float = 1.0) -> MecanumKinematics:
         """Wheels on a rectangle centred on the robot, half-sizes in metres.
 
         FL = (L, -W), FR = (L, W), RL = (-L, -W), RR = (-L, W) in FRD (x forward, y right),
         with L = ``half_length_m`` (centre to axle) and W = ``half_width_m`` (centre to
-        wheel contact, sideways).
+        wheel contact, sideways); ``strafe_efficiency`` as in the class docstring.
         """
         fl, fr, rl, rr = ((sx * half_length_m, sy * half_width_m) for sx, sy in CORNER_SIGNS)
-        return cls(fl, fr, rl, rr)
+        return cls(fl, fr, rl, rr, strafe_efficiency=strafe_efficiency)
 
     @property
     def matrix(self) -> FloatArray:
@@ -123,7 +139,9 @@ class MecanumKinematics:
     def __repr__(self) -> str:
         """Constructor-style representation with the wheel positions in metres."""
         fl, fr, rl, rr = self.positions
-        return f"{type(self).__name__}({fl}, {fr}, {rl}, {rr})"
+        eff = self.strafe_efficiency
+        extra = "" if eff == 1.0 else f", strafe_efficiency={eff!r}"
+        return f"{type(self).__name__}({fl}, {fr}, {rl}, {rr}{extra})"
 
     def to_wheel_speeds(
         self,
@@ -181,7 +199,7 @@ class MecanumKinematics:
         cx, cy = center_of_rotation
         # Velocity of the robot centre, then the fixed centre-based matrix rows.
         vxc = float(vx) + w * float(cy)
-        vyc = float(vy) - w * float(cx)
+        vyc = (float(vy) - w * float(cx)) * self._lateral_gain
         k_fl, k_fr, k_rl, k_rr = self._k
         fl = vxc + vyc + w * k_fl
         fr = vxc - vyc + w * k_fr
