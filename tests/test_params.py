@@ -72,6 +72,8 @@ def test_the_schema_has_exactly_the_parameters_the_rest_of_the_code_reads():
         "GEO_HALF_LEN",
         "GEO_HALF_WID",
         "WHL_MAX_SPD",
+        "WHL_STRAFE_EFF",
+        "MOT_DZ",
         *motor,
         "SYSID_THISMAV", "SYSID_MYGCS", "FC_SYSID", "FC_COMPID", "FC_GCS_SYSID", "OUT_RATE",
         "FS_INPUT_TMO", "FS_GCS_TMO", "FS_GCS_ACTION", "FS_FC_TMO", "FS_THR_ENABLE",
