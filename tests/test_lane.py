@@ -40,7 +40,10 @@ def pwm_maps(draw: st.DrawFn) -> PwmMap:
         trim = draw(st.integers(1100, 1900))
         wheels.append(WheelOutput(channel, draw(st.integers(800, trim)), trim,
                                   draw(st.integers(trim, 2200)), draw(st.booleans())))
-    return PwmMap((wheels[0], wheels[1], wheels[2], wheels[3]))
+    # an ESC dead band (MOT_DZ) half the time: the lane compensates it as the general path
+    # (kills lane-dead-band)
+    band = draw(st.one_of(st.just(0.0), st.floats(0.0, 0.3)))
+    return PwmMap((wheels[0], wheels[1], wheels[2], wheels[3]), band)
 
 
 def stick_packet(x: int, y: int, z: int, r: int, *, target: int = 1, source: int = PILOT[0],

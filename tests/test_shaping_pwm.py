@@ -160,3 +160,53 @@ def test_the_four_wheel_pwm_is_each_wheels_own(wheels, reversed_):
     out = PwmMap.from_params(params)
     assert out.pulses_us(wheels) == tuple(w.pulse_us(c) for w, c in zip(out.wheels, wheels,
                                                                            strict=True))
+
+
+# --------------------------------------------------------------------------- ESC dead band
+
+
+def dead_band_map(band: float, **values: int) -> PwmMap:
+    params = Params()
+    params.update({"MOT_DZ": band, **values})
+    return PwmMap.from_params(params)
+
+
+def test_with_a_dead_band_zero_and_commands_of_at_most_a_microsecond_stay_inside_it():
+    # kills pwm-dead-band-zero (0 compensated) and pwm-dead-band-live (no threshold)
+    out = dead_band_map(0.1)
+    assert out.pulses_us([0.0, 0.0019, -0.002, -0.0]) == (1500, 1501, 1499, 1500)
+
+
+def test_with_a_dead_band_a_small_command_jumps_over_it_and_full_stays_full():
+    # 0.02 -> 0.1 + 0.9 * 0.02 = 0.118 of 500 us; 0.5 -> 0.55; 1 -> 1 (kills pwm-dead-band-add,
+    # pwm-dead-band-negative, pwm-dead-band-scale, pwm-dead-band-param)
+    out = dead_band_map(0.1)
+    assert out.pulses_us([0.02, -0.02, 0.5, -0.5]) == (1559, 1441, 1775, 1225)
+    assert out.pulses_us([1.0, -1.0, 7.0, -7.0]) == (2000, 1000, 2000, 1000)
+
+
+def test_the_dead_band_is_jumped_towards_a_reversed_wheels_minimum():
+    out = dead_band_map(0.1, MOT_FR_REV=1)
+    assert out.pulses_us([0.02, 0.02, 0.02, -0.02]) == (1559, 1441, 1559, 1441)
+
+
+def test_mot_dz_0_sends_the_commands_as_they_are():
+    assert dead_band_map(0.0).pulses_us([0.02, -0.02, 0.5, 0.0019]) == (1510, 1490, 1750, 1501)
+
+
+@given(st.lists(st.floats(allow_nan=True, allow_infinity=True), min_size=4, max_size=4),
+       st.floats(0.0, 0.3))
+def test_vector_pwm_matches_scalar_pwm_with_a_dead_band(wheels, band):
+    # kills pwm-dead-band-array
+    out = dead_band_map(band, MOT_RL_REV=1)
+    assert tuple(out.pulses_us_array(np.array([wheels]))[0]) == out.pulses_us(wheels)
+
+
+@given(st.floats(-1.0, 1.0), st.floats(0.0, 0.3))
+def test_the_esc_sees_the_compensated_command_a_board_does_not_undo_it(command, band):
+    # what SimBoard's ESC reads (command_from_pulse) is the compensated command
+    out = dead_band_map(band)
+    seen = out.wheels[0].command_from_pulse(out.pulses_us([command, 0.0, 0.0, 0.0])[0])
+    expected = command if abs(command) <= 0.002 else math.copysign(
+        band + (1.0 - band) * abs(command), command)
+    assert seen == pytest.approx(expected, abs=0.5 / 500 + 1e-12)
