@@ -99,6 +99,8 @@ CO = T + "test_companion.py::"
 FCS = T + "test_fcsetup.py::"
 PAR = T + "test_params.py::"
 MJ = T + "test_mujoco_chassis.py::"
+PC = T + "test_shaping_pwm.py::"
+PL = T + "test_plant_calibration.py::"
 
 MUTATIONS: tuple[Mutation, ...] = (
     # ---------------------------------------------------------------- neutral on every way out
@@ -619,7 +621,8 @@ MUTATIONS: tuple[Mutation, ...] = (
       T + "test_kinematics.py"),
     M("kin-centre-of-rotation", "turning about an offset centre moves the robot centre",
       PKG + "mecanum/kinematics.py",
-      "vyc = float(vy) - w * float(cx)", "vyc = float(vy) + w * float(cx)",
+      "vyc = (float(vy) - w * float(cx)) * self._lateral_gain",
+      "vyc = (float(vy) + w * float(cx)) * self._lateral_gain",
       T + "test_kinematics.py"),
     M("shaping-deadband", "a stick inside the deadband is zero", PKG + "mecanum/shaping.py",
       "if abs(v) <= deadband:", "if abs(v) < 0.0:", T + "test_shaping_pwm.py"),
@@ -629,8 +632,8 @@ MUTATIONS: tuple[Mutation, ...] = (
       T + "test_shaping_pwm.py", CO + ""
       "test_reverse_and_channel_map_parameters_move_the_output"),
     M("pwm-limit", "a wheel command beyond +-1 is limited to MIN..MAX", PKG + "control/pwm.py",
-      "c = -1.0 if c < -1.0 else (1.0 if c > 1.0 else c)\n            pulses.append",
-      "pulses.append", T + "test_shaping_pwm.py"),
+      "c = -1.0 if c < -1.0 else (1.0 if c > 1.0 else c)\n            if band:",
+      "if band:", T + "test_shaping_pwm.py"),
     M("pwm-sides", "each side of trim spans to its own end (off-centre trim)",
       PKG + "control/pwm.py",
       "pulses.append(round(trim + c * (up if c >= 0.0 else down)))",
@@ -804,6 +807,61 @@ MUTATIONS: tuple[Mutation, ...] = (
       "            due = self.fc_seen_s + c.fc_timeout_s\n",
       "            due = self.fc_seen_s + 2 * c.fc_timeout_s\n",
       T + "test_failsafe_deadlines.py"),
+    # ---------------------------------------------------------------- ESC dead band, strafe
+    M("pwm-dead-band-add", "a command past the threshold is lifted over the ESC dead band",
+      PKG + "control/pwm.py", "c = band + keep * c", "c = c",
+      PC + "test_with_a_dead_band_a_small_command_jumps_over_it_and_full_stays_full",
+      PL + "test_the_square_on_the_mujoco_chassis_at_1_m_s_finishes_within_its_goals"),
+    M("pwm-dead-band-negative", "a negative command is lifted over the band towards minimum",
+      PKG + "control/pwm.py", "c = keep * c - band", "c = keep * c + band",
+      PC + "test_with_a_dead_band_a_small_command_jumps_over_it_and_full_stays_full"),
+    M("pwm-dead-band-scale", "full command stays full with a dead band (scaled by 1 - dz)",
+      PKG + "control/pwm.py", "keep, live = 1.0 - band, DEAD_BAND_LIVE",
+      "keep, live = 1.0, DEAD_BAND_LIVE",
+      PC + "test_with_a_dead_band_a_small_command_jumps_over_it_and_full_stays_full"),
+    M("pwm-dead-band-zero", "a zero command stays neutral with a dead band",
+      PKG + "control/pwm.py", "                if c > live:\n",
+      "                if c >= 0.0:\n",
+      PC + "test_with_a_dead_band_zero_and_commands_of_at_most_a_microsecond_stay_inside_it"),
+    M("pwm-dead-band-live", "commands of at most a microsecond are not lifted (a held "
+      "position does not hunt)",
+      PKG + "control/pwm.py", "DEAD_BAND_LIVE = 0.002", "DEAD_BAND_LIVE = 0.0",
+      PC + "test_with_a_dead_band_zero_and_commands_of_at_most_a_microsecond_stay_inside_it",
+      PL + "test_a_held_position_on_the_mujoco_chassis_with_its_esc_dead_band_does_not_"
+      "oscillate"),
+    M("pwm-dead-band-array", "the vectorized PWM compensates the dead band as the scalar",
+      PKG + "control/pwm.py", "np.sign(c) * band + (1.0 - band) * c", "(1.0 - band) * c",
+      PC + "test_vector_pwm_matches_scalar_pwm_with_a_dead_band"),
+    M("pwm-dead-band-param", "MOT_DZ sets the PWM edge's dead band",
+      PKG + "control/pwm.py", 'float(params["MOT_DZ"])', '0.0 * float(params["MOT_DZ"])',
+      PC + "test_with_a_dead_band_a_small_command_jumps_over_it_and_full_stays_full",
+      PL + "test_a_held_position_on_the_mujoco_chassis_with_its_esc_dead_band_does_not_"
+      "oscillate"),
+    M("lane-dead-band", "the stick lane compensates the dead band as the general path",
+      PKG + "control/lane.py", "pulses_us = pwm.pulses_us",
+      "pulses_us = type(pwm)(pwm.wheels).pulses_us",
+      T + "test_lane.py::test_the_lane_answers_a_stick_exactly_as_the_general_path"),
+    M("kin-strafe-eff-inverse", "the wheels are asked for vy / WHL_STRAFE_EFF (scalar path)",
+      PKG + "mecanum/kinematics.py", "vyc = (float(vy) - w * float(cx)) * self._lateral_gain",
+      "vyc = (float(vy) - w * float(cx)) * 1.0",
+      PL + "test_the_wheels_are_asked_for_the_lateral_speed_over_the_strafe_efficiency"),
+    M("kin-strafe-eff-matrix", "the kinematics matrix's lateral column is over the strafe "
+      "efficiency (array path and odometry)",
+      PKG + "mecanum/kinematics.py", "np.column_stack((np.ones(4), signs * self._lateral_gain, k))",
+      "np.column_stack((np.ones(4), signs, k))",
+      PL + "test_the_wheels_are_asked_for_the_lateral_speed_over_the_strafe_efficiency",
+      PL + "test_the_odometry_counts_the_wheels_lateral_part_times_the_strafe_efficiency"),
+    M("estimator-strafe-eff", "the estimator's kinematics take WHL_STRAFE_EFF",
+      PKG + "control/estimator.py", 'strafe_efficiency=float(params["WHL_STRAFE_EFF"])',
+      'strafe_efficiency=1.0 or float(params["WHL_STRAFE_EFF"])',
+      PL + "test_the_estimator_counts_a_strafe_with_whl_strafe_eff"),
+    M("bench-mot-dz", "bench_control sets MOT_DZ over SIM_ESC_DZ on the MuJoCo chassis",
+      "tools/bench_control.py", 'chassis["MOT_DZ"] = min(', 'chassis["MOT_DZ"] = 0.0 * min(',
+      PL + "test_the_square_on_the_mujoco_chassis_at_1_m_s_finishes_within_its_goals"),
+    M("bench-strafe-eff", "bench_control sets the MuJoCo chassis's strafe efficiency",
+      "tools/bench_control.py", 'chassis = {"WHL_STRAFE_EFF": MUJOCO_STRAFE_EFF}',
+      'chassis = {"WHL_STRAFE_EFF": 1.0}',
+      PL + "test_the_square_on_the_mujoco_chassis_at_1_m_s_finishes_within_its_goals"),
     # ---------------------------------------------------------------- the MuJoCo chassis
     M("mujoco-roller-sense", "each wheel's rollers lie along (1, s_i) in FRD at the contact "
       "(the X pattern the kinematics assume)",
