@@ -43,7 +43,7 @@ def pwm_maps(draw: st.DrawFn) -> PwmMap:
     # an ESC dead band (MOT_DZ) half the time: the lane compensates it as the general path
     # (kills lane-dead-band)
     band = draw(st.one_of(st.just(0.0), st.floats(0.0, 0.3)))
-    return PwmMap((wheels[0], wheels[1], wheels[2], wheels[3]), band)
+    return PwmMap((wheels[0], wheels[1], wheels[2], wheels[3]), band, draw(st.booleans()))
 
 
 def stick_packet(x: int, y: int, z: int, r: int, *, target: int = 1, source: int = PILOT[0],

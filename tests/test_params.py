@@ -74,6 +74,7 @@ def test_the_schema_has_exactly_the_parameters_the_rest_of_the_code_reads():
         "WHL_MAX_SPD",
         "WHL_STRAFE_EFF",
         "MOT_DZ",
+        "MOT_DZ_TYPE",
         *motor,
         "SYSID_THISMAV", "SYSID_MYGCS", "FC_SYSID", "FC_COMPID", "FC_GCS_SYSID", "OUT_RATE",
         "FS_INPUT_TMO", "FS_GCS_TMO", "FS_GCS_ACTION", "FS_FC_TMO", "FS_THR_ENABLE",

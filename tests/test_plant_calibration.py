@@ -69,15 +69,19 @@ def test_the_estimator_counts_a_strafe_with_whl_strafe_eff():
 # --------------------------------------------------------------------------- the MuJoCo chassis
 
 
-def test_a_held_position_on_the_mujoco_chassis_with_its_esc_dead_band_does_not_oscillate():
-    """GUIDED to a position (1.2, 0.8) facing 45 deg, SIM_ESC_DZ 0.02, MOT_DZ 0.025 (a little
-    above the band, as a user sets it): the rover gets there and then its wheel commands
-    settle within a microsecond of neutral and it stays put (kills pwm-dead-band-live: with
-    every non-zero command lifted over the band it hunts +-5 mm around the target, its
-    pulses changing ~10 times a second; kills pwm-dead-band-param and pwm-dead-band-add: without
-    the compensation it stalls 3.5 cm short)."""
+@pytest.mark.parametrize(("band", "kind"), [(0.022, 1), (0.025, 0)])
+def test_a_held_position_on_the_mujoco_chassis_with_its_esc_dead_band_does_not_oscillate(band,
+                                                                                        kind):
+    """GUIDED to a position (1.2, 0.8) facing 45 deg on SIM_ESC_DZ 0.02, with MOT_DZ a little
+    above it, jump (the simulated ESC's kind, as the bench sets it) or offset (over-driving it
+    by up to MOT_DZ): once there, over 4 s its wheel pulses stay within a microsecond of
+    neutral (at least 95 % of the steps: the odometry's slow creep may ask for a rare
+    correction), it stays within 1 mm and within 1 cm of the target. Kills pwm-dead-band-live:
+    with every non-zero command lifted over the band it hunts, every step beyond 1 us, moving
+    5-14 mm; pwm-dead-band-param: without compensation it stalls 3.5 cm short."""
     pytest.importorskip("mujoco")
-    h = lockstep({"SIM_ESC_DZ": 0.02, "MOT_DZ": 0.025, "WHL_MAX_SPD": 3.0}, physics="mujoco")
+    h = lockstep({"SIM_ESC_DZ": 0.02, "MOT_DZ": band, "MOT_DZ_TYPE": kind, "WHL_MAX_SPD": 3.0},
+                 physics="mujoco")
     h.gcs.arm()
     assert h.gcs.set_mode(Mode.GUIDED) == mavlink.MAV_RESULT_ACCEPTED
     position_and_yaw = 8 | 16 | 32 | 64 | 128 | 256 | 2048
@@ -87,10 +91,11 @@ def test_a_held_position_on_the_mujoco_chassis_with_its_esc_dead_band_does_not_o
     h.run_for(6.0)
     seen: list[tuple[tuple[int, ...], tuple[float, float]]] = []
     h.on_step.append(lambda now: seen.append((h.core.pulses_us, h.truth().pose[:2])))
-    h.run_for(2.0)
+    h.run_for(4.0)
     trims = h.core.pwm.neutral()
-    assert all(abs(p - t) <= 1 for pulses, _ in seen for p, t in zip(pulses, trims, strict=True))
-    assert len({pulses for pulses, _ in seen}) <= 3  # no hunting
+    driven = sum(any(abs(p - t) > 1 for p, t in zip(pulses, trims, strict=True))
+                 for pulses, _ in seen)
+    assert driven <= 0.05 * len(seen), f"{driven} of {len(seen)} steps beyond 1 us"
     xs, ys = zip(*(xy for _, xy in seen), strict=True)
     assert max(xs) - min(xs) < 0.001 and max(ys) - min(ys) < 0.001
     pose = h.truth().pose
@@ -100,11 +105,17 @@ def test_a_held_position_on_the_mujoco_chassis_with_its_esc_dead_band_does_not_o
 
 def test_the_square_on_the_mujoco_chassis_at_1_m_s_finishes_within_its_goals():
     """bench_control's runner, 1.0 m/s on friction 0.8, configured as the bench is (MOT_DZ a
-    microsecond over SIM_ESC_DZ, WHL_STRAFE_EFF measured): it reaches every waypoint within
-    2 cm (kills pwm-dead-band-add and bench-mot-dz: it stalls 4 cm short of waypoint 1;
-    bench-strafe-eff: the strafe legs end 6 cm off)."""
+    microsecond over SIM_ESC_DZ, jump; WHL_STRAFE_EFF measured): it reaches every waypoint
+    within WP_RADIUS + 5 mm as the kinematic chassis does, its cross-track under 3 cm (kills
+    pwm-dead-band-add and bench-mot-dz: it stalls 4 cm short of waypoint 1), and takes at most
+    5 % longer than the kinematic chassis (kills bench-dz-type: the offset form over-drives
+    this ESC, 10 % faster)."""
     pytest.importorskip("mujoco")
     row = bench_control.run_mission("square", 1.0, "mujoco", 0.8)
     assert row.failure is None
-    assert len(row.fig.arrivals_m) == 4 and max(row.fig.arrivals_m) < 0.02, row.fig.arrivals_m
+    radius = float(Params()["WP_RADIUS"])
+    arrivals = row.fig.arrivals_m
+    assert len(arrivals) == 4 and max(arrivals) < radius + 0.005, arrivals
     assert row.fig.worst_cross_track_m < 0.03
+    kinematic = bench_control.run_mission("square", 1.0)
+    assert abs(row.fig.time_s / kinematic.fig.time_s - 1.0) < 0.05

@@ -171,6 +171,14 @@ def dead_band_map(band: float, **values: int) -> PwmMap:
     return PwmMap.from_params(params)
 
 
+def test_with_a_jump_dead_band_a_command_inside_it_goes_to_its_edge_one_past_it_as_it_is():
+    # MOT_DZ_TYPE 1 (jump): sign(c) * max(|c|, dz) (kills pwm-dead-band-jump,
+    # pwm-dead-band-type-param); 0 and <= 1 us stay, full stays full
+    out = dead_band_map(0.1, MOT_DZ_TYPE=1)
+    assert out.pulses_us([0.02, -0.02, 0.5, -0.5]) == (1550, 1450, 1750, 1250)
+    assert out.pulses_us([0.0, 0.0019, -1.0, 1.0]) == (1500, 1501, 1000, 2000)
+
+
 def test_with_a_dead_band_zero_and_commands_of_at_most_a_microsecond_stay_inside_it():
     # kills pwm-dead-band-zero (0 compensated) and pwm-dead-band-live (no threshold)
     out = dead_band_map(0.1)
@@ -195,10 +203,10 @@ def test_mot_dz_0_sends_the_commands_as_they_are():
 
 
 @given(st.lists(st.floats(allow_nan=True, allow_infinity=True), min_size=4, max_size=4),
-       st.floats(0.0, 0.3))
-def test_vector_pwm_matches_scalar_pwm_with_a_dead_band(wheels, band):
-    # kills pwm-dead-band-array
-    out = dead_band_map(band, MOT_RL_REV=1)
+       st.floats(0.0, 0.3), st.integers(0, 1))
+def test_vector_pwm_matches_scalar_pwm_with_a_dead_band(wheels, band, jump):
+    # kills pwm-dead-band-array, pwm-dead-band-array-jump
+    out = dead_band_map(band, MOT_RL_REV=1, MOT_DZ_TYPE=jump)
     assert tuple(out.pulses_us_array(np.array([wheels]))[0]) == out.pulses_us(wheels)
 
 

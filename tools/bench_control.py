@@ -28,7 +28,8 @@ Each run sets ``WP_SPEED`` to its speed, ``GUID_SPD_MAX`` to the speed plus
 :data:`WHEEL_MAX_MPS` (a diagonal at 1.5 m/s needs 2.1 m/s at a wheel before any turn) and
 ``SIM_FRICTION`` to the floor's; on the MuJoCo chassis also ``MOT_DZ`` (the companion's ESC
 dead-band compensation) to ``SIM_ESC_DZ`` plus :data:`DEAD_BAND_MARGIN` (as a user sets it for
-the ESCs they have: the largest command that does not turn a wheel, a little above) and
+the ESCs they have: the largest command that does not turn a wheel, a little above),
+``MOT_DZ_TYPE`` to 1 (jump: past its band the simulated ESC drives the command itself) and
 ``WHL_STRAFE_EFF`` to :data:`MUJOCO_STRAFE_EFF` (the chassis's measured strafe efficiency); every
 other parameter keeps its default unless ``--set`` changes it (a ``--set MOT_DZ`` wins).
 
@@ -82,7 +83,7 @@ DT_S = 0.002
 """The harness's time step, seconds."""
 SHOWN = ("WP_ACCEL", "WP_RADIUS", "WP_OVERSHOOT", "GUID_ACC_MAX", "GUID_POS_P", "GUID_YAW_P",
          "GUID_YAW_RATE", "SIM_MOTOR_TAU", "SIM_ESC_DZ", "MOT_DZ",
-         "WHL_STRAFE_EFF")
+         "MOT_DZ_TYPE", "WHL_STRAFE_EFF")
 """Parameters the figures depend on, printed at the start (as every run has them; those this
 build has)."""
 
@@ -244,8 +245,9 @@ class Row:
 def bench_params(speed_mps: float, friction: float | None,
                  overrides: Sequence[tuple[str, float]] = ()) -> Params:
     """The parameters of one run (module docstring), then ``overrides`` in order; on the
-    MuJoCo chassis (a ``friction``) ``MOT_DZ`` follows ``SIM_ESC_DZ`` as overridden and
-    ``WHL_STRAFE_EFF`` is :data:`MUJOCO_STRAFE_EFF`, unless an override sets them.
+    MuJoCo chassis (a ``friction``) ``MOT_DZ`` follows ``SIM_ESC_DZ`` as overridden,
+    ``MOT_DZ_TYPE`` is 1 (jump) and ``WHL_STRAFE_EFF`` is :data:`MUJOCO_STRAFE_EFF`, unless an
+    override sets them.
 
     Raises:
         ParamError: an override the store refuses.
@@ -259,7 +261,7 @@ def bench_params(speed_mps: float, friction: float | None,
         params.set(name, value)
     if friction is None:
         return params
-    chassis = {"WHL_STRAFE_EFF": MUJOCO_STRAFE_EFF}
+    chassis = {"WHL_STRAFE_EFF": MUJOCO_STRAFE_EFF, "MOT_DZ_TYPE": 1.0}
     if "SIM_ESC_DZ" in params and "MOT_DZ" in params:
         chassis["MOT_DZ"] = min(params["SIM_ESC_DZ"] + DEAD_BAND_MARGIN,
                                 SPECS["MOT_DZ"].maximum)
@@ -494,8 +496,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     shown = bench_params(GOAL_SPEED, args.friction[0] if args.physics == "mujoco" else None,
                          args.overrides)
     print("with " + ", ".join(f"{n} {shown[n]:g}" for n in SHOWN if n in shown)
-          + (" (MOT_DZ and WHL_STRAFE_EFF on the MuJoCo chassis; the kinematic one has 0 "
-             "and 1)"
+          + (" (MOT_DZ, MOT_DZ_TYPE and WHL_STRAFE_EFF on the MuJoCo chassis; the kinematic "
+             "one has 0, 0 and 1)"
              if args.physics == "mujoco" and "MOT_DZ" in shown else ""))
     if args.physics == "mujoco":
         print(f"MuJoCo chassis on friction {', '.join(f'{f:g}' for f in args.friction)}; "

@@ -165,11 +165,23 @@ SCHEMA: tuple[ParamSpec, ...] = (
     ParamSpec(
         "MOT_DZ", float, default=0.0, minimum=0.0, maximum=0.3, units="",
         description="ESC dead band compensation, a fraction of full command (0 = off): a "
-        "wheel command c beyond a tiny threshold (0.002) is sent as sign(c) * (MOT_DZ + "
-        "(1 - MOT_DZ) * |c|), so the slowest commanded speeds clear the band in which the ESCs "
-        "do not drive; 0 and the smallest commands stay neutral (the wheels stop and brake). "
+        "wheel command c beyond a tiny threshold (0.002) is sent past the band in which the "
+        "ESCs do not drive (as MOT_DZ_TYPE says), so the slowest commanded speeds turn the "
+        "wheels; 0 and the smallest commands stay neutral (the wheels stop and brake). "
         "Set it to the largest command at which a wheel on the floor does not yet turn (or a "
-        "little above). One value for all wheels: MOT_x_TRIM centres each ESC's band.",
+        "little above). One value for all wheels: MOT_x_TRIM centres each ESC's band. "
+        "MOT_DZ_TYPE says how the ESCs drive past the band.",
+    ),
+    ParamSpec(
+        "MOT_DZ_TYPE", int, default=0, minimum=0, maximum=1, units="",
+        values={0: "offset", 1: "jump"},
+        description="How the ESCs drive past their dead band (MOT_DZ): offset = the wheel "
+        "speed starts from zero at the band's edge (most ESCs with a motor's friction; "
+        "ArduPilot's MOT_THR_MIN), a command c is sent as sign(c) * (MOT_DZ + (1 - MOT_DZ) * "
+        "|c|); jump = past the edge the wheel turns at the command's own speed at once, c is "
+        "sent as sign(c) * max(|c|, MOT_DZ). Tell them apart: a command a little past the "
+        "band turns a wheel at (c - MOT_DZ) / (1 - MOT_DZ) * WHL_MAX_SPD (offset) or at c * "
+        "WHL_MAX_SPD (jump).",
     ),
 
     # ---- MOT_x: Motor output, a group per wheel (FL, FR, RL, RR), entries from _wheel_specs above

@@ -4,7 +4,8 @@ This is the one place where mirrored motors are handled (per-wheel reverse) and 
 per-wheel PWM range lives (``MOT_<W>_MIN/TRIM/MAX``). Neutral is each wheel's trim: a stopped
 wheel, and what every failsafe sends.
 
-It is also where the ESCs' dead band is compensated (``MOT_DZ``, :meth:`PwmMap.pulses_us`):
+It is also where the ESCs' dead band is compensated (``MOT_DZ``, ``MOT_DZ_TYPE``,
+:meth:`PwmMap.pulses_us`):
 every wheel command becomes a pulse here, whether from the sticks (the general path and the
 compiled stick lane) or from the GUIDED/AUTO controllers. What a pulse stands for
 (:meth:`WheelOutput.command_from_pulse`, the simulated ESC's view) does not undo it.
@@ -83,10 +84,12 @@ class WheelOutput:
 @dataclass(frozen=True)
 class PwmMap:
     """The four wheels' output channels, in wheel order FL, FR, RL, RR, and the ESCs' dead
-    band (``MOT_DZ``, a fraction of full command, 0 = no compensation)."""
+    band (``MOT_DZ``, a fraction of full command, 0 = no compensation) and how the ESCs drive
+    past it (``MOT_DZ_TYPE``: False offset, True jump; :meth:`pulses_us`)."""
 
     wheels: tuple[WheelOutput, WheelOutput, WheelOutput, WheelOutput]
     dead_band: float = 0.0
+    dead_band_jump: bool = False
 
     @classmethod
     def from_params(cls, params: Params) -> PwmMap:
@@ -101,7 +104,8 @@ class PwmMap:
             )
             for w in WHEEL_KEYS
         ]
-        return cls((outs[0], outs[1], outs[2], outs[3]), float(params["MOT_DZ"]))
+        return cls((outs[0], outs[1], outs[2], outs[3]), float(params["MOT_DZ"]),
+                   bool(params["MOT_DZ_TYPE"]))
 
     def __post_init__(self) -> None:
         # Precomputed once: the control loop asks for these on every output.
@@ -128,13 +132,17 @@ class PwmMap:
         cold caches), with the ESCs' dead band compensated.
 
         Dead band ``dz`` (:attr:`dead_band`): a command ``c`` (limited to [-1, 1]) larger in
-        size than :data:`DEAD_BAND_LIVE` is sent as ``sign(c) * (dz + (1 - dz) * |c|)``, so
-        an ESC that does not drive under ``dz`` drives it; 1 stays 1; 0 and commands at most
-        :data:`DEAD_BAND_LIVE` in size stay as they are (inside the band: the wheel brakes).
+        size than :data:`DEAD_BAND_LIVE` is sent so that an ESC that does not drive under
+        ``dz`` drives it: for an ESC whose output starts from zero at the band's edge (offset,
+        as ArduPilot's MOT_THR_MIN assumes) as ``sign(c) * (dz + (1 - dz) * |c|)``; for one
+        that jumps to the command there (:attr:`dead_band_jump`) as ``sign(c) * max(|c|,
+        dz)``. 1 stays 1; 0 and commands at most :data:`DEAD_BAND_LIVE` in size stay as they
+        are (inside the band: the wheel brakes).
         """
         isfinite = math.isfinite
         band = self.dead_band
-        keep, live = 1.0 - band, DEAD_BAND_LIVE
+        lift, keep = (0.0, 1.0) if self.dead_band_jump else (band, 1.0 - band)
+        live = DEAD_BAND_LIVE
         pulses = []
         for command, (trim, up, down, mirrored) in zip(wheels, self.spans, strict=True):
             c = float(command)
@@ -146,9 +154,13 @@ class PwmMap:
             c = -1.0 if c < -1.0 else (1.0 if c > 1.0 else c)
             if band:
                 if c > live:
-                    c = band + keep * c
+                    c = lift + keep * c
+                    if c < band:
+                        c = band
                 elif c < -live:
-                    c = keep * c - band
+                    c = keep * c - lift
+                    if c > -band:
+                        c = -band
             pulses.append(round(trim + c * (up if c >= 0.0 else down)))
         return pulses[0], pulses[1], pulses[2], pulses[3]
 
@@ -163,7 +175,10 @@ class PwmMap:
         c = np.clip(np.where(finite, c, 0.0) * sign, -1.0, 1.0)
         if self.dead_band:
             band = self.dead_band
-            c = np.where(np.abs(c) > DEAD_BAND_LIVE, np.sign(c) * band + (1.0 - band) * c, c)
+            lift, keep = (0.0, 1.0) if self.dead_band_jump else (band, 1.0 - band)
+            size = np.abs(c)
+            c = np.where(size > DEAD_BAND_LIVE,
+                         np.sign(c) * np.maximum(lift + keep * size, band), c)
         pulses: NDArray[np.int64] = np.rint(trim + c * np.where(c >= 0.0, up, down)).astype(
             np.int64)
         return pulses
