@@ -21,6 +21,7 @@ from mecanum_mav.protocol.modes import Mode
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tools"))
 
 import bench_control
+import odometry_calibration
 
 speeds = st.floats(-3.0, 3.0)
 
@@ -119,3 +120,28 @@ def test_the_square_on_the_mujoco_chassis_at_1_m_s_finishes_within_its_goals():
     assert row.fig.worst_cross_track_m < 0.03
     kinematic = bench_control.run_mission("square", 1.0)
     assert abs(row.fig.time_s / kinematic.fig.time_s - 1.0) < 0.05
+
+
+def test_bench_controls_strafe_efficiency_is_what_the_mujoco_chassis_measures():
+    """tools/odometry_calibration.py's steady strafe (true / odometry) at 1 m/s on both floors
+    is bench_control's MUJOCO_STRAFE_EFF within 0.002, and forward stays within 0.2 % of 1
+    (kills a MUJOCO_STRAFE_EFF that was not measured: 1.0 or 0.95)."""
+    pytest.importorskip("mujoco")
+    for friction in (0.8, 0.4):
+        strafe = odometry_calibration.steady(friction, "strafe", 1.0)
+        assert strafe == pytest.approx(bench_control.MUJOCO_STRAFE_EFF, abs=0.002)
+        assert odometry_calibration.steady(friction, "forward", 1.0) == pytest.approx(1.0,
+                                                                                     abs=0.002)
+
+
+def test_the_autonomous_accelerations_keep_traction_on_the_slippery_floor():
+    """On friction 0.4 a ramp to 1.5 m/s and back at WP_ACCEL 0.5 or GUID_ACC_MAX 1.0 m/s/s
+    reads as the steady drive does (within 0.3 %), where a step to the same speed from rest
+    (MANUAL's full stick) spins the wheels (the body makes under 85 % of what they roll)."""
+    pytest.importorskip("mujoco")
+    for direction in ("forward", "strafe"):
+        steady = odometry_calibration.steady(0.4, direction, 1.5)
+        for accel in (0.5, 1.0):
+            assert odometry_calibration.ramp(0.4, direction, accel) == pytest.approx(
+                steady, abs=0.003)
+        assert odometry_calibration.launch(0.4, direction, 1.5) < 0.85
