@@ -78,7 +78,8 @@ DEAD_BAND_MARGIN = 0.002
 the ESC's band, so rounding to whole microseconds never lands a command inside it."""
 MUJOCO_STRAFE_EFF = 0.986
 """``WHL_STRAFE_EFF`` on the MuJoCo chassis: true over odometry distance strafing steadily at
-0.5, 1.0 and 1.5 m/s, on friction 0.8 and 0.4 alike (0.9857-0.9866; forward 0.9989-0.9991)."""
+0.5, 1.0 and 1.5 m/s, on friction 0.8 and 0.4 alike (0.9857-0.9866; forward 0.9989-0.9991),
+as ``tools/odometry_calibration.py`` measures it."""
 DT_S = 0.002
 """The harness's time step, seconds."""
 SHOWN = ("WP_ACCEL", "WP_RADIUS", "WP_OVERSHOOT", "GUID_ACC_MAX", "GUID_POS_P", "GUID_YAW_P",
