@@ -98,6 +98,7 @@ T = "tests/"
 CO = T + "test_companion.py::"
 FCS = T + "test_fcsetup.py::"
 PAR = T + "test_params.py::"
+AU = T + "test_auto.py::"
 MJ = T + "test_mujoco_chassis.py::"
 
 MUTATIONS: tuple[Mutation, ...] = (
@@ -192,6 +193,13 @@ MUTATIONS: tuple[Mutation, ...] = (
       'f"AUTO: {reason}: HOLD")\n                vehicle.request_mode(Mode.HOLD, now_s)',
       'f"AUTO: {reason}: HOLD")',
       T + "test_auto_that_cannot_start.py"),
+    # ---- AUTO path following to the issue 25 standard (arrival, speed plan, heading)
+    M("auto-speed-plan", "a pass-through waypoint is left slow enough to stop at the next stop",
+      PKG + "control/pathfollow.py",
+      "speed = min(arrive, corner_speed(legs[k - 1], legs[k], cruise, accel, overshoot_m))",
+      "speed = corner_speed(legs[k - 1], legs[k], cruise, accel, overshoot_m)",
+      AU + "test_pass_through_waypoints_plan_their_speed_so_the_rover_stops_at_the_next_stop",
+      AU + "test_exit_speed_ahead_is_the_braking_speed_over_the_remaining_legs"),
     M("auto-disarm-neutral", "disarmed in AUTO or GUIDED the controllers never drive",
       PKG + "control/output.py",
       "if vehicle.autonomous():\n            self._autopilot_active = True",

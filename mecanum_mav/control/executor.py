@@ -50,7 +50,7 @@ from typing import NamedTuple
 from mecanum_mav.config.params import Params
 from mecanum_mav.config.views import MissionConfig
 from mecanum_mav.control.guided import Setpoint
-from mecanum_mav.control.pathfollow import Leg, LegFollower, corner_speed
+from mecanum_mav.control.pathfollow import Leg, LegFollower, exit_speed_ahead
 from mecanum_mav.mecanum.geo import GlobalOrigin
 from mecanum_mav.mecanum.geometry import Pose2d, wrap_pi
 from mecanum_mav.protocol.dialect import mavlink
@@ -73,8 +73,15 @@ _PAUSED: int = mavlink.MISSION_STATE_PAUSED
 _COMPLETE: int = mavlink.MISSION_STATE_COMPLETE
 """MAVLink MISSION_STATE values (MISSION_CURRENT.mission_state)."""
 YAW_ACCEPT_RAD = math.radians(2.0)
+LOOK_AHEAD_LEGS = 50
+"""The speed plan looks this many legs ahead for the next stop (beyond: as if it stopped)."""
 MAX_STEPS_PER_UPDATE = 1000  # DO items chained without a navigation item in between
 Vec = tuple[float, float]
+
+
+def _passes_through(item: MissionItem) -> bool:
+    """A waypoint that does not hold: the rover may pass it at speed (if another follows)."""
+    return item.command == mavlink.MAV_CMD_NAV_WAYPOINT and not item.param1 > 0.0
 
 
 class ExecutorEvent(NamedTuple):
@@ -344,12 +351,8 @@ class MissionExecutor:
         hold = 0.0 if item.command == mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH else item.param1
         hold = 0.0 if math.isnan(hold) else hold
         radius = item.param2 if waypoint and item.param2 > 0.0 else self.config.radius_m
-        exit_speed = 0.0
-        following = self._next_nav(item.seq + 1)
-        if waypoint and hold <= 0.0 and following is not None:
-            after = Leg(target, self._target(following, target))
-            exit_speed = corner_speed(leg, after, self._cruise(), self._accel(),
-                                      self.config.overshoot_m)
+        exit_speed = exit_speed_ahead(self._legs_ahead(item, leg), self._cruise(),
+                                      self._accel(), self.config.overshoot_m)
         if waypoint and math.isfinite(item.param4):
             self._yaw, self._yaw_dir = math.radians(item.param4), 0
         elif self.config.face_along_legs and leg.length_m > 2 * radius:
@@ -357,6 +360,18 @@ class MissionExecutor:
         un, ue = leg.direction
         self._follower.reset(velocity_ned[0] * un + velocity_ned[1] * ue)
         self._step = _Step(item.seq, target, leg, exit_speed, radius, hold)
+
+    def _legs_ahead(self, item: MissionItem, leg: Leg) -> list[Leg]:
+        """``leg`` and the legs after it up to the next stop (a waypoint that holds, another
+        navigation item, the end, a DO_JUMP), at most :data:`LOOK_AHEAD_LEGS` in all."""
+        legs = [leg]
+        while len(legs) < LOOK_AHEAD_LEGS and _passes_through(item):
+            following = self._next_nav(item.seq + 1)
+            if following is None:
+                break
+            legs.append(Leg(legs[-1].end_ned, self._target(following, legs[-1].end_ned)))
+            item = following
+        return legs
 
     def _next_nav(self, seq: int) -> MissionItem | None:
         """The next navigation item from ``seq`` in list order (DO_JUMP not followed)."""

@@ -24,9 +24,10 @@ velocity across the new leg can be stopped within a given overshoot.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
-__all__ = ["Leg", "LegFollower", "corner_speed", "sqrt_controller"]
+__all__ = ["Leg", "LegFollower", "corner_speed", "exit_speed_ahead", "sqrt_controller"]
 
 Vec = tuple[float, float]
 
@@ -106,6 +107,22 @@ def corner_speed(incoming: Leg, outgoing: Leg, cruise: float, accel: float,
     if sin_turn < 1e-9:
         return cruise
     return min(cruise, math.sqrt(2.0 * accel * overshoot_m) / sin_turn)
+
+
+def exit_speed_ahead(legs: Sequence[Leg], cruise: float, accel: float,
+                     overshoot_m: float) -> float:
+    """Speed (m/s) at which to leave ``legs[0]`` so the rover can still stop at the end of
+    ``legs[-1]`` (the next stop waypoint) braking at ``accel``.
+
+    A backward pass over the legs after the first: at each joint the speed is at most the
+    :func:`corner_speed` there and at most what braking over the rest allows,
+    ``v_start = sqrt(v_end**2 + 2 * accel * length)``. One leg (nothing follows): 0.
+    """
+    speed = 0.0  # at the end of the last leg: a stop
+    for k in range(len(legs) - 1, 0, -1):
+        arrive = math.sqrt(speed * speed + 2.0 * accel * legs[k].length_m)
+        speed = min(arrive, corner_speed(legs[k - 1], legs[k], cruise, accel, overshoot_m))
+    return speed
 
 
 class LegFollower:
