@@ -99,6 +99,7 @@ CO = T + "test_companion.py::"
 FCS = T + "test_fcsetup.py::"
 PAR = T + "test_params.py::"
 AU = T + "test_auto.py::"
+AR = T + "test_auto_arrival.py::"
 MJ = T + "test_mujoco_chassis.py::"
 
 MUTATIONS: tuple[Mutation, ...] = (
@@ -200,6 +201,23 @@ MUTATIONS: tuple[Mutation, ...] = (
       "speed = corner_speed(legs[k - 1], legs[k], cruise, accel, overshoot_m)",
       AU + "test_pass_through_waypoints_plan_their_speed_so_the_rover_stops_at_the_next_stop",
       AU + "test_exit_speed_ahead_is_the_braking_speed_over_the_remaining_legs"),
+    M("auto-pass-at-line", "a waypoint passed at speed is reached where the rover crosses it",
+      PKG + "control/executor.py",
+      "                if step.leg.errors(here)[0] < step.leg.length_m:\n",
+      "                if distance > step.radius and step.leg.errors(here)[0] < step.leg.length_m"
+      ":\n",
+      AR + "test_a_waypoint_passed_at_speed_is_reached_where_the_rover_crosses_it_not_at_the_"
+      "radius"),
+    M("auto-stop-settled", "a stop waypoint is reached once the rover has settled onto it",
+      PKG + "control/executor.py",
+      "elif distance > step.radius or math.hypot(*velocity_ned) > SETTLED_MPS:",
+      "elif distance > step.radius:",
+      AR + "test_a_stop_waypoint_is_reached_once_the_rover_has_settled_onto_it_inside_the_radius"),
+    M("auto-pose-lead", "between odometry steps the pose is carried forward by the commanded "
+      "velocity", PKG + "control/autopilot.py",
+      "lead = min(max(now_s - self._pose_seen_s, 0.0), MAX_POSE_LEAD_S)",
+      "lead = 0.0 * MAX_POSE_LEAD_S",
+      AR + "test_between_odometry_steps_the_pose_is_carried_forward_by_the_commanded_velocity"),
     M("auto-disarm-neutral", "disarmed in AUTO or GUIDED the controllers never drive",
       PKG + "control/output.py",
       "if vehicle.autonomous():\n            self._autopilot_active = True",

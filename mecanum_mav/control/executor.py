@@ -8,14 +8,20 @@ Items:
 
 - ``NAV_WAYPOINT``: drive the leg from the previous waypoint (or from where the rover is when
   the mission starts, resumes or jumps) to this one, following the line
-  (:mod:`mecanum_mav.control.pathfollow`) at the mission speed. Reached within param2 metres
-  (0 or NaN: ``WP_RADIUS``), or once past it when passing through at speed; then it holds
-  the point for param1 seconds. param4, if a number, is a heading (degrees clockwise from
-  north) to take on this leg and keep; NaN (what QGroundControl and MAVSDK send) leaves the
-  heading alone. Mission Planner and MAVProxy files often carry 0 there, which means north.
+  (:mod:`mecanum_mav.control.pathfollow`) at the mission speed, pulled onto the line with
+  ``WP_POS_P``. A waypoint where the rover stops (it holds, a turn of 90 degrees or more, the
+  last) is reached within param2 metres (0 or NaN: ``WP_RADIUS``) once the commanded speed
+  has settled below :data:`SETTLED_MPS` (so it converges onto the point rather than report at
+  the edge of the radius); one passed at speed is reached where the rover crosses the line
+  through it square to the leg. Then it holds the point for param1 seconds. param4, if a
+  number, is a heading (degrees clockwise from north) to take on this leg and keep; NaN
+  (what QGroundControl and MAVSDK send) leaves the heading alone. Mission Planner and
+  MAVProxy files often carry 0 there, which means north.
   Between two legs the rover passes the waypoint at the speed
   :func:`~mecanum_mav.control.pathfollow.corner_speed` allows for ``WP_OVERSHOOT`` (it stops
-  for turns of 90 degrees or more, and where it holds).
+  for turns of 90 degrees or more, and where it holds), and never faster than it can still
+  stop at the next stop waypoint braking at ``WP_ACCEL`` over the legs in between
+  (:func:`~mecanum_mav.control.pathfollow.exit_speed_ahead`).
 - ``NAV_LOITER_TIME``: drive there, hold the point for param1 seconds. In a global frame a
   latitude and longitude of 0 mean "here".
 - ``NAV_RETURN_TO_LAUNCH``: drive to home (the local origin, as HOME_POSITION reports).
@@ -73,6 +79,8 @@ _PAUSED: int = mavlink.MISSION_STATE_PAUSED
 _COMPLETE: int = mavlink.MISSION_STATE_COMPLETE
 """MAVLink MISSION_STATE values (MISSION_CURRENT.mission_state)."""
 YAW_ACCEPT_RAD = math.radians(2.0)
+SETTLED_MPS = 0.02
+"""A stop waypoint is reached within its radius once the commanded speed is below this, m/s."""
 LOOK_AHEAD_LEGS = 50
 """The speed plan looks this many legs ahead for the next stop (beyond: as if it stopped)."""
 MAX_STEPS_PER_UPDATE = 1000  # DO items chained without a navigation item in between
@@ -262,7 +270,8 @@ class MissionExecutor:
         self._last_s = now_s
         here = (pose.x_m, pose.y_m)
         step = self._step
-        if self.running and step is not None and self._done(step, pose, here, now_s):
+        if self.running and step is not None and self._done(step, pose, here, now_s,
+                                                            velocity_ned):
             self._finish_item(step, pose, now_s, velocity_ned)
             step = self._step
         if not self.running or step is None:
@@ -274,14 +283,22 @@ class MissionExecutor:
             exit_speed=step.exit_speed, gain=self.config.position_gain)
         return self._setpoint(velocity, None, pose, now_s)
 
-    def _done(self, step: _Step, pose: Pose2d, here: Vec, now_s: float) -> bool:
-        """Whether the step is complete (arrival is recorded the first time it happens)."""
+    def _done(self, step: _Step, pose: Pose2d, here: Vec, now_s: float,
+              velocity_ned: Vec) -> bool:
+        """Whether the step is complete (arrival is recorded the first time it happens).
+
+        A waypoint passed at speed is reached where the rover crosses the line through it
+        square to the leg (its arrival error is the cross-track there); a stop is reached
+        within the radius once the commanded speed has settled below :data:`SETTLED_MPS`.
+        """
         if step.turn_only:
             return abs(wrap_pi(self._yaw_target(pose) - pose.yaw_rad)) <= YAW_ACCEPT_RAD
         if step.reached_s is None:
             distance = math.hypot(step.target[0] - here[0], step.target[1] - here[1])
-            passed = step.exit_speed > 0.0 and step.leg.errors(here)[0] >= step.leg.length_m
-            if distance > step.radius and not passed:
+            if step.exit_speed > 0.0:
+                if step.leg.errors(here)[0] < step.leg.length_m:
+                    return False
+            elif distance > step.radius or math.hypot(*velocity_ned) > SETTLED_MPS:
                 return False
             step.reached_s = now_s
             self.arrival_errors[step.seq] = distance

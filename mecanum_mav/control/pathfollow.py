@@ -18,7 +18,8 @@ the target, ``sqrt(2 * accel * (|error| - accel / (2 p**2)))`` beyond, so the ap
 and ends without overshoot.
 
 :func:`corner_speed` picks the speed at which to pass a waypoint between two legs so that the
-velocity across the new leg can be stopped within a given overshoot.
+velocity across the new leg can be stopped within a given overshoot; :func:`exit_speed_ahead`
+lowers it further where the rover must brake for a stop several legs ahead.
 """
 
 from __future__ import annotations
