@@ -5,14 +5,18 @@ pose, first-order motor lag) unless a test says otherwise."""
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import pytest
-from missionitems import local_wp
-from test_auto import HOME, Run
+from missionitems import YAW, do, local_wp
+from test_auto import DT, HOME, Run
 
 from mecanum_mav.config.params import Params
 from mecanum_mav.control.autopilot import MAX_POSE_LEAD_S, Autopilot
 from mecanum_mav.control.estimator import WheelOdometryEstimator
+from mecanum_mav.control.guided import GuidedController, Setpoint
+from mecanum_mav.control.pathfollow import Leg, heading_schedule
+from mecanum_mav.mecanum.geometry import Pose2d, wrap_pi
 
 
 def test_a_waypoint_passed_at_speed_is_reached_where_the_rover_crosses_it_not_at_the_radius():
@@ -48,3 +52,61 @@ def test_between_odometry_steps_the_pose_is_carried_forward_by_the_commanded_vel
     assert capped.x_m == pytest.approx(MAX_POSE_LEAD_S)
     pilot.guided.velocity_ned = (0.0, 0.0)
     assert pilot.pose_now(12.0).x_m == 0.0
+
+
+def test_between_gyro_steps_the_heading_is_carried_forward_by_the_commanded_yaw_rate():
+    pilot = _autopilot()
+    pilot.guided.yaw_rate = 1.0
+    assert pilot.pose_now(5.0).yaw_rad == pytest.approx(0.0)
+    assert pilot.pose_now(5.04).yaw_rad == pytest.approx(0.04)
+
+
+def _strafe_rotate(speed: float) -> Run:
+    """3 m north in six 0.5 m legs, each waypoint 30 degrees further clockwise (to 180)."""
+    items = [HOME, do(0, YAW, 0.0, 0.0, 0.0, 0.0)]
+    items += [replace(local_wp(0, 0.5 * k, 0.0), param4=30.0 * k) for k in range(1, 7)]
+    return Run(items, WP_SPEED=speed, GUID_SPD_MAX=speed + 0.2, WHL_MAX_SPD=3.0)
+
+
+def test_a_waypoint_heading_is_turned_along_its_leg_and_held_as_the_rover_passes_it():
+    run = _strafe_rotate(1.0)
+    headings = {}
+    while run.ex.running and run.t < 20:
+        before, pose = run.ex.current, run.pose  # the pose this tick decides on
+        run.step()
+        if run.ex.current != before and before >= 2:  # items 2..6: 30..150 degrees
+            headings[before] = math.degrees(wrap_pi(pose.yaw_rad - math.radians(
+                30.0 * (before - 1))))
+    assert not run.ex.running
+    headings[7] = math.degrees(wrap_pi(run.pose.yaw_rad - math.pi))
+    assert len(headings) == 6 and max(abs(h) for h in headings.values()) < 1.0, headings
+
+
+def test_a_waypoint_passed_at_speed_is_reached_within_half_a_tick_of_its_line():
+    run = _strafe_rotate(1.0)
+    along = {}  # how far past the waypoint's line the rover was when it counted as reached
+    while run.ex.running and run.t < 20:
+        before, pose = run.ex.current, run.pose
+        run.step()
+        if run.ex.current != before and 2 <= before <= 6:  # items 2..6 pass through
+            along[before] = pose.x_m - 0.5 * (before - 1)
+    assert max(abs(a) for a in along.values()) <= 1.0 * DT / 2 + 0.001, along
+
+
+def test_heading_schedule_turns_in_proportion_to_the_distance_and_feeds_its_rate_forward():
+    leg = Leg((0.0, 0.0), (0.5, 0.0))
+    yaw, rate = heading_schedule(leg, (0.25, 0.0), 0.0, math.radians(30.0), 1.0)
+    assert yaw == pytest.approx(math.radians(15.0))
+    assert rate == pytest.approx(math.radians(30.0) / 0.5)
+    assert heading_schedule(leg, (0.6, 0.0), 0.0, 1.0, 1.0) == (1.0, 0.0)  # past the end
+    yaw, rate = heading_schedule(leg, (0.25, 0.0), math.radians(170.0), math.radians(-170.0),
+                                 1.0)  # the shorter way, through 180
+    assert abs(math.degrees(yaw)) == pytest.approx(180.0) and rate > 0.0
+
+
+def test_a_yaw_rate_feed_forward_is_added_to_the_heading_controller():
+    controller = GuidedController(Params())
+    here = Pose2d(0.0, 0.0, 0.3)
+    controller.start(here, 0.0)
+    controller.accept(Setpoint(None, None, 0.3, None, 0.0, None, 0.5), here)
+    assert controller.update(here, 0.02).yaw_rate == pytest.approx(0.5)

@@ -27,7 +27,7 @@ from mecanum_mav.control.executor import MissionExecutor
 from mecanum_mav.control.guided import GuidedController
 from mecanum_mav.control.pwm import PwmMap
 from mecanum_mav.mecanum.geo import GlobalOrigin
-from mecanum_mav.mecanum.geometry import Pose2d
+from mecanum_mav.mecanum.geometry import Pose2d, wrap_pi
 from mecanum_mav.protocol.modes import Mode
 
 __all__ = ["Autopilot"]
@@ -60,6 +60,8 @@ class Autopilot:
         self._held: Output | None = None
         self._pose_seen: tuple[float, float] = (math.nan, math.nan)
         self._pose_seen_s = -math.inf
+        self._yaw_seen = math.nan
+        self._yaw_seen_s = -math.inf
 
     def reconfigure(self, params: Params) -> None:
         """Take the ``GUID_*`` and ``WP_*`` parameters from ``params``."""
@@ -125,19 +127,22 @@ class Autopilot:
     def pose_now(self, now_s: float) -> Pose2d:
         """The estimator's pose carried forward to ``now_s`` (local NED m, rad).
 
-        Wheel odometry moves in steps (WHEEL_DISTANCE arrives at 10 Hz on the built-in
-        board): between steps the position is the last one plus the commanded velocity times
-        the time since it changed, at most :data:`MAX_POSE_LEAD_S` ahead. Heading is the
-        estimator's (the gyro's, fresh every tick).
+        Wheel odometry and the gyro's yaw move in steps (WHEEL_DISTANCE at 10 Hz, ATTITUDE at
+        20 Hz on the built-in board): between steps the position is the last one plus the
+        commanded velocity times the time since it changed, and the heading the last one plus
+        the commanded yaw rate times the time since it changed, each at most
+        :data:`MAX_POSE_LEAD_S` ahead.
         """
         pose = self.estimator.pose
         if (pose.x_m, pose.y_m) != self._pose_seen:
             self._pose_seen, self._pose_seen_s = (pose.x_m, pose.y_m), now_s
+        if pose.yaw_rad != self._yaw_seen:
+            self._yaw_seen, self._yaw_seen_s = pose.yaw_rad, now_s
         lead = min(max(now_s - self._pose_seen_s, 0.0), MAX_POSE_LEAD_S)
+        yaw_lead = min(max(now_s - self._yaw_seen_s, 0.0), MAX_POSE_LEAD_S)
         vn, ve = self.guided.velocity_ned
-        if lead <= 0.0 or (vn == 0.0 and ve == 0.0):
-            return pose
-        return Pose2d(pose.x_m + vn * lead, pose.y_m + ve * lead, pose.yaw_rad)
+        return Pose2d(pose.x_m + vn * lead, pose.y_m + ve * lead,
+                      wrap_pi(pose.yaw_rad + self.guided.yaw_rate * yaw_lead))
 
     def idle(self) -> None:
         """Not driving autonomously: no control ticks until the next :meth:`output`."""

@@ -56,7 +56,7 @@ from typing import NamedTuple
 from mecanum_mav.config.params import Params
 from mecanum_mav.config.views import MissionConfig
 from mecanum_mav.control.guided import Setpoint
-from mecanum_mav.control.pathfollow import Leg, LegFollower, exit_speed_ahead
+from mecanum_mav.control.pathfollow import Leg, LegFollower, exit_speed_ahead, heading_schedule
 from mecanum_mav.mecanum.geo import GlobalOrigin
 from mecanum_mav.mecanum.geometry import Pose2d, wrap_pi
 from mecanum_mav.protocol.dialect import mavlink
@@ -114,6 +114,9 @@ class _Step:
     hold_s: float
     reached_s: float | None = None
     turn_only: bool = False
+    yaw_from: float | None = None
+    """Where the leg's heading schedule starts (rad); None: no schedule (the heading is
+    commanded at once)."""
 
 
 class MissionExecutor:
@@ -271,7 +274,7 @@ class MissionExecutor:
         here = (pose.x_m, pose.y_m)
         step = self._step
         if self.running and step is not None and self._done(step, pose, here, now_s,
-                                                            velocity_ned):
+                                                            velocity_ned, dt):
             self._finish_item(step, pose, now_s, velocity_ned)
             step = self._step
         if not self.running or step is None:
@@ -281,14 +284,20 @@ class MissionExecutor:
         velocity = self._follower.velocity_ned(
             step.leg, here, dt, cruise=self._cruise(), accel=self._accel(),
             exit_speed=step.exit_speed, gain=self.config.position_gain)
+        if step.yaw_from is not None and self._yaw is not None:
+            yaw, rate = heading_schedule(step.leg, here, step.yaw_from, self._yaw,
+                                         self._follower.speed_along)
+            return Setpoint(None, velocity, yaw, None, now_s, self._yaw_rate_max, rate)
         return self._setpoint(velocity, None, pose, now_s)
 
     def _done(self, step: _Step, pose: Pose2d, here: Vec, now_s: float,
-              velocity_ned: Vec) -> bool:
+              velocity_ned: Vec, tick_s: float) -> bool:
         """Whether the step is complete (arrival is recorded the first time it happens).
 
-        A waypoint passed at speed is reached where the rover crosses the line through it
-        square to the leg (its arrival error is the cross-track there); a stop is reached
+        A waypoint passed at speed is reached at the tick nearest to where the rover crosses
+        the line through it square to the leg (within half a tick's travel of it, ``tick_s``
+        the time since the last tick; its arrival error is the cross-track there); a stop is
+        reached
         within the radius once the commanded speed has settled below :data:`SETTLED_MPS`.
         """
         if step.turn_only:
@@ -296,7 +305,8 @@ class MissionExecutor:
         if step.reached_s is None:
             distance = math.hypot(step.target[0] - here[0], step.target[1] - here[1])
             if step.exit_speed > 0.0:
-                if step.leg.errors(here)[0] < step.leg.length_m:
+                half_tick_m = self._follower.speed_along * tick_s / 2.0
+                if step.leg.errors(here)[0] + half_tick_m < step.leg.length_m:
                     return False
             elif distance > step.radius or math.hypot(*velocity_ned) > SETTLED_MPS:
                 return False
@@ -370,13 +380,16 @@ class MissionExecutor:
         radius = item.param2 if waypoint and item.param2 > 0.0 else self.config.radius_m
         exit_speed = exit_speed_ahead(self._legs_ahead(item, leg), self._cruise(),
                                       self._accel(), self.config.overshoot_m)
+        yaw_from = None
         if waypoint and math.isfinite(item.param4):
+            if self._yaw is not None and self._yaw_dir == 0 and leg.length_m > 2 * radius:
+                yaw_from = self._yaw
             self._yaw, self._yaw_dir = math.radians(item.param4), 0
         elif self.config.face_along_legs and leg.length_m > 2 * radius:
             self._yaw, self._yaw_dir = math.atan2(*reversed(leg.direction)), 0
         un, ue = leg.direction
         self._follower.reset(velocity_ned[0] * un + velocity_ned[1] * ue)
-        self._step = _Step(item.seq, target, leg, exit_speed, radius, hold)
+        self._step = _Step(item.seq, target, leg, exit_speed, radius, hold, yaw_from=yaw_from)
 
     def _legs_ahead(self, item: MissionItem, leg: Leg) -> list[Leg]:
         """``leg`` and the legs after it up to the next stop (a waypoint that holds, another

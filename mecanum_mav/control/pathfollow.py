@@ -28,7 +28,10 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-__all__ = ["Leg", "LegFollower", "corner_speed", "exit_speed_ahead", "sqrt_controller"]
+from mecanum_mav.mecanum.geometry import wrap_pi
+
+__all__ = ["Leg", "LegFollower", "corner_speed", "exit_speed_ahead", "heading_schedule",
+           "sqrt_controller"]
 
 Vec = tuple[float, float]
 
@@ -124,6 +127,22 @@ def exit_speed_ahead(legs: Sequence[Leg], cruise: float, accel: float,
         arrive = math.sqrt(speed * speed + 2.0 * accel * legs[k].length_m)
         speed = min(arrive, corner_speed(legs[k - 1], legs[k], cruise, accel, overshoot_m))
     return speed
+
+
+def heading_schedule(leg: Leg, position_ned: Vec, yaw_from: float, yaw_to: float,
+                     speed_along: float) -> tuple[float, float]:
+    """The heading to command along a leg that turns from ``yaw_from`` to ``yaw_to`` (rad
+    clockwise from north, the shorter way) in proportion to the distance driven, and the rate
+    at which that heading moves at ``speed_along`` m/s (rad/s clockwise), to feed forward so
+    the heading does not trail the schedule by the P controller's lag.
+    """
+    length = leg.length_m
+    turn = wrap_pi(yaw_to - yaw_from)
+    if length < 1e-9:
+        return yaw_to, 0.0
+    fraction = min(max(leg.errors(position_ned)[0] / length, 0.0), 1.0)
+    rate = turn / length * speed_along if fraction < 1.0 else 0.0
+    return wrap_pi(yaw_from + turn * fraction), rate
 
 
 class LegFollower:
