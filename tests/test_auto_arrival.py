@@ -15,7 +15,7 @@ from mecanum_mav.config.params import Params
 from mecanum_mav.control.autopilot import MAX_POSE_LEAD_S, Autopilot
 from mecanum_mav.control.estimator import WheelOdometryEstimator
 from mecanum_mav.control.guided import GuidedController, Setpoint
-from mecanum_mav.control.pathfollow import Leg, heading_schedule
+from mecanum_mav.control.pathfollow import Leg, corner_lead, heading_schedule
 from mecanum_mav.mecanum.geometry import Pose2d, wrap_pi
 
 
@@ -110,3 +110,30 @@ def test_a_yaw_rate_feed_forward_is_added_to_the_heading_controller():
     controller.start(here, 0.0)
     controller.accept(Setpoint(None, None, 0.3, None, 0.0, None, 0.5), here)
     assert controller.update(here, 0.02).yaw_rate == pytest.approx(0.5)
+
+
+def _polygon_run(corner_lead: bool) -> float:
+    """Worst distance (m) from the path of a 16-gon of 1.5 m (the bench's eight's circle)
+    driven at 1 m/s, with or without the early turn at each corner."""
+    turn = 2 * math.pi / 16
+    points = [(0.75 * math.sin(turn * k), 0.75 * (1 - math.cos(turn * k))) for k in range(1, 17)]
+    run = Run([HOME, *(local_wp(0, n, e) for n, e in points)], WP_SPEED=1.0,
+              GUID_SPD_MAX=1.2, WHL_MAX_SPD=3.0)
+    if not corner_lead:
+        run.ex.corner_lead_s = 0.0
+    run.until_done()
+    legs = [Leg(a, b) for a, b in zip([(0.0, 0.0), *points], points, strict=False)]
+    return max(min(leg.distance_m((p.x_m, p.y_m)) for leg in legs) for _, p, _ in run.track)
+
+
+def test_the_turn_onto_the_next_leg_begins_early_so_the_path_stays_closer_to_the_polygon():
+    assert _polygon_run(True) < 0.75 * _polygon_run(False)
+
+
+def test_corner_lead_moves_the_speed_onto_the_next_leg_as_the_waypoint_nears():
+    leg, north, east = Leg((0.0, 0.0), (1.0, 0.0)), (0.5, 0.0), (0.0, 1.0)
+    assert corner_lead(leg, east, (0.5, 0.0), north, 0.5, 0.2) == north  # 0.1 m lead: not yet
+    half = corner_lead(leg, east, (0.95, 0.0), north, 0.5, 0.2)
+    assert half == pytest.approx((0.25, 0.25))
+    assert corner_lead(leg, east, (1.0, 0.0), north, 0.5, 0.2) == pytest.approx((0.0, 0.5))
+    assert corner_lead(leg, (0.0, 0.0), (0.95, 0.0), north, 0.5, 0.2) == north  # no next leg

@@ -30,8 +30,8 @@ from dataclasses import dataclass
 
 from mecanum_mav.mecanum.geometry import wrap_pi
 
-__all__ = ["Leg", "LegFollower", "corner_speed", "exit_speed_ahead", "heading_schedule",
-           "sqrt_controller"]
+__all__ = ["Leg", "LegFollower", "corner_lead", "corner_speed", "exit_speed_ahead",
+           "heading_schedule", "sqrt_controller"]
 
 Vec = tuple[float, float]
 
@@ -127,6 +127,28 @@ def exit_speed_ahead(legs: Sequence[Leg], cruise: float, accel: float,
         arrive = math.sqrt(speed * speed + 2.0 * accel * legs[k].length_m)
         speed = min(arrive, corner_speed(legs[k - 1], legs[k], cruise, accel, overshoot_m))
     return speed
+
+
+def corner_lead(leg: Leg, next_direction: Vec, position_ned: Vec, velocity_ned: Vec,
+                exit_speed: float, lead_s: float) -> Vec:
+    """``velocity_ned`` (north, east m/s) with the turn onto the next leg begun early.
+
+    Within ``exit_speed * lead_s`` metres of the leg's end (the distance the rover covers
+    while its velocity lags the command: motor lag and the acceleration limit), the speed
+    along the leg is moved onto ``next_direction`` (a unit vector), in proportion to how close
+    the end is, so the rover's true velocity turns at the waypoint instead of after it. The
+    correction across the leg is kept.
+    """
+    lead_m = exit_speed * lead_s
+    if lead_m <= 0.0 or next_direction == (0.0, 0.0):
+        return velocity_ned
+    remaining = leg.length_m - leg.errors(position_ned)[0]
+    if remaining >= lead_m:
+        return velocity_ned
+    share = min(1.0, 1.0 - max(remaining, 0.0) / lead_m)
+    un, ue = leg.direction
+    return (velocity_ned[0] + share * exit_speed * (next_direction[0] - un),
+            velocity_ned[1] + share * exit_speed * (next_direction[1] - ue))
 
 
 def heading_schedule(leg: Leg, position_ned: Vec, yaw_from: float, yaw_to: float,
