@@ -8,12 +8,13 @@ import math
 from dataclasses import replace
 
 import pytest
-from missionitems import YAW, do, local_wp
+from missionitems import YAW, do, local_wp, renumber
 from test_auto import DT, HOME, Run
 
 from mecanum_mav.config.params import Params
 from mecanum_mav.control.autopilot import MAX_POSE_LEAD_S, Autopilot
 from mecanum_mav.control.estimator import WheelOdometryEstimator
+from mecanum_mav.control.executor import SETTLE_TIMEOUT_S, MissionExecutor
 from mecanum_mav.control.guided import GuidedController, Setpoint
 from mecanum_mav.control.pathfollow import Leg, corner_lead, heading_schedule
 from mecanum_mav.mecanum.geometry import Pose2d, wrap_pi
@@ -137,3 +138,17 @@ def test_corner_lead_moves_the_speed_onto_the_next_leg_as_the_waypoint_nears():
     assert half == pytest.approx((0.25, 0.25))
     assert corner_lead(leg, east, (1.0, 0.0), north, 0.5, 0.2) == pytest.approx((0.0, 0.5))
     assert corner_lead(leg, (0.0, 0.0), (0.95, 0.0), north, 0.5, 0.2) == north  # no next leg
+
+
+def test_a_rover_stalled_inside_the_radius_of_a_stop_goes_on_after_the_settle_timeout():
+    params = Params()
+    executor = MissionExecutor(params)
+    executor.load(renumber([HOME, local_wp(0, 1.0, 0.0), local_wp(0, 1.0, 1.0)]))
+    stalled = Pose2d(0.98, 0.0, 0.0)  # 2 cm short, inside WP_RADIUS 3 cm, not moving
+    assert executor.start(stalled, 0.0, None) is None
+    t = 0.0
+    while executor.current == 1 and t < 5.0:
+        t += DT
+        executor.update(stalled, (0.06, 0.0), t)  # the controller still asks for 6 cm/s
+    assert executor.current == 2
+    assert SETTLE_TIMEOUT_S <= t <= SETTLE_TIMEOUT_S + 2 * DT

@@ -10,13 +10,14 @@ Items:
   the mission starts, resumes or jumps) to this one, following the line
   (:mod:`mecanum_mav.control.pathfollow`) at the mission speed, pulled onto the line with
   ``WP_POS_P``. A waypoint where the rover stops (it holds, a turn of 90 degrees or more, the
-  last) is reached within param2 metres (0 or NaN: ``WP_RADIUS``) once the commanded speed
-  has settled below :data:`SETTLED_MPS` (so it converges onto the point rather than report at
-  the edge of the radius); one passed at speed is reached where the rover crosses the line
-  through it square to the leg. Then it holds the point for param1 seconds. param4, if a
-  number, is a heading (degrees clockwise from north) to take on this leg and keep; NaN
-  (what QGroundControl and MAVSDK send) leaves the heading alone. Mission Planner and
-  MAVProxy files often carry 0 there, which means north.
+  last) is reached within param2 metres (0 or NaN: ``WP_RADIUS``) once the commanded speed has
+  settled below :data:`SETTLED_MPS` (so it converges onto the point rather than report at the
+  edge of the radius), or :data:`SETTLE_TIMEOUT_S` after it came within it (stalled); one passed
+  at speed is reached where the rover crosses the line through it square to the leg. Then it
+  holds the point for param1 seconds. param4, if a number, is a heading (degrees clockwise from
+  north) to take on this leg and keep, turned in proportion to the distance along the leg (its
+  rate fed forward); NaN (what QGroundControl and MAVSDK send) leaves the
+  heading alone. Mission Planner and MAVProxy files often carry 0 there, which means north.
   Between two legs the rover passes the waypoint at the speed
   :func:`~mecanum_mav.control.pathfollow.corner_speed` allows for ``WP_OVERSHOOT`` (it stops
   for turns of 90 degrees or more, and where it holds), and never faster than it can still
@@ -93,6 +94,9 @@ cross-track 2.59 cm at 0, 1.78 at 0.1, 1.46 at 0.15, 1.43 at 0.25 (MuJoCo: 3.03,
 3.45)."""
 SETTLED_MPS = 0.02
 """A stop waypoint is reached within its radius once the commanded speed is below this, m/s."""
+SETTLE_TIMEOUT_S = 1.0
+"""...or once it has been within the radius this long (s): a rover that stalls short of the
+point (an ESC dead band, a wheel against an obstacle) still goes on."""
 LOOK_AHEAD_LEGS = 50
 """The speed plan looks this many legs ahead for the next stop (beyond: as if it stopped)."""
 MAX_STEPS_PER_UPDATE = 1000  # DO items chained without a navigation item in between
@@ -129,6 +133,8 @@ class _Step:
     yaw_from: float | None = None
     """Where the leg's heading schedule starts (rad); None: no schedule (the heading is
     commanded at once)."""
+    inside_s: float | None = None
+    """When the rover first came within the radius of a stop, still moving (s)."""
     next_direction: Vec = (0.0, 0.0)
     """Unit vector of the leg after a waypoint passed at speed (north, east); (0, 0): none."""
 
@@ -318,7 +324,8 @@ class MissionExecutor:
         the line through it square to the leg (within half a tick's travel of it, ``tick_s``
         the time since the last tick; its arrival error is the cross-track there); a stop is
         reached
-        within the radius once the commanded speed has settled below :data:`SETTLED_MPS`.
+        within the radius once the commanded speed has settled below :data:`SETTLED_MPS`, or
+        :data:`SETTLE_TIMEOUT_S` after it came within the radius.
         """
         if step.turn_only:
             return abs(wrap_pi(self._yaw_target(pose) - pose.yaw_rad)) <= YAW_ACCEPT_RAD
@@ -328,8 +335,13 @@ class MissionExecutor:
                 half_tick_m = self._follower.speed_along * tick_s / 2.0
                 if step.leg.errors(here)[0] + half_tick_m < step.leg.length_m:
                     return False
-            elif distance > step.radius or math.hypot(*velocity_ned) > SETTLED_MPS:
+            elif distance > step.radius:
                 return False
+            elif math.hypot(*velocity_ned) > SETTLED_MPS:
+                if step.inside_s is None:
+                    step.inside_s = now_s
+                if now_s - step.inside_s < SETTLE_TIMEOUT_S:
+                    return False  # still converging (a stalled rover counts after the timeout)
             step.reached_s = now_s
             self.arrival_errors[step.seq] = distance
         return now_s - step.reached_s >= step.hold_s
