@@ -14,7 +14,13 @@ from mecanum_mav.config.params import Params
 from mecanum_mav.control.chain import autonomous_output
 from mecanum_mav.control.executor import MissionExecutor
 from mecanum_mav.control.guided import GuidedController
-from mecanum_mav.control.pathfollow import Leg, LegFollower, corner_speed, sqrt_controller
+from mecanum_mav.control.pathfollow import (
+    Leg,
+    LegFollower,
+    corner_speed,
+    exit_speed_ahead,
+    sqrt_controller,
+)
 from mecanum_mav.control.pwm import PwmMap
 from mecanum_mav.io.links import mavlink
 from mecanum_mav.mecanum.geometry import Pose2d, wrap_pi
@@ -217,3 +223,22 @@ def test_a_global_mission_without_an_origin_cannot_start():
     ex = MissionExecutor(Params())
     ex.load([HOME, item])
     assert "origin" in ex.prepare(None)
+
+
+def test_pass_through_waypoints_plan_their_speed_so_the_rover_stops_at_the_next_stop():
+    # six collinear 0.5 m legs at 1.5 m/s: braking must start legs before the last waypoint
+    points = [(0.5 * k, 0.0) for k in range(1, 7)]
+    run = Run([HOME, *(local_wp(0, n, e) for n, e in points)], WP_SPEED=1.5,
+              GUID_SPD_MAX=1.7, WHL_MAX_SPD=3.0).until_done()
+    last_leg = [s for (_, _, c), s in zip(run.track, run.speeds, strict=True) if c == 6]
+    assert last_leg[0] <= math.sqrt(2 * 0.5 * 0.5) + 0.15  # entered the last leg braking
+    assert max(p.x_m for _, p, _ in run.track) < 3.0 + 0.03
+    assert max(run.speeds) > 1.0  # it did not crawl
+
+
+def test_exit_speed_ahead_is_the_braking_speed_over_the_remaining_legs():
+    legs = [Leg((0.0, 0.0), (1.0, 0.0)), Leg((1.0, 0.0), (2.0, 0.0)),
+            Leg((2.0, 0.0), (2.5, 0.0))]
+    assert exit_speed_ahead(legs, 5.0, 0.5, 0.02) == pytest.approx(math.sqrt(2 * 0.5 * 1.5))
+    assert exit_speed_ahead(legs, 0.4, 0.5, 0.02) == pytest.approx(0.4)
+    assert exit_speed_ahead(legs[:1], 5.0, 0.5, 0.02) == 0.0

@@ -19,7 +19,7 @@ def test_reboot_required_is_identity_geometry_and_the_simulator():
     expected = {"SYSID_THISMAV", "GEO_HALF_LEN", "GEO_HALF_WID"} | {
         spec.name for spec in SCHEMA if spec.name.startswith("SIM_")}
     assert {spec.name for spec in SCHEMA if spec.reboot_required} == expected
-    assert len(expected) == 9
+    assert len(expected) == 14  # 3 + the 11 SIM_ (issue 25 added 5 for the MuJoCo chassis)
 
 
 def test_the_parameter_service_reads_reboot_required_from_the_schema():

@@ -98,6 +98,8 @@ T = "tests/"
 CO = T + "test_companion.py::"
 FCS = T + "test_fcsetup.py::"
 PAR = T + "test_params.py::"
+AU = T + "test_auto.py::"
+AR = T + "test_auto_arrival.py::"
 MJ = T + "test_mujoco_chassis.py::"
 PC = T + "test_shaping_pwm.py::"
 PL = T + "test_plant_calibration.py::"
@@ -194,6 +196,62 @@ MUTATIONS: tuple[Mutation, ...] = (
       'f"AUTO: {reason}: HOLD")\n                vehicle.request_mode(Mode.HOLD, now_s)',
       'f"AUTO: {reason}: HOLD")',
       T + "test_auto_that_cannot_start.py"),
+    # ---- AUTO path following to the issue 25 standard (arrival, speed plan, heading)
+    M("auto-speed-plan", "a pass-through waypoint is left slow enough to stop at the next stop",
+      PKG + "control/pathfollow.py",
+      "speed = min(arrive, corner_speed(legs[k - 1], legs[k], cruise, accel, overshoot_m))",
+      "speed = corner_speed(legs[k - 1], legs[k], cruise, accel, overshoot_m)",
+      AU + "test_pass_through_waypoints_plan_their_speed_so_the_rover_stops_at_the_next_stop",
+      AU + "test_exit_speed_ahead_is_the_braking_speed_over_the_remaining_legs"),
+    M("auto-pass-at-line", "a waypoint passed at speed is reached where the rover crosses it",
+      PKG + "control/executor.py",
+      "                if step.leg.errors(here)[0] + half_tick_m < step.leg.length_m:\n",
+      "                if distance > step.radius and step.leg.errors(here)[0] < step.leg.length_m"
+      ":\n",
+      AR + "test_a_waypoint_passed_at_speed_is_reached_where_the_rover_crosses_it_not_at_the_"
+      "radius"),
+    M("auto-stop-settled", "a stop waypoint is reached once the rover has settled onto it",
+      PKG + "control/executor.py",
+      "            elif math.hypot(*velocity_ned) > SETTLED_MPS:\n",
+      "            elif False:\n",
+      AR + "test_a_stop_waypoint_is_reached_once_the_rover_has_settled_onto_it_inside_the_radius"),
+    M("auto-stop-stalled", "a rover stalled inside a stop's radius goes on after a timeout",
+      PKG + "control/executor.py",
+      "if now_s - step.inside_s < SETTLE_TIMEOUT_S:",
+      "if now_s - step.inside_s < 1e9 * SETTLE_TIMEOUT_S:",
+      AR + "test_a_rover_stalled_inside_the_radius_of_a_stop_goes_on_after_the_settle_timeout"),
+    M("auto-pose-lead", "between odometry steps the pose is carried forward by the commanded "
+      "velocity", PKG + "control/autopilot.py",
+      "lead = min(max(now_s - self._pose_seen_s, 0.0), MAX_POSE_LEAD_S)",
+      "lead = 0.0 * MAX_POSE_LEAD_S",
+      AR + "test_between_odometry_steps_the_pose_is_carried_forward_by_the_commanded_velocity"),
+    M("auto-half-tick", "a waypoint passed at speed is reached at the tick nearest its line",
+      PKG + "control/executor.py",
+      "half_tick_m = self._follower.speed_along * tick_s / 2.0",
+      "half_tick_m = 0.0 * tick_s",
+      AR + "test_a_waypoint_passed_at_speed_is_reached_within_half_a_tick_of_its_line"),
+    M("auto-yaw-schedule", "a waypoint's heading is turned along its leg, not commanded at once",
+      PKG + "control/executor.py",
+      "        if step.yaw_from is not None and self._yaw is not None:\n",
+      "        if False:\n",
+      AR + "test_a_waypoint_heading_is_turned_along_its_leg_and_held_as_the_rover_passes_it"),
+    M("auto-yaw-feed-forward", "the heading schedule's rate is fed forward",
+      PKG + "control/guided.py",
+      "rate = feed_forward + c.yaw_gain * wrap_pi(target - pose.yaw_rad)",
+      "rate = 0.0 * feed_forward + c.yaw_gain * wrap_pi(target - pose.yaw_rad)",
+      AR + "test_a_yaw_rate_feed_forward_is_added_to_the_heading_controller",
+      AR + "test_a_waypoint_heading_is_turned_along_its_leg_and_held_as_the_rover_passes_it"),
+    M("auto-yaw-lead", "between gyro steps the heading is carried forward by the commanded rate",
+      PKG + "control/autopilot.py",
+      "wrap_pi(pose.yaw_rad + self.guided.yaw_rate * yaw_lead))",
+      "wrap_pi(pose.yaw_rad + 0.0 * yaw_lead))",
+      AR + "test_between_gyro_steps_the_heading_is_carried_forward_by_the_commanded_yaw_rate"),
+    M("auto-corner-lead", "the turn onto the next leg begins before a waypoint passed at speed",
+      PKG + "control/pathfollow.py",
+      "share = min(1.0, 1.0 - max(remaining, 0.0) / lead_m)",
+      "share = 0.0 * lead_m",
+      AR + "test_the_turn_onto_the_next_leg_begins_early_so_the_path_stays_closer_to_the_polygon",
+      AR + "test_corner_lead_moves_the_speed_onto_the_next_leg_as_the_waypoint_nears"),
     M("auto-disarm-neutral", "disarmed in AUTO or GUIDED the controllers never drive",
       PKG + "control/output.py",
       "if vehicle.autonomous():\n            self._autopilot_active = True",

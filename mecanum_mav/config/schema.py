@@ -403,6 +403,11 @@ SCHEMA: tuple[ParamSpec, ...] = (
         "an acceptance radius.",
     ),
     ParamSpec(
+        "WP_POS_P", float, default=3.0, minimum=0.1, maximum=10.0, units="1/s",
+        description="AUTO: gain of the pull back onto the leg and of the final approach to a "
+        "stop waypoint (critically damped with 0.08 s of motor lag; GUIDED uses GUID_POS_P).",
+    ),
+    ParamSpec(
         "WP_OVERSHOOT", float, default=0.02, minimum=0.0, maximum=10.0, units="m",
         description="AUTO: how far the rover may swing past the next leg's line when it "
         "passes a waypoint without stopping; sets the speed through shallow corners.",

@@ -224,7 +224,7 @@ class MissionConfig:
     face_along_legs: bool
     """Heading follows each leg (``WP_YAW_BEHAVIOR`` 1) or is held (0)."""
     position_gain: float
-    """Cross-track and along-track gain, 1/s (``GUID_POS_P``)."""
+    """Cross-track and final-approach gain, 1/s (``WP_POS_P``)."""
     speed_limit_mps: float
     """The fastest a DO_CHANGE_SPEED may ask, m/s (``GUID_SPD_MAX``)."""
 
@@ -234,7 +234,7 @@ class MissionConfig:
         return cls(float(params["WP_SPEED"]),
                    min(float(params["WP_ACCEL"]), float(params["GUID_ACC_MAX"])),
                    float(params["WP_RADIUS"]), float(params["WP_OVERSHOOT"]),
-                   int(params["WP_YAW_BEHAVIOR"]) == 1, float(params["GUID_POS_P"]),
+                   int(params["WP_YAW_BEHAVIOR"]) == 1, float(params["WP_POS_P"]),
                    float(params["GUID_SPD_MAX"]))
 
 

@@ -27,11 +27,14 @@ from mecanum_mav.control.executor import MissionExecutor
 from mecanum_mav.control.guided import GuidedController
 from mecanum_mav.control.pwm import PwmMap
 from mecanum_mav.mecanum.geo import GlobalOrigin
+from mecanum_mav.mecanum.geometry import Pose2d, wrap_pi
 from mecanum_mav.protocol.modes import Mode
 
 __all__ = ["Autopilot"]
 
 _CONTROLLED = (Mode.GUIDED, Mode.AUTO)
+MAX_POSE_LEAD_S = 0.15
+"""The pose is carried forward at most this far (s): 1.5 periods of a 10 Hz WHEEL_DISTANCE."""
 TIMER_SLACK_S = 1e-6
 """Timers fall due this much early (the control grid here, the core's refresh and heartbeat),
 so that a clock that adds in floating point never misses a period by a rounding error."""
@@ -55,6 +58,10 @@ class Autopilot:
         self._origin = origin
         self._next_tick_s = math.inf
         self._held: Output | None = None
+        self._pose_seen: tuple[float, float] = (math.nan, math.nan)
+        self._pose_seen_s = -math.inf
+        self._yaw_seen = math.nan
+        self._yaw_seen_s = -math.inf
 
     def reconfigure(self, params: Params) -> None:
         """Take the ``GUID_*`` and ``WP_*`` parameters from ``params``."""
@@ -113,9 +120,29 @@ class Autopilot:
         if self._next_tick_s <= now_s:  # fell behind: skip ahead
             self._next_tick_s = now_s + period
         self._held = autonomous_output(
-            self.guided, self.executor if auto else None, self.estimator.pose, now_s,
+            self.guided, self.executor if auto else None, self.pose_now(now_s), now_s,
             self.kinematics, config.wheel_speed_max_mps, priority, pwm)
         return self._held
+
+    def pose_now(self, now_s: float) -> Pose2d:
+        """The estimator's pose carried forward to ``now_s`` (local NED m, rad).
+
+        Wheel odometry and the gyro's yaw move in steps (WHEEL_DISTANCE at 10 Hz, ATTITUDE at
+        20 Hz on the built-in board): between steps the position is the last one plus the
+        commanded velocity times the time since it changed, and the heading the last one plus
+        the commanded yaw rate times the time since it changed, each at most
+        :data:`MAX_POSE_LEAD_S` ahead.
+        """
+        pose = self.estimator.pose
+        if (pose.x_m, pose.y_m) != self._pose_seen:
+            self._pose_seen, self._pose_seen_s = (pose.x_m, pose.y_m), now_s
+        if pose.yaw_rad != self._yaw_seen:
+            self._yaw_seen, self._yaw_seen_s = pose.yaw_rad, now_s
+        lead = min(max(now_s - self._pose_seen_s, 0.0), MAX_POSE_LEAD_S)
+        yaw_lead = min(max(now_s - self._yaw_seen_s, 0.0), MAX_POSE_LEAD_S)
+        vn, ve = self.guided.velocity_ned
+        return Pose2d(pose.x_m + vn * lead, pose.y_m + ve * lead,
+                      wrap_pi(pose.yaw_rad + self.guided.yaw_rate * yaw_lead))
 
     def idle(self) -> None:
         """Not driving autonomously: no control ticks until the next :meth:`output`."""

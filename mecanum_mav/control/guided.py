@@ -73,6 +73,8 @@ class Setpoint:
         yaw_rate: commanded yaw rate (rad/s clockwise), or None.
         time_s: when it arrived (monotonic seconds).
         yaw_rate_max: a lower yaw-rate limit than ``GUID_YAW_RATE`` (rad/s), or None.
+        yaw_rate_ff: with a yaw target, the rate at which that target moves (rad/s
+            clockwise), added to the P controller's (AUTO's heading schedule); else unused.
     """
 
     position_ned: tuple[float, float] | None
@@ -81,6 +83,7 @@ class Setpoint:
     yaw_rate: float | None
     time_s: float
     yaw_rate_max: float | None = None
+    yaw_rate_ff: float = 0.0
 
 
 def _pair(a: float, b: float, ignore_a: bool, ignore_b: bool, what: str, limit: float
@@ -154,6 +157,8 @@ class GuidedController:
         self.setpoint: Setpoint | None = None
         self.hold_yaw: float | None = None
         self.velocity_ned = (0.0, 0.0)  # last commanded, for the acceleration limit
+        self.yaw_rate = 0.0
+        """The last commanded yaw rate, rad/s clockwise."""
         self._last_s: float | None = None
 
     def reconfigure(self, params: Params) -> None:
@@ -165,6 +170,7 @@ class GuidedController:
         self.setpoint = None
         self.hold_yaw = pose.yaw_rad
         self.velocity_ned = (0.0, 0.0)
+        self.yaw_rate = 0.0
         self._last_s = now_s
 
     def accept(self, setpoint: Setpoint, pose: Pose2d) -> None:
@@ -197,7 +203,7 @@ class GuidedController:
             k = accel_max * dt / step
             want = (self.velocity_ned[0] + dvn * k, self.velocity_ned[1] + dve * k)
         self.velocity_ned = want
-        yaw_rate = self._yaw_rate(sp, pose, lapsed)
+        yaw_rate = self.yaw_rate = self._yaw_rate(sp, pose, lapsed)
         # Rotate into the body as it will be one delay from now (motor lag, pose age), so a
         # turn does not bend the path.
         heading = pose.yaw_rad + yaw_rate * c.yaw_lead_s
@@ -232,12 +238,13 @@ class GuidedController:
         rate_max = c.yaw_rate_max
         if sp is not None and sp.yaw_rate_max is not None:
             rate_max = min(rate_max, sp.yaw_rate_max)
+        feed_forward = 0.0
         if sp is not None and sp.yaw is not None:
-            target = sp.yaw
+            target, feed_forward = sp.yaw, sp.yaw_rate_ff
         elif sp is not None and sp.yaw_rate is not None and not lapsed:
             self.hold_yaw = pose.yaw_rad  # when the rate lapses, hold where it stopped
             return max(-rate_max, min(rate_max, sp.yaw_rate))
         else:
             target = pose.yaw_rad if self.hold_yaw is None else self.hold_yaw
-        rate = c.yaw_gain * wrap_pi(target - pose.yaw_rad)
+        rate = feed_forward + c.yaw_gain * wrap_pi(target - pose.yaw_rad)
         return max(-rate_max, min(rate_max, rate))

@@ -18,15 +18,20 @@ the target, ``sqrt(2 * accel * (|error| - accel / (2 p**2)))`` beyond, so the ap
 and ends without overshoot.
 
 :func:`corner_speed` picks the speed at which to pass a waypoint between two legs so that the
-velocity across the new leg can be stopped within a given overshoot.
+velocity across the new leg can be stopped within a given overshoot; :func:`exit_speed_ahead`
+lowers it further where the rover must brake for a stop several legs ahead.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
-__all__ = ["Leg", "LegFollower", "corner_speed", "sqrt_controller"]
+from mecanum_mav.mecanum.geometry import wrap_pi
+
+__all__ = ["Leg", "LegFollower", "corner_lead", "corner_speed", "exit_speed_ahead",
+           "heading_schedule", "sqrt_controller"]
 
 Vec = tuple[float, float]
 
@@ -106,6 +111,60 @@ def corner_speed(incoming: Leg, outgoing: Leg, cruise: float, accel: float,
     if sin_turn < 1e-9:
         return cruise
     return min(cruise, math.sqrt(2.0 * accel * overshoot_m) / sin_turn)
+
+
+def exit_speed_ahead(legs: Sequence[Leg], cruise: float, accel: float,
+                     overshoot_m: float) -> float:
+    """Speed (m/s) at which to leave ``legs[0]`` so the rover can still stop at the end of
+    ``legs[-1]`` (the next stop waypoint) braking at ``accel``.
+
+    A backward pass over the legs after the first: at each joint the speed is at most the
+    :func:`corner_speed` there and at most what braking over the rest allows,
+    ``v_start = sqrt(v_end**2 + 2 * accel * length)``. One leg (nothing follows): 0.
+    """
+    speed = 0.0  # at the end of the last leg: a stop
+    for k in range(len(legs) - 1, 0, -1):
+        arrive = math.sqrt(speed * speed + 2.0 * accel * legs[k].length_m)
+        speed = min(arrive, corner_speed(legs[k - 1], legs[k], cruise, accel, overshoot_m))
+    return speed
+
+
+def corner_lead(leg: Leg, next_direction: Vec, position_ned: Vec, velocity_ned: Vec,
+                exit_speed: float, lead_s: float) -> Vec:
+    """``velocity_ned`` (north, east m/s) with the turn onto the next leg begun early.
+
+    Within ``exit_speed * lead_s`` metres of the leg's end (the distance the rover covers
+    while its velocity lags the command: motor lag and the acceleration limit), the speed
+    along the leg is moved onto ``next_direction`` (a unit vector), in proportion to how close
+    the end is, so the rover's true velocity turns at the waypoint instead of after it. The
+    correction across the leg is kept.
+    """
+    lead_m = exit_speed * lead_s
+    if lead_m <= 0.0 or next_direction == (0.0, 0.0):
+        return velocity_ned
+    remaining = leg.length_m - leg.errors(position_ned)[0]
+    if remaining >= lead_m:
+        return velocity_ned
+    share = min(1.0, 1.0 - max(remaining, 0.0) / lead_m)
+    un, ue = leg.direction
+    return (velocity_ned[0] + share * exit_speed * (next_direction[0] - un),
+            velocity_ned[1] + share * exit_speed * (next_direction[1] - ue))
+
+
+def heading_schedule(leg: Leg, position_ned: Vec, yaw_from: float, yaw_to: float,
+                     speed_along: float) -> tuple[float, float]:
+    """The heading to command along a leg that turns from ``yaw_from`` to ``yaw_to`` (rad
+    clockwise from north, the shorter way) in proportion to the distance driven, and the rate
+    at which that heading moves at ``speed_along`` m/s (rad/s clockwise), to feed forward so
+    the heading does not trail the schedule by the P controller's lag.
+    """
+    length = leg.length_m
+    turn = wrap_pi(yaw_to - yaw_from)
+    if length < 1e-9:
+        return yaw_to, 0.0
+    fraction = min(max(leg.errors(position_ned)[0] / length, 0.0), 1.0)
+    rate = turn / length * speed_along if fraction < 1.0 else 0.0
+    return wrap_pi(yaw_from + turn * fraction), rate
 
 
 class LegFollower:
