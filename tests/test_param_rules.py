@@ -16,10 +16,12 @@ DEFAULTS = {spec.name: spec.default for spec in SCHEMA}
 
 
 def test_reboot_required_is_identity_geometry_and_the_simulator():
-    expected = {"SYSID_THISMAV", "GEO_HALF_LEN", "GEO_HALF_WID"} | {
+    expected = {"SYSID_THISMAV", "GEO_HALF_LEN", "GEO_HALF_WID", "WHL_STRAFE_EFF"} | {
         spec.name for spec in SCHEMA if spec.name.startswith("SIM_")}
     assert {spec.name for spec in SCHEMA if spec.reboot_required} == expected
-    assert len(expected) == 14  # 3 + the 11 SIM_ (issue 25 added 5 for the MuJoCo chassis)
+    # 4 + the 11 SIM_ (issue 25 added the strafe efficiency, which the kinematics are built
+    # from as from GEO_*, and 5 SIM_ for the MuJoCo chassis)
+    assert len(expected) == 15
 
 
 def test_the_parameter_service_reads_reboot_required_from_the_schema():

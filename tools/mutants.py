@@ -825,7 +825,7 @@ MUTATIONS: tuple[Mutation, ...] = (
       T + "test_stream_lane.py"),
     M("link-lane-paced", "a stream link takes the lane's packet only while the wire is free",
       PKG + "io/links/stream.py",
-      "        return self._free_in_s(self.clock()) <= 0.0",
+      "        return self._free_in_s(now) <= 0.0",
       "        return True",
       T + "test_stream_lane.py"),
     M("link-lane-follows-device", "after the lane's write a serial link learns the kernel's queue",
