@@ -47,6 +47,19 @@ def _wheels(values: Sequence[float]) -> Wheels:
     return (fl, fr, rl, rr)
 
 
+def step_needed(dt_s: float, wheel_commands: Sequence[float]) -> bool:
+    """Whether a chassis step of ``dt_s`` seconds has anything to do (``dt_s > 0``).
+
+    Raises:
+        ValueError: a negative or non-finite ``dt_s``, or not four wheel commands.
+    """
+    if not (math.isfinite(dt_s) and dt_s >= 0.0):
+        raise ValueError(f"time step must be finite and >= 0 s, got {dt_s}")
+    if len(wheel_commands) != 4:
+        raise ValueError("need 4 wheel commands (FL, FR, RL, RR)")
+    return dt_s > 0.0
+
+
 def _clean_command(command: float) -> float:
     """A normalized wheel command limited to [-1, 1]; non-finite reads as 0 (stop)."""
     c = float(command)
@@ -148,11 +161,7 @@ class SimChassis:
         Commands are limited to [-1, 1]; a non-finite command is 0. ``dt_s = 0`` does
         nothing; a negative or non-finite ``dt_s`` raises ``ValueError``.
         """
-        if not (math.isfinite(dt_s) and dt_s >= 0.0):
-            raise ValueError(f"time step must be finite and >= 0 s, got {dt_s}")
-        if len(wheel_commands) != 4:
-            raise ValueError("need 4 wheel commands (FL, FR, RL, RR)")
-        if dt_s == 0.0:
+        if not step_needed(dt_s, wheel_commands):
             return
         targets = [_clean_command(c) * self._max_speed for c in wheel_commands]
         gain = -math.expm1(-dt_s / self._tau)  # 1 - exp(-dt/tau), accurate for small dt

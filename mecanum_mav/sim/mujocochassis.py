@@ -32,7 +32,7 @@ import numpy as np
 
 from mecanum_mav.mecanum.geometry import Pose2d
 from mecanum_mav.mecanum.wheels import WHEEL_KEYS
-from mecanum_mav.sim.chassis import ORIGIN_POSE, Wheels, _clean_command
+from mecanum_mav.sim.chassis import ORIGIN_POSE, Wheels, _clean_command, step_needed
 from mecanum_mav.sim.mujocomodel import ChassisSpec, mjcf
 
 if TYPE_CHECKING:
@@ -182,11 +182,7 @@ class MujocoChassis:
         Commands are limited to [-1, 1]; a non-finite command is 0. ``dt_s = 0`` does
         nothing; a negative or non-finite ``dt_s`` raises ``ValueError``.
         """
-        if not (math.isfinite(dt_s) and dt_s >= 0.0):
-            raise ValueError(f"time step must be finite and >= 0 s, got {dt_s}")
-        if len(wheel_commands) != 4:
-            raise ValueError("need 4 wheel commands (FL, FR, RL, RR)")
-        if dt_s == 0.0:
+        if not step_needed(dt_s, wheel_commands):
             return
         self._command([_clean_command(c) for c in wheel_commands])
         self._pending += dt_s
