@@ -247,3 +247,19 @@ def test_the_chassis_runs_at_least_3_times_faster_than_real_time():
     factor = mujoco_chassis.real_time_factor(Params(), seconds=2.0)
     print(f"MuJoCo chassis: {factor:.1f}x real time")
     assert factor >= 3.0
+
+
+def test_the_pose_and_rates_are_of_the_same_instant_as_the_wheel_distances():
+    # MuJoCo's derived xmat/cvel are from the start of its last step: read from them, the
+    # ATTITUDE yaw lags WHEEL_DISTANCE and the position by a timestep (0.1 degrees at 1 rad/s).
+    p = params()
+    chassis = MujocoChassis.from_params(p)
+    run(chassis, 1.0, wheel_commands(p, 0.5, 0.3, 1.0))
+    reported = (chassis.pose, chassis.yaw_rate, chassis.velocity_body, chassis.roll_pitch)
+    mujoco_chassis.mujoco.mj_forward(chassis.model, chassis.data)  # derived from the state now
+    pose, yaw_rate, velocity, roll_pitch = reported
+    assert pose.yaw_rad == pytest.approx(chassis.pose.yaw_rad, abs=1e-9)
+    assert yaw_rate == pytest.approx(chassis.yaw_rate, abs=1e-9)
+    assert velocity == pytest.approx(chassis.velocity_body, abs=1e-9)
+    assert roll_pitch == pytest.approx(chassis.roll_pitch, abs=1e-9)
+    assert yaw_rate > 0.5  # (it was turning)

@@ -978,6 +978,12 @@ MUTATIONS: tuple[Mutation, ...] = (
       "return Pose2d(float(x), -float(y), _wrap(-yaw_up))",
       "return Pose2d(float(x), -float(y), _wrap(yaw_up))",
       MJ + "test_forward_moves_along_the_heading_in_ned"),
+    M("mujoco-same-instant", "the chassis's yaw, rates and velocity are of the state's instant "
+      "(not MuJoCo's xmat, one timestep old)",
+      PKG + "sim/mujocochassis.py",
+      "mujoco.mju_quat2Mat(matrix, self.data.qpos[3:7])",
+      "matrix = np.array(self.data.xmat[1])",
+      MJ + "test_the_pose_and_rates_are_of_the_same_instant_as_the_wheel_distances"),
 )
 
 # ====================================================================== running
