@@ -941,7 +941,7 @@ MUTATIONS: tuple[Mutation, ...] = (
       '{"WHL_STRAFE_EFF": 1.0,',
       PL + "test_the_square_on_the_mujoco_chassis_at_1_m_s_finishes_within_its_goals"),
     M("bench-strafe-eff-measured", "bench_control's MuJoCo strafe efficiency is the measured",
-      "tools/bench_control.py", "MUJOCO_STRAFE_EFF = 0.986", "MUJOCO_STRAFE_EFF = 0.95",
+      "tools/bench_control.py", "MUJOCO_STRAFE_EFF = 0.988", "MUJOCO_STRAFE_EFF = 0.95",
       PL + "test_bench_controls_strafe_efficiency_is_what_the_mujoco_chassis_measures"),
     M("odomcal-ramp", "odometry_calibration's ramps accelerate at the given rate",
       "tools/odometry_calibration.py", "    step = accel * DT_S", "    step = 100.0 * DT_S",
