@@ -110,8 +110,10 @@ def test_a_held_position_on_the_mujoco_chassis_with_its_esc_dead_band_does_not_o
 def test_the_square_on_the_mujoco_chassis_at_1_m_s_finishes_within_its_goals():
     """bench_control's runner, 1.0 m/s on friction 0.8, configured as the bench is (MOT_DZ a
     microsecond over SIM_ESC_DZ, jump; WHL_STRAFE_EFF measured): it reaches every waypoint
-    within WP_RADIUS + 5 mm as the kinematic chassis does, its cross-track under 3 cm (kills
-    pwm-dead-band-add and bench-mot-dz: it stalls 4 cm short of waypoint 1), and takes at most
+    within WP_RADIUS + 5 mm as the kinematic chassis does (kills pwm-dead-band-add and
+    bench-mot-dz: it stalls 4 cm short of waypoint 1), its cross-track under 2 cm (1.15 cm;
+    kills bench-strafe-eff: odometry with WHL_STRAFE_EFF 1 ends a 3 m strafe 2.8 cm off, on
+    the stiff roller contact), and takes at most
     5 % longer than the kinematic chassis (kills bench-dz-type: the offset form over-drives
     this ESC, 10 % faster)."""
     pytest.importorskip("mujoco")
@@ -120,7 +122,7 @@ def test_the_square_on_the_mujoco_chassis_at_1_m_s_finishes_within_its_goals():
     radius = float(Params()["WP_RADIUS"])
     arrivals = row.fig.arrivals_m
     assert len(arrivals) == 4 and max(arrivals) < radius + 0.005, arrivals
-    assert row.fig.worst_cross_track_m < 0.03
+    assert row.fig.worst_cross_track_m < 0.02
     kinematic = bench_control.run_mission("square", 1.0)
     assert abs(row.fig.time_s / kinematic.fig.time_s - 1.0) < 0.05
 
