@@ -76,8 +76,10 @@ def test_a_held_position_on_the_mujoco_chassis_with_its_esc_dead_band_does_not_o
     """GUIDED to a position (1.2, 0.8) facing 45 deg on SIM_ESC_DZ 0.02, with MOT_DZ a little
     above it, jump (the simulated ESC's kind, as the bench sets it) or offset (over-driving it
     by up to MOT_DZ): once there, over 4 s its wheel pulses stay within a microsecond of
-    neutral (at least 95 % of the steps: the odometry's slow creep may ask for a rare
-    correction), it stays within 1 mm and within 1 cm of the target. Kills pwm-dead-band-live:
+    neutral (at least 95 % of the steps with jump, 85 % with offset: there a correction of
+    a hundredth of a degree lifts one wheel to 13 us, which pushes against the three braked
+    ones without moving the rover: 13 % of the steps on the stiff roller contact), it stays
+    within 1 mm and within 1 cm of the target. Kills pwm-dead-band-live:
     with every non-zero command lifted over the band it hunts, every step beyond 1 us, moving
     5-14 mm; pwm-dead-band-param: without compensation it stalls 3.5 cm short."""
     pytest.importorskip("mujoco")
@@ -96,7 +98,8 @@ def test_a_held_position_on_the_mujoco_chassis_with_its_esc_dead_band_does_not_o
     trims = h.core.pwm.neutral()
     driven = sum(any(abs(p - t) > 1 for p, t in zip(pulses, trims, strict=True))
                  for pulses, _ in seen)
-    assert driven <= 0.05 * len(seen), f"{driven} of {len(seen)} steps beyond 1 us"
+    assert driven <= (0.05 if kind else 0.15) * len(seen), \
+        f"{driven} of {len(seen)} steps beyond 1 us"
     xs, ys = zip(*(xy for _, xy in seen), strict=True)
     assert max(xs) - min(xs) < 0.001 and max(ys) - min(ys) < 0.001
     pose = h.truth().pose
@@ -107,8 +110,10 @@ def test_a_held_position_on_the_mujoco_chassis_with_its_esc_dead_band_does_not_o
 def test_the_square_on_the_mujoco_chassis_at_1_m_s_finishes_within_its_goals():
     """bench_control's runner, 1.0 m/s on friction 0.8, configured as the bench is (MOT_DZ a
     microsecond over SIM_ESC_DZ, jump; WHL_STRAFE_EFF measured): it reaches every waypoint
-    within WP_RADIUS + 5 mm as the kinematic chassis does, its cross-track under 3 cm (kills
-    pwm-dead-band-add and bench-mot-dz: it stalls 4 cm short of waypoint 1), and takes at most
+    within WP_RADIUS + 5 mm as the kinematic chassis does (kills pwm-dead-band-add and
+    bench-mot-dz: it stalls 4 cm short of waypoint 1), its cross-track under 2 cm (1.15 cm;
+    kills bench-strafe-eff: odometry with WHL_STRAFE_EFF 1 ends a 3 m strafe 2.8 cm off, on
+    the stiff roller contact), and takes at most
     5 % longer than the kinematic chassis (kills bench-dz-type: the offset form over-drives
     this ESC, 10 % faster)."""
     pytest.importorskip("mujoco")
@@ -117,19 +122,19 @@ def test_the_square_on_the_mujoco_chassis_at_1_m_s_finishes_within_its_goals():
     radius = float(Params()["WP_RADIUS"])
     arrivals = row.fig.arrivals_m
     assert len(arrivals) == 4 and max(arrivals) < radius + 0.005, arrivals
-    assert row.fig.worst_cross_track_m < 0.03
+    assert row.fig.worst_cross_track_m < 0.02
     kinematic = bench_control.run_mission("square", 1.0)
     assert abs(row.fig.time_s / kinematic.fig.time_s - 1.0) < 0.05
 
 
 def test_bench_controls_strafe_efficiency_is_what_the_mujoco_chassis_measures():
     """tools/odometry_calibration.py's steady strafe (true / odometry) at 1 m/s on both floors
-    is bench_control's MUJOCO_STRAFE_EFF within 0.002, and forward stays within 0.2 % of 1
+    is bench_control's MUJOCO_STRAFE_EFF within 0.001, and forward stays within 0.2 % of 1
     (kills a MUJOCO_STRAFE_EFF that was not measured: 1.0 or 0.95)."""
     pytest.importorskip("mujoco")
     for friction in (0.8, 0.4):
         strafe = odometry_calibration.steady(friction, "strafe", 1.0)
-        assert strafe == pytest.approx(bench_control.MUJOCO_STRAFE_EFF, abs=0.002)
+        assert strafe == pytest.approx(bench_control.MUJOCO_STRAFE_EFF, abs=0.001)
         assert odometry_calibration.steady(friction, "forward", 1.0) == pytest.approx(1.0,
                                                                                      abs=0.002)
 

@@ -76,10 +76,11 @@ speed along the leg)."""
 DEAD_BAND_MARGIN = 0.002
 """``MOT_DZ`` on the MuJoCo chassis is ``SIM_ESC_DZ`` plus this: one microsecond of PWM above
 the ESC's band, so rounding to whole microseconds never lands a command inside it."""
-MUJOCO_STRAFE_EFF = 0.986
+MUJOCO_STRAFE_EFF = 0.988
 """``WHL_STRAFE_EFF`` on the MuJoCo chassis: true over odometry distance strafing steadily at
-0.5, 1.0 and 1.5 m/s, on friction 0.8 and 0.4 alike (0.9857-0.9866; forward 0.9989-0.9991),
-as ``tools/odometry_calibration.py`` measures it."""
+0.5, 1.0 and 1.5 m/s, on friction 0.8 and 0.4 alike (0.9879-0.9881; forward 0.9996), as
+``tools/odometry_calibration.py`` measures it (on the stiff roller contact; 0.986 on the
+soft one before)."""
 DT_S = 0.002
 """The harness's time step, seconds."""
 SHOWN = ("WP_ACCEL", "WP_RADIUS", "WP_OVERSHOOT", "GUID_ACC_MAX", "GUID_POS_P", "GUID_YAW_P",

@@ -941,7 +941,7 @@ MUTATIONS: tuple[Mutation, ...] = (
       '{"WHL_STRAFE_EFF": 1.0,',
       PL + "test_the_square_on_the_mujoco_chassis_at_1_m_s_finishes_within_its_goals"),
     M("bench-strafe-eff-measured", "bench_control's MuJoCo strafe efficiency is the measured",
-      "tools/bench_control.py", "MUJOCO_STRAFE_EFF = 0.986", "MUJOCO_STRAFE_EFF = 0.95",
+      "tools/bench_control.py", "MUJOCO_STRAFE_EFF = 0.988", "MUJOCO_STRAFE_EFF = 0.95",
       PL + "test_bench_controls_strafe_efficiency_is_what_the_mujoco_chassis_measures"),
     M("odomcal-ramp", "odometry_calibration's ramps accelerate at the given rate",
       "tools/odometry_calibration.py", "    step = accel * DT_S", "    step = 100.0 * DT_S",
@@ -978,6 +978,25 @@ MUTATIONS: tuple[Mutation, ...] = (
       "return Pose2d(float(x), -float(y), _wrap(-yaw_up))",
       "return Pose2d(float(x), -float(y), _wrap(yaw_up))",
       MJ + "test_forward_moves_along_the_heading_in_ned"),
+    M("mujoco-same-instant", "the chassis's yaw, rates and velocity are of the state's instant "
+      "(not MuJoCo's xmat, one timestep old)",
+      PKG + "sim/mujocochassis.py",
+      "mujoco.mju_quat2Mat(matrix, self.data.qpos[3:7])",
+      "matrix = np.array(self.data.xmat[1])",
+      MJ + "test_the_pose_and_rates_are_of_the_same_instant_as_the_wheel_distances"),
+    M("mujoco-stiff-contact", "the roller-floor contact is as stiff as MuJoCo allows (2 steps): "
+      "a soft one makes the wheels lag the ground and the odometry drift sideways in turns",
+      PKG + "sim/mujocomodel.py",
+      "CONTACT_STEPS = 2.0", "CONTACT_STEPS = 5.0",
+      MJ + "test_translating_while_turning_the_wheels_odometry_stays_within_0_3_percent_"
+      "sideways",
+      MJ + "test_a_roller_passes_the_floor_in_at_least_one_and_a_half_integration_steps"),
+    M("mujoco-short-step", "MuJoCo's step is 1 ms (room for the stiff contact)",
+      PKG + "sim/mujocomodel.py",
+      "TIMESTEP_S = 0.001", "TIMESTEP_S = 0.002",
+      MJ + "test_translating_while_turning_the_wheels_odometry_stays_within_0_3_percent_"
+      "sideways",
+      MJ + "test_a_roller_passes_the_floor_in_at_least_one_and_a_half_integration_steps"),
 )
 
 # ====================================================================== running

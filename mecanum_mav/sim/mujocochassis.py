@@ -62,7 +62,6 @@ class MujocoChassis:
         self.spec = spec
         self.model = mujoco.MjModel.from_xml_string(mjcf(spec))
         self.data = mujoco.MjData(self.model)
-        self._body = self.model.body("chassis").id
         joints = [self.model.joint(f"wheel_{key.lower()}").id for key in WHEEL_KEYS]
         self._wheel_q = [int(self.model.jnt_qposadr[j]) for j in joints]
         self._wheel_v = [int(self.model.jnt_dofadr[j]) for j in joints]
@@ -93,16 +92,19 @@ class MujocoChassis:
         mujoco.mj_forward(self.model, self.data)
 
     def _rotation(self) -> np.ndarray:
-        """The body's rotation matrix (body FLU -> world z-up)."""
-        matrix: np.ndarray = self.data.xmat[self._body].reshape(3, 3)
-        return matrix
+        """The body's rotation matrix (body FLU -> world z-up), from the state's quaternion:
+        the same instant as the position and the wheel angles (MuJoCo's ``xmat`` is from the
+        start of its last step, one timestep older)."""
+        matrix = np.empty(9)
+        mujoco.mju_quat2Mat(matrix, self.data.qpos[3:7])
+        return matrix.reshape(3, 3)
 
     def _velocity_world(self) -> np.ndarray:
-        """The body origin's (rotation, linear) velocity, world frame (z up)."""
-        vel = np.zeros(6)
-        mujoco.mj_objectVelocity(self.model, self.data, mujoco.mjtObj.mjOBJ_BODY, self._body,
-                                 vel, 0)
-        return vel
+        """The body origin's (rotation, linear) velocity, world frame (z up), from the state
+        (the free joint's linear velocity is in the world frame, its angular one body-local;
+        MuJoCo's ``cvel`` is one timestep older)."""
+        spin = self._rotation() @ self.data.qvel[3:6]
+        return np.concatenate((spin, self.data.qvel[0:3]))
 
     @property
     def pose(self) -> Pose2d:
