@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given
+from hypothesis import example, given
 from hypothesis import strategies as st
 
 from mecanum_mav.config.params import Params
@@ -204,6 +204,8 @@ def test_mot_dz_0_sends_the_commands_as_they_are():
 
 @given(st.lists(st.floats(allow_nan=True, allow_infinity=True), min_size=4, max_size=4),
        st.floats(0.0, 0.3), st.integers(0, 1))
+@example([0.01, -0.01, 0.05, -0.2], 0.1, 1)  # inside a jump ESC's band: lifted to its edge
+@example([0.01, -0.01, 0.05, -0.2], 0.1, 0)
 def test_vector_pwm_matches_scalar_pwm_with_a_dead_band(wheels, band, jump):
     # kills pwm-dead-band-array, pwm-dead-band-array-jump
     out = dead_band_map(band, MOT_RL_REV=1, MOT_DZ_TYPE=jump)
