@@ -894,6 +894,11 @@ MUTATIONS: tuple[Mutation, ...] = (
     M("pwm-dead-band-array", "the vectorized PWM compensates the dead band as the scalar",
       PKG + "control/pwm.py", "np.sign(c) * np.maximum(lift + keep * size, band), c)",
       "c, c)", PC + "test_vector_pwm_matches_scalar_pwm_with_a_dead_band"),
+    M("guided-yaw-lead", "the body velocity is for the heading one motor lag ahead (0.09 s)",
+      PKG + "config/schema.py", '"GUID_YAW_LEAD", float, default=0.09,',
+      '"GUID_YAW_LEAD", float, default=0.12,',
+      T + "test_bench_control.py::"
+      "test_strafing_while_turning_half_a_turn_keeps_the_kinematic_rover_on_its_line"),
     M("pwm-dead-band-array-jump", "the vectorized PWM lifts a jump ESC's commands to the band",
       PKG + "control/pwm.py", "np.maximum(lift + keep * size, band)", "(lift + keep * size)",
       PC + "test_vector_pwm_matches_scalar_pwm_with_a_dead_band"),

@@ -375,10 +375,10 @@ SCHEMA: tuple[ParamSpec, ...] = (
         description="GUIDED: heading gain, commanded yaw rate per radian of heading error.",
     ),
     ParamSpec(
-        "GUID_YAW_LEAD", float, default=0.12, minimum=0.0, maximum=1.0, units="s",
-        description="GUIDED: the body-frame velocity is computed for the heading the rover "
-        "will have this long from now (motor lag plus pose age), so turning does not bend "
-        "the path.",
+        "GUID_YAW_LEAD", float, default=0.09, minimum=0.0, maximum=1.0, units="s",
+        description="GUIDED and AUTO: the body-frame velocity is computed for the heading the "
+        "rover will have this long from now (the motors' lag and half a control period: the "
+        "pose is already carried forward to now), so turning does not bend the path.",
     ),
     ParamSpec(
         "GUID_TIMEOUT", float, default=3.0, minimum=0.1, maximum=60.0, units="s",
