@@ -5,8 +5,6 @@ without MuJoCo installed."""
 from __future__ import annotations
 
 import math
-import signal
-import subprocess
 import sys
 import time
 
@@ -20,6 +18,7 @@ from mecanum_mav.io.links import mavutil
 from mecanum_mav.mecanum.geo import GlobalOrigin
 from mecanum_mav.sim import physics
 from mecanum_mav.sim.groundstation import udp_ground_station
+from mecanum_mav.sim.process import CompanionProcess
 
 mujoco_chassis = pytest.importorskip("mecanum_mav.sim.mujocochassis")
 
@@ -66,9 +65,7 @@ def test_manual_sticks_drive_the_mujoco_chassis_and_the_board_reports_it():
 def test_sim_physics_mujoco_prints_its_real_time_factor_and_simulates_the_chassis(tmp_path):
     gcs, port = udp_ground_station()  # (bound to port 0 first: the OS picks the port)
     tlog = tmp_path / "sim.tlog"
-    proc = subprocess.Popen([sys.executable, "-m", "mecanum_mav", "sim", "--physics", "mujoco",
-                             "--gcs", port.url, "--tlog", str(tlog)],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    sim = CompanionProcess.sim(port.url, tmp_path, "--physics", "mujoco", "--tlog", str(tlog))
     try:
         assert gcs.wait("HEARTBEAT", timeout_s=15.0), "no heartbeat"
         assert gcs.wait("STATUSTEXT", lambda m: m.text == "Flight controller link up", 5.0,
@@ -84,14 +81,12 @@ def test_sim_physics_mujoco_prints_its_real_time_factor_and_simulates_the_chassi
                                           if min(m.distance[:4]) > 0.5), None),
                             10.0, pump=pump, pump_s=0.02)
         assert rolled is not None, gcs.received("WHEEL_DISTANCE")[-1:]
-        proc.send_signal(signal.SIGTERM)
-        out, err = proc.communicate(timeout=15)
+        code = sim.stop(timeout_s=15.0)
     finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.communicate()
+        sim.kill()
         port.close()
-    assert proc.returncode == 0, err
+    out = sim.log(tail=1_000_000)
+    assert code == 0, out
     factor = float(out.split("MuJoCo chassis: ", 1)[1].split("x real time", 1)[0])
     print(f"sim --physics mujoco: {factor:.1f}x real time")
     assert factor >= physics.MIN_REAL_TIME_FACTOR

@@ -744,13 +744,14 @@ MUTATIONS: tuple[Mutation, ...] = (
     M("loop-lane-unused", "the loop answers the pilot's stick datagram in the stick lane",
       PKG + "runtime/loop.py",
       "packet = (self.core.stick_lane(data, now, self._fc_mav.seq)\n"
-      "                          if self._lane_links and self.fc.takes_packet() else None)",
+      "                          if self._lane_links and (self._fc_datagrams or "
+      "self.fc.takes_packet())\n"
+      "                          else None)",
       "packet = None",
       T + "test_loop.py", T + "test_lane.py", T + "test_stream_lane.py"),
     M("loop-lane-asks-the-link", "the lane answers only when the FC link takes its packet at once",
       PKG + "runtime/loop.py",
-      "if self._lane_links and self.fc.takes_packet() else None)",
-      "if self._lane_links else None)",
+      "(self._fc_datagrams or self.fc.takes_packet())", "True",
       T + "test_stream_lane.py"),
     M("loop-idle-follows-new-fd", "a settled pass still follows a stream link whose descriptor "
       "changed", PKG + "runtime/loop.py",
@@ -825,8 +826,8 @@ MUTATIONS: tuple[Mutation, ...] = (
       T + "test_stream_lane.py"),
     M("link-lane-paced", "a stream link takes the lane's packet only while the wire is free",
       PKG + "io/links/stream.py",
-      "        return self._free_in_s(now) <= 0.0",
-      "        return True",
+      "        return self._idle_and_open() and self._free_in_s(self.clock()) <= 0.0",
+      "        return self._idle_and_open()",
       T + "test_stream_lane.py"),
     M("link-lane-follows-device", "after the lane's write a serial link learns the kernel's queue",
       PKG + "io/links/serialport.py",
@@ -876,10 +877,8 @@ MUTATIONS: tuple[Mutation, ...] = (
       PC + "test_with_a_dead_band_a_small_command_jumps_over_it_and_full_stays_full"),
     M("pwm-dead-band-scale", "full command stays full with a dead band (scaled by 1 - dz)",
       PKG + "control/pwm.py",
-      "        lift, keep = (0.0, 1.0) if self.dead_band_jump else (band, 1.0 - band)\n"
-      "        live",
-      "        lift, keep = (0.0, 1.0) if self.dead_band_jump else (band, 1.0)\n"
-      "        live",
+      "(0.0, 1.0) if self.dead_band_jump else (band, 1.0 - band))",
+      "(0.0, 1.0) if self.dead_band_jump else (band, 1.0))",
       PC + "test_with_a_dead_band_a_small_command_jumps_over_it_and_full_stays_full"),
     M("pwm-dead-band-zero", "a zero command stays neutral with a dead band",
       PKG + "control/pwm.py", "                if c > live:\n",

@@ -114,6 +114,9 @@ class PwmMap:
         object.__setattr__(self, "_neutral", (w[0].trim, w[1].trim, w[2].trim, w[3].trim))
         object.__setattr__(self, "spans", tuple((x.trim, x.maximum - x.trim, x.trim - x.minimum,
                                                  x.reversed) for x in w))
+        band = self.dead_band
+        object.__setattr__(self, "_lift_keep",
+                           (0.0, 1.0) if self.dead_band_jump else (band, 1.0 - band))
 
     channels: tuple[int, ...] = field(init=False)
     """RC channel numbers (1..18) of FL, FR, RL, RR."""
@@ -121,6 +124,8 @@ class PwmMap:
                                                          compare=False)
     """Per wheel, FL, FR, RL, RR: trim, maximum - trim, trim - minimum (us), reversed."""
     _neutral: tuple[int, int, int, int] = field(init=False, repr=False, compare=False)
+    _lift_keep: tuple[float, float] = field(init=False, repr=False, compare=False)
+    """The dead band's map past its edge, ``|c| -> lift + keep * |c|`` (:meth:`pulses_us`)."""
 
     def neutral(self) -> tuple[int, int, int, int]:
         """Trim on every wheel, microseconds: the safe output."""
@@ -141,7 +146,7 @@ class PwmMap:
         """
         isfinite = math.isfinite
         band = self.dead_band
-        lift, keep = (0.0, 1.0) if self.dead_band_jump else (band, 1.0 - band)
+        lift, keep = self._lift_keep
         live = DEAD_BAND_LIVE
         pulses = []
         for command, (trim, up, down, mirrored) in zip(wheels, self.spans, strict=True):
@@ -175,7 +180,7 @@ class PwmMap:
         c = np.clip(np.where(finite, c, 0.0) * sign, -1.0, 1.0)
         if self.dead_band:
             band = self.dead_band
-            lift, keep = (0.0, 1.0) if self.dead_band_jump else (band, 1.0 - band)
+            lift, keep = self._lift_keep
             size = np.abs(c)
             c = np.where(size > DEAD_BAND_LIVE,
                          np.sign(c) * np.maximum(lift + keep * size, band), c)

@@ -221,6 +221,9 @@ class ControlLoop:
         """The ground station's link when it is a datagram link (its first datagram waiting
         is answered before the rest are read)."""
         self._lane_links = gcs.unchecked and fc.unchecked
+        self._fc_datagrams = fc.steady
+        """A datagram link to the flight controller takes every packet at once: only a stream
+        link is asked (``takes_packet``) before the lane answers."""
         """The stick lane may answer (its packets are unsigned; keys are fixed at start)."""
         self._up = {gcs: True, fc: True}
         self._timer: Callable[[float], float] | None = None
@@ -254,7 +257,7 @@ class ControlLoop:
             return  # woken before anything is due, with nothing to read
         if now >= self._timer_due_s and self._timer is not None:
             self._timer_due_s = self._timer(now)
-        if core.settled(now) and self._streams_idle():
+        if core.settled(now) and (not streams or self._streams_idle()):
             return  # nothing arrived and nothing is due
         for link in streams:  # (a datagram link never goes down)
             if not link.up and link.reopen(now):
@@ -262,7 +265,7 @@ class ControlLoop:
         out = core.tick(now)
         if out is not NOTHING:
             self._write(out)  # the override first,
-        if core.settled(now) and self._streams_idle():
+        if core.settled(now) and (not streams or self._streams_idle()):
             return  # the pass was the output's refresh (or the lane's): nothing else is due
         out = core.housekeeping(now)
         if out is not NOTHING:
@@ -299,7 +302,8 @@ class ControlLoop:
             if got is not None:
                 data, address = got
                 packet = (self.core.stick_lane(data, now, self._fc_mav.seq)
-                          if self._lane_links and self.fc.takes_packet() else None)
+                          if self._lane_links and (self._fc_datagrams or self.fc.takes_packet())
+                          else None)
                 if packet is not None:  # the pilot's stick, in its lane: sent at once
                     self.fc.send_packet(packet)
                     self.core.stick_sent()

@@ -218,40 +218,37 @@ class StreamLink(Link):
             self._override = (target_system, target_component, channels)
             self.flush()
             return
-        try:
-            self.write(self._pack_override(target_system, target_component, channels))
-        except Exception as exc:  # the queue is full
-            self._send_failed(exc)
-        else:
-            self.sent += 1
+        self._send_queued(self._pack_override(target_system, target_component, channels))
 
     def takes_packet(self) -> bool:
         """Whether a packet given to :meth:`send_packet` now goes to the kernel at once: the
         link is open, nothing waits in it (an override waiting is newer than nothing; the
         lane must not pass it) and pacing lets it go (:meth:`_free_in_s`, from what is known
         without asking the kernel)."""
-        return self._takes_at(self.clock())
+        return self._idle_and_open() and self._free_in_s(self.clock()) <= 0.0
 
-    def _takes_at(self, now: float) -> bool:
+    def _idle_and_open(self) -> bool:
+        """Nothing waits in the link and it can write now."""
         if self._head or self._override is not None or self._queue:
             return False
         try:
             self._check_open()
         except LinkDownError:
             return False
-        return self._free_in_s(now) <= 0.0
+        return True
 
     def send_packet(self, packet: bytes) -> None:
         """Send a packet packed elsewhere with this link's next sequence number, which then
-        advances; never raises. When :meth:`takes_packet` says yes (the stick lane asked
-        just before), it goes to the kernel at once, and the transport then looks at what
-        the kernel holds (:meth:`_sent_now`), after the latency-critical write. Otherwise it
-        is queued, and, being the lane's override, supersedes the override waiting (newest
-        wins: the board never gets an older command after it)."""
+        advances; never raises. Asked right after :meth:`takes_packet` said yes (the stick
+        lane), it goes to the kernel at once (the pacing was judged there, not again), and
+        the transport then looks at what the kernel holds (:meth:`_sent_now`), after the
+        latency-critical write. If something waits in the link or it cannot write, it is
+        queued, and, being the lane's override, supersedes the override waiting (newest wins:
+        the board never gets an older command after it)."""
         mav = self.conn.mav
         mav.seq = (mav.seq + 1) & 0xFF
-        now = self.clock()
-        if self._takes_at(now):
+        if self._idle_and_open():
+            now = self.clock()
             self._head = packet  # (what the kernel does not take stays: follow() hands it)
             self._hand_over(packet, now)
             if self.down_reason is None:  # (a break now counted it unsent)
