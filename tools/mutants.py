@@ -1151,7 +1151,7 @@ def run_all(selected: list[Mutation], workers: int, show: bool) -> list[Outcome]
             outcomes[m.id] = Outcome(m, "STALE", reason, 0.0)
     with tempfile.TemporaryDirectory(prefix="mutants-") as tmp:
         copies = []
-        for n in range(max(1, min(workers, len(runnable)))):
+        for n in range(min(workers, len(runnable))):  # (none when every entry is stale)
             folder = Path(tmp) / f"w{n}"
             folder.mkdir()
             copies.append(make_copy(folder))
