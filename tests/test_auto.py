@@ -8,8 +8,10 @@ import math
 from itertools import pairwise
 
 import pytest
+from conftest import lockstep
 from missionitems import JUMP, LOITER, RTL, SPEED, YAW, do, local_wp, renumber
 
+from mecanum_mav.app.demo import demo_mission
 from mecanum_mav.config.params import Params
 from mecanum_mav.control.chain import autonomous_output
 from mecanum_mav.control.executor import MissionExecutor
@@ -26,6 +28,7 @@ from mecanum_mav.io.links import mavlink
 from mecanum_mav.mecanum.geometry import Pose2d, wrap_pi
 from mecanum_mav.mecanum.kinematics import MecanumKinematics
 from mecanum_mav.protocol.mission import MissionItem
+from mecanum_mav.protocol.modes import Mode
 from mecanum_mav.sim.chassis import SimChassis
 
 HOME = local_wp(0, 0.0, 0.0)
@@ -242,3 +245,19 @@ def test_exit_speed_ahead_is_the_braking_speed_over_the_remaining_legs():
     assert exit_speed_ahead(legs, 5.0, 0.5, 0.02) == pytest.approx(math.sqrt(2 * 0.5 * 1.5))
     assert exit_speed_ahead(legs, 0.4, 0.5, 0.02) == pytest.approx(0.4)
     assert exit_speed_ahead(legs[:1], 5.0, 0.5, 0.02) == 0.0
+
+
+def test_after_a_mission_ends_in_hold_the_autopilot_has_no_timer_left_and_the_loop_sleeps():
+    """AUTO's control ticks end with the mission: in HOLD the autopilot asks for no wake, so
+    the companion's loop sleeps until its next real timer (a past tick left behind made the
+    loop wake at once, forever: 100 % of a core in HOLD after every mission)."""
+    h = lockstep()
+    items, _ = demo_mission(1.0)
+    h.gcs.upload(items)
+    h.run_for(1.0)
+    h.gcs.arm()
+    h.gcs.set_mode(Mode.AUTO)
+    assert h.run_until(lambda: h.core.vehicle.mode is Mode.HOLD, 60.0)
+    h.run_for(1.0)
+    assert h.core.autopilot.next_due_s() == math.inf
+    assert h.core.next_due_s() > h.now_s

@@ -893,6 +893,13 @@ MUTATIONS: tuple[Mutation, ...] = (
     M("pwm-dead-band-array", "the vectorized PWM compensates the dead band as the scalar",
       PKG + "control/pwm.py", "np.sign(c) * np.maximum(lift + keep * size, band), c)",
       "c, c)", PC + "test_vector_pwm_matches_scalar_pwm_with_a_dead_band"),
+    M("autopilot-idle-after-auto", "after AUTO or GUIDED the autopilot's ticks stop (no wake left)",
+      PKG + "control/output.py",
+      "        self.new_input = False\n        self._next_output_s",
+      "        self.new_input = False\n        self._autopilot_active = False\n"
+      "        self._next_output_s",
+      T + "test_auto.py::"
+      "test_after_a_mission_ends_in_hold_the_autopilot_has_no_timer_left_and_the_loop_sleeps"),
     M("guided-yaw-lead", "the body velocity is for the heading one motor lag ahead (0.09 s)",
       PKG + "config/schema.py", '"GUID_YAW_LEAD", float, default=0.09,',
       '"GUID_YAW_LEAD", float, default=0.12,',

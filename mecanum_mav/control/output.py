@@ -105,7 +105,6 @@ class OutputStage(Context):
         """The override setting the wheels to ``pulses`` (its ``fields`` if already made)."""
         self.pulses_us = pulses
         self.new_input = False
-        self._autopilot_active = False
         self._next_output_s = now_s + self.output.refresh_period_s - TIMER_SLACK_S
         identity = self.identity
         if fields is None:
