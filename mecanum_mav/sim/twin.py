@@ -149,7 +149,8 @@ class Twin:
             TwinError: something did not come up within ``timeout_s``.
         """
         chassis = cast("MujocoChassis", make_chassis(self.params, physics="mujoco"))
-        wheels = WheelMap(PwmMap.from_params(self.params), self.wheel_map)
+        wheels = WheelMap(PwmMap.from_params(self.params), self.wheel_map,
+                          float(self.params["SIM_ESC_DZ"]))
         self.bridge = TwinBridge(BridgeCore(chassis, wheels))
         self.firmware = Firmware(self.sitl, self.bridge.port, params=self.firmware_params)
         self.firmware_url = self.firmware.gcs_url
