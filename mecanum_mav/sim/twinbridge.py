@@ -115,6 +115,11 @@ class WheelMap:
         self._band = max(float(esc_dead_band), 1e-9)
         self._armed = [False, False, False, False]
 
+    def pulses(self, pwm: Sequence[int]) -> tuple[int, int, int, int]:
+        """The pulse widths (us) of the wheels' channels FL, FR, RL, RR (0: none)."""
+        fl, fr, rl, rr = (pwm[i] if i < len(pwm) else 0 for i, _ in self._wheels)
+        return (fl, fr, rl, rr)
+
     def commands(self, pwm: Sequence[int]) -> tuple[float, float, float, float]:
         """Wheel commands FL, FR, RL, RR in [-1, 1] from one frame's servo outputs (SERVO1
         first): 0 for a channel that outputs nothing (pulse 0, or not in the packet) and for
@@ -206,6 +211,8 @@ class BridgeStats:
         busy_s: wall seconds spent answering (decode, step, read, encode).
         frame_rate: the firmware's last frame rate, Hz (0 before any).
         commands: the wheel commands FL, FR, RL, RR of the last frame.
+        wheel_pulses: the pulse widths (us) the firmware put out for FL, FR, RL, RR in the
+            last frame (0: no output).
     """
 
     frames: int
@@ -218,6 +225,7 @@ class BridgeStats:
     busy_s: float
     frame_rate: int
     commands: tuple[float, float, float, float]
+    wheel_pulses: tuple[int, int, int, int]
 
     @property
     def real_time_factor(self) -> float:
@@ -257,6 +265,7 @@ class BridgeCore:
         self._busy_s = 0.0
         self._frame_rate = 0
         self._commands = (0.0, 0.0, 0.0, 0.0)
+        self._pulses = (0, 0, 0, 0)
         self._lock = threading.Lock()
         self._truth: list[TruthSample] = [self._sample(clock())]
 
@@ -300,6 +309,7 @@ class BridgeCore:
         self.chassis.step(dt, commands)
         with self._lock:
             self._commands = commands
+            self._pulses = self._wheels.pulses(packet.pwm)
             if not math.isnan(self._first_wall):
                 self._physics_s += dt
 
@@ -325,7 +335,7 @@ class BridgeCore:
             wall = 0.0 if math.isnan(self._first_wall) else self._last_wall - self._first_wall
             return BridgeStats(self._frames, self._repeated, self._dropped, self._restarts,
                                self._malformed, self._physics_s, wall, self._busy_s,
-                               self._frame_rate, self._commands)
+                               self._frame_rate, self._commands, self._pulses)
 
 
 class TwinBridge:
