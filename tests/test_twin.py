@@ -8,22 +8,41 @@ and how far and how long the chassis ran on after the companion was killed at 1 
 
 from __future__ import annotations
 
+import importlib.util
 import math
+import os
+import signal
+import subprocess
+import sys
 import time
 from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import TypeVar
 
 import pytest
 from pymavlink import mavutil
 from sitl import find_sitl
 from support import wait_until
 
+from mecanum_mav.app.cli import main
 from mecanum_mav.sim.groundstation import ScriptedGroundStation, UdpPort, udp_ground_station
 from mecanum_mav.sim.twin import SETUP_OK, TruthSample, Twin, describe
 
 BINARY, WHY_NOT = find_sitl()
-pytestmark = [pytest.mark.sitl, pytest.mark.skipif(BINARY is None, reason=WHY_NOT)]
-pytest.importorskip("mujoco", reason="the twin's chassis needs the physics extra (mujoco)")
+HAS_MUJOCO = importlib.util.find_spec("mujoco") is not None
+REAL_FIRMWARE = (pytest.mark.sitl, pytest.mark.skipif(BINARY is None, reason=WHY_NOT),
+                 pytest.mark.skipif(not HAS_MUJOCO, reason="the twin's chassis needs the "
+                                    "physics extra (mujoco)"))
 
+
+def real_firmware(test: T) -> T:
+    """Marks a test that runs the real firmware on the MuJoCo chassis (skipped without)."""
+    for mark in REAL_FIRMWARE:
+        test = mark(test)
+    return test
+
+
+T = TypeVar("T")
 READY_S = 60.0
 FULL = 1000
 """Full stick: WHL_MAX_SPD (1 m/s by default) straight ahead."""
@@ -102,6 +121,7 @@ def firmware_param(twin: Twin, name: str, timeout_s: float = 10.0) -> float | No
         conn.close()
 
 
+@real_firmware
 def test_the_twin_is_set_up_by_setup_fc_and_steps_in_lockstep_with_the_firmware(rig):
     twin = rig.twin
     assert SETUP_OK in twin.setup_output, twin.setup_output
@@ -112,12 +132,14 @@ def test_the_twin_is_set_up_by_setup_fc_and_steps_in_lockstep_with_the_firmware(
     print(f"\ntwin: {describe(stats)}")
 
 
+@real_firmware
 def test_the_companion_arms_while_the_firmwares_own_prearm_checks_stay_on(rig):
     # (the fixture armed the companion with a ground station's COMMAND_LONG, as a user does)
     assert rig.gcs.wait("HEARTBEAT", lambda m: m.base_mode & 128, 5.0) is not None, rig.why()
     assert firmware_param(rig.twin, "ARMING_CHECK") == 1.0, rig.why()
 
 
+@real_firmware
 def test_manual_sticks_forward_drive_the_mujoco_chassis_north(rig):
     start = rig.twin.truth_now()
     moved = rig.drive(FULL // 2, lambda s: s.north_m - start.north_m > 0.5, 15.0)
@@ -128,6 +150,7 @@ def test_manual_sticks_forward_drive_the_mujoco_chassis_north(rig):
     assert stopped is not None, rig.why()
 
 
+@real_firmware
 def test_a_kill_9_of_the_companion_at_1_m_s_stops_the_chassis_by_the_firmwares_failsafe(own_rig):
     rig = own_rig
     fast = rig.drive(FULL, lambda s: s.forward_mps > 0.95, 15.0)
@@ -152,3 +175,54 @@ def test_a_kill_9_of_the_companion_at_1_m_s_stops_the_chassis_by_the_firmwares_f
     assert after and math.hypot(settled.north_m - stopped.north_m,
                                 settled.east_m - stopped.east_m) < 0.01  # and stays stopped
     assert rig.twin.stats().wheel_pulses == (1500, 1500, 1500, 1500), rig.why()  # its trim
+
+
+# --------------------------------------------------------------------------- the command
+
+
+def test_the_twin_command_without_sitl_or_mecanum_sitl_says_so_and_exits_2(monkeypatch, capsys):
+    monkeypatch.delenv("MECANUM_SITL", raising=False)
+    assert main(["twin"]) == 2
+    assert "--sitl PATH" in capsys.readouterr().err
+
+
+def test_the_twin_command_with_a_sitl_that_is_not_a_program_exits_2(tmp_path, capsys):
+    assert main(["twin", "--sitl", str(tmp_path / "ardurover")]) == 2
+    assert "is not an executable file" in capsys.readouterr().err
+
+
+def test_the_twin_command_without_mujoco_gives_the_install_hint_and_exits_2(monkeypatch, capsys):
+    monkeypatch.setitem(sys.modules, "mujoco", None)  # (import mujoco raises ImportError)
+    monkeypatch.delitem(sys.modules, "mecanum_mav.sim.mujocochassis", raising=False)
+    started = time.monotonic()
+    assert main(["twin", "--sitl", sys.executable, "--gcs", "udpout:127.0.0.1:9"]) == 2
+    assert time.monotonic() - started < 5.0  # nothing was started
+    assert "pip install 'mecanum-mav[physics]'" in capsys.readouterr().err
+
+
+@real_firmware
+def test_the_twin_command_starts_everything_says_where_to_connect_and_ends_it_on_sigterm(
+        tmp_path):
+    assert BINARY is not None
+    log = tmp_path / "twin.log"
+    with log.open("wb") as out:
+        proc = subprocess.Popen([sys.executable, "-m", "mecanum_mav", "twin", "--sitl",
+                                 str(BINARY), "--gcs", "udpout:127.0.0.1:9"], stdout=out,
+                                stderr=subprocess.STDOUT, start_new_session=True)
+    try:
+        ready = wait_until(lambda: "ready." in log.read_text() or proc.poll() is not None,
+                           READY_S)
+        text = log.read_text()
+        assert ready and "ready." in text, text
+        firmware_pid = int(text.split("firmware pid ", 1)[1].split(",", 1)[0])
+        companion_pid = int(text.split("companion pid ", 1)[1].split(")", 1)[0])
+        assert "firmware directly: udpin:127.0.0.1:" in text
+        proc.send_signal(signal.SIGTERM)
+        assert proc.wait(timeout=20) == 0, log.read_text()
+        assert "stopped; real-time factor" in log.read_text()
+        for pid in (firmware_pid, companion_pid):
+            assert not Path(f"/proc/{pid}").exists(), f"{pid} still runs"
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait(timeout=10)
