@@ -16,7 +16,6 @@ import contextlib
 import os
 import select
 import shutil
-import signal
 import socket
 import struct
 import subprocess
@@ -33,6 +32,7 @@ from typing import TYPE_CHECKING, Any, TypeVar
 from pymavlink import mavutil
 from support import RawPty, at_most_every, wait_until
 
+from mecanum_mav.sim.firmware import kill_group
 from mecanum_mav.sim.groundstation import udp_ground_station
 from mecanum_mav.sim.process import CompanionProcess, free_port  # (tests import them here)
 
@@ -70,15 +70,6 @@ def find_sitl() -> tuple[Path | None, str]:
         return DEFAULT_BINARY, ""
     return None, ("ArduPilot SITL not found: neither ../shared/ardupilot-sitl/ardurover "
                   "(from the repository root) nor $MECANUM_SITL")
-
-
-def _kill_group(proc: subprocess.Popen[Any]) -> None:
-    """SIGKILL the process group ``proc`` leads (``start_new_session=True``) and reap it."""
-    if proc.poll() is None:  # still ours: the group id cannot have been reused
-        with contextlib.suppress(ProcessLookupError, PermissionError):
-            os.killpg(proc.pid, signal.SIGKILL)
-    with contextlib.suppress(subprocess.TimeoutExpired):
-        proc.wait(timeout=10)
 
 
 # --------------------------------------------------------------------------- the monitor
@@ -466,7 +457,7 @@ class Sitl:
         """Kill the process group, stop the threads, remove the directory; idempotent."""
         self._stop.set()
         if self.proc is not None:
-            _kill_group(self.proc)
+            kill_group(self.proc)
         if self._receiver_thread is not None:
             self._receiver_thread.join(timeout=2)
         if self.monitor is not None:
