@@ -1,16 +1,25 @@
 """The twin's bridge (mecanum_mav.sim.twinbridge) between a fake firmware on a real UDP socket
 and the MuJoCo chassis: lockstep by frame count (a repeated frame is answered again without a
 step, a gap is counted, a restart starts the firmware's clock again), malformed packets
-ignored, the wheel map and the ESCs, the sensors in NED/FRD, the truth."""
+ignored, the wheel map and the ESCs, the sensors in NED/FRD, the truth; the bridge in a process
+of its own, read through shared memory, gone with the process that started it."""
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
+import os
+import signal
 import socket
+import subprocess
+import sys
 from collections.abc import Iterator
+from pathlib import Path
 
+import numpy as np
 import pytest
+from support import wait_until
 
 pytest.importorskip("mujoco", reason="the MuJoCo chassis needs the physics extra")
 
@@ -20,8 +29,11 @@ from mecanum_mav.sim.mujocochassis import MujocoChassis
 from mecanum_mav.sim.sitljson import encode_servo_packet
 from mecanum_mav.sim.twinbridge import (
     BridgeCore,
+    BridgeProcess,
     ChassisSensors,
+    TruthSample,
     TwinBridge,
+    TwinRecord,
     WheelMap,
 )
 
@@ -204,3 +216,66 @@ def test_the_real_time_factor_is_physics_seconds_over_wall_seconds_between_frame
     stats = bridge.stats()
     assert stats.physics_s == pytest.approx(1.0)  # from the first frame answered to the last
     assert stats.real_time_factor == pytest.approx(1.0)
+
+
+def sample(k: float) -> TruthSample:
+    return TruthSample(k, k, k, k, k, k, k)
+
+
+def test_the_record_keeps_the_last_capacity_frames_oldest_first():
+    record = TwinRecord(np.zeros(TwinRecord.size(3)))
+    for k in range(5):
+        record.add(sample(k))
+    assert [s.time_s for s in record.truth()] == [2.0, 3.0, 4.0]
+    assert record.truth_now() == sample(4)
+    assert record.truth_array().shape == (3, 7)
+
+
+def test_the_bridge_process_answers_the_firmware_and_this_process_reads_its_truth():
+    bridge = BridgeProcess(Params().as_dict())
+    firmware = FakeFirmware(bridge.port)
+    try:
+        for n in range(5):
+            firmware.frame(n, FORWARD if n else NEUTRAL)
+        stats = bridge.record.stats()
+        assert (stats.frames, stats.wheel_pulses) == (5, (1750, 1750, 1750, 1750))
+        assert bridge.record.truth_now().time_s == pytest.approx(5 / RATE)
+        pid = bridge.pid
+    finally:
+        firmware.sock.close()
+        bridge.close()
+    assert not bridge.alive() and not process_runs(pid)
+    assert len(bridge.record.truth()) == 6  # (still readable after close: the start + 5)
+
+
+def process_runs(pid: int | None) -> bool:
+    """Whether ``pid`` is a live process (not gone, not a zombie)."""
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().split(") ", 1)[1][0] != "Z"
+    except (OSError, IndexError):
+        return False
+
+
+def test_the_bridge_process_ends_by_itself_when_the_process_that_started_it_is_killed(
+        tmp_path):
+    script = ("import sys, time\n"
+              "from mecanum_mav.config.params import Params\n"
+              "from mecanum_mav.sim.twinbridge import BridgeProcess\n"
+              "bridge = BridgeProcess(Params().as_dict())\n"
+              "print(bridge.pid, flush=True)\n"
+              "time.sleep(60)\n")
+    holder = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE,
+                              start_new_session=True)
+    try:
+        assert holder.stdout is not None
+        pid = int(holder.stdout.readline())
+        assert process_runs(pid)
+        setup = Path(Path(f"/proc/{pid}/cmdline").read_bytes().split(b"\0")[3].decode())
+        os.killpg(holder.pid, signal.SIGKILL)  # (the bridge is in a session of its own)
+        holder.wait(timeout=10)
+        assert wait_until(lambda: not process_runs(pid), 5.0), f"bridge {pid} still runs"
+        assert wait_until(lambda: not setup.parent.exists(), 5.0), "its files are left"
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(holder.pid, signal.SIGKILL)
+        holder.wait(timeout=10)

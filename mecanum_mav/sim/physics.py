@@ -23,7 +23,7 @@ if TYPE_CHECKING:
     from mecanum_mav.config.params import Params
 
 __all__ = ["DEFAULT_PHYSICS", "MIN_REAL_TIME_FACTOR", "PHYSICS", "Chassis",
-           "PhysicsUnavailableError", "make_chassis", "mujoco_real_time_factor"]
+           "PhysicsUnavailableError", "make_chassis", "mujoco_real_time_factor", "require_mujoco"]
 
 PHYSICS = ("kinematic", "mujoco")
 """The chassis models, by name (``sim --physics NAME``)."""
@@ -101,6 +101,15 @@ def mujoco_real_time_factor(params: Params, seconds: float = 2.0) -> float:
     """
     factor: float = _mujoco().real_time_factor(params, seconds)
     return factor
+
+
+def require_mujoco() -> None:
+    """Check that the MuJoCo chassis can be built here (before starting what needs it).
+
+    Raises:
+        PhysicsUnavailableError: without the ``physics`` extra installed (the install hint).
+    """
+    _mujoco()
 
 
 def _mujoco() -> Any:

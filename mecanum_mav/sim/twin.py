@@ -10,9 +10,10 @@ companion unchanged in the loop.
 :class:`Twin` starts the three (a context manager: :meth:`Twin.__enter__` returns once
 everything is ready, :meth:`Twin.close` ends everything on every way out):
 
-1. the bridge (:mod:`mecanum_mav.sim.twinbridge`) on a UDP port from the OS, served by a
-   thread of this process (measured: its busy time per frame is a small part of a frame, so
-   a ground station in the same process does not slow it below real time);
+1. the bridge (:mod:`mecanum_mav.sim.twinbridge`) on a UDP port from the OS, in a process
+   of its own (:class:`~mecanum_mav.sim.twinbridge.BridgeProcess`; measured: busy 25-35 % of
+   each 0.83 ms frame; in a thread of the caller's process, a CPU-bound Python thread beside
+   it brought the twin down to 0.17x real time), its truth and counters in shared memory;
 2. the firmware (:class:`~mecanum_mav.sim.firmware.Firmware`) with ArduPilot's ``rover.parm``
    and ``firmware_params``; with a companion, ``SIM_RC_FAIL 1`` too: a board whose only RC
    input is the companion, no receiver (the simulated hardware, not a setting of the board);
@@ -37,24 +38,19 @@ import time
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from types import TracebackType
-from typing import TYPE_CHECKING, cast
+
+import numpy as np
 
 from mecanum_mav.config.params import Params
-from mecanum_mav.control.pwm import PwmMap
 from mecanum_mav.sim.firmware import Firmware
-from mecanum_mav.sim.physics import make_chassis
 from mecanum_mav.sim.process import CompanionProcess, free_port
 from mecanum_mav.sim.twinbridge import (
     DEFAULT_WHEEL_MAP,
-    BridgeCore,
+    BridgeProcess,
     BridgeStats,
     TruthSample,
-    TwinBridge,
-    WheelMap,
+    TwinRecord,
 )
-
-if TYPE_CHECKING:
-    from mecanum_mav.sim.mujocochassis import MujocoChassis
 
 __all__ = ["FRAMES", "NO_RECEIVER", "READY_TIMEOUT_S", "TruthSample", "Twin", "TwinError",
            "describe"]
@@ -133,7 +129,7 @@ class Twin:
         self._own_workdir = workdir is None
         self.workdir = Path(workdir) if workdir is not None else Path(
             tempfile.mkdtemp(prefix="mecanum-twin-"))
-        self.bridge: TwinBridge | None = None
+        self.bridge: BridgeProcess | None = None
         self.firmware: Firmware | None = None
         self.companion: CompanionProcess | None = None
 
@@ -160,10 +156,7 @@ class Twin:
             FileNotFoundError: ``sitl`` is not an executable file.
             TwinError: something did not come up within ``timeout_s``.
         """
-        chassis = cast("MujocoChassis", make_chassis(self.params, physics="mujoco"))
-        wheels = WheelMap(PwmMap.from_params(self.params), self.wheel_map,
-                          float(self.params["SIM_ESC_DZ"]))
-        self.bridge = TwinBridge(BridgeCore(chassis, wheels))
+        self.bridge = BridgeProcess(self.params.as_dict(), self.wheel_map)
         self.firmware = Firmware(self.sitl, self.bridge.port, params=self.firmware_params)
         self.firmware_url = self.firmware.gcs_url
         self.firmware.start()
@@ -237,6 +230,8 @@ class Twin:
             proc = getattr(part, "proc", None)
             if proc is not None and proc.poll() is not None:
                 return f"{name} exited ({proc.returncode})"
+        if self.bridge is not None and not self.bridge.alive():
+            return "the bridge (physics) process exited"
         return ""
 
     def why(self) -> str:
@@ -270,22 +265,28 @@ class Twin:
 
     # ------------------------------------------------------------------ what happened
 
-    def _core(self) -> BridgeCore:
+    def _record(self) -> TwinRecord:
         if self.bridge is None:
             raise RuntimeError("the twin has not started")
-        return self.bridge.core
+        return self.bridge.record
 
     def truth(self) -> list[TruthSample]:
-        """The chassis' true state at every frame so far, oldest first (a copy)."""
-        return self._core().truth()
+        """The chassis' true state at every frame so far (the last
+        :data:`~mecanum_mav.sim.twinbridge.TRUTH_CAPACITY`), oldest first (a copy)."""
+        return self._record().truth()
+
+    def truth_array(self) -> np.ndarray:
+        """:meth:`truth` as an array, one row per frame: the fields of
+        :class:`~mecanum_mav.sim.twinbridge.TruthSample` in order (faster for long runs)."""
+        return self._record().truth_array()
 
     def truth_now(self) -> TruthSample:
         """The chassis' true state at the last frame."""
-        return self._core().truth_now()
+        return self._record().truth_now()
 
     def stats(self) -> BridgeStats:
         """The bridge's counters (frames, dropped, repeated, busy time)."""
-        return self._core().stats()
+        return self._record().stats()
 
     def real_time_factor(self) -> float:
         """Physics seconds per wall second since the first frame (NaN before two)."""

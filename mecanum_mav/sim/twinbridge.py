@@ -29,32 +29,54 @@ start, roll/pitch/yaw, velocity NED. Every frame it records the truth (:class:`T
 from __future__ import annotations
 
 import contextlib
+import json
 import math
+import os
+import select
 import selectors
+import shutil
+import signal
 import socket
+import subprocess
+import sys
+import tempfile
 import threading
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from pathlib import Path
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 
 from mecanum_mav.control.pwm import PwmMap, WheelOutput
+from mecanum_mav.sim.firmware import kill_group
+from mecanum_mav.sim.physics import PhysicsUnavailableError, require_mujoco
 from mecanum_mav.sim.sitljson import PhysicsState, ServoPacket, decode_servo_packet, encode_state
 
 if TYPE_CHECKING:  # (mujoco is an optional extra: only the twin imports it)
     from mecanum_mav.sim.mujocochassis import MujocoChassis
 
-__all__ = ["DEFAULT_WHEEL_MAP", "BridgeCore", "BridgeStats", "ChassisSensors", "TruthSample",
-           "TwinBridge", "WheelMap"]
+__all__ = ["DEFAULT_WHEEL_MAP", "TRUTH_CAPACITY", "BridgeCore", "BridgeProcess", "BridgeStats",
+           "ChassisSensors", "TruthSample", "TwinBridge", "TwinRecord", "WheelMap",
+           "bridge_main", "bridge_socket", "sample_row", "serve"]
 
 DEFAULT_WHEEL_MAP: tuple[tuple[int, float], ...] = ((1, 1.0), (2, 1.0), (3, 1.0), (4, 1.0))
 """Servo channel (1-based) and sign of FL, FR, RL, RR: SERVO1..4, as the companion's
 pass-through board puts them (CONVENTIONS.md)."""
+TRUTH_CAPACITY = 720_000
+"""Frames of truth a twin keeps (the last 10 minutes at the firmware's 1200 Hz; 40 MB)."""
 _NWU_TO_NED = np.diag([1.0, -1.0, -1.0])
 """MuJoCo's world is x north, y west, z up and the body x forward, y left, z up: flipping y
 and z turns either into NED / FRD."""
+
+
+# The layout of a TwinRecord's array: the counters, then the truth's rows.
+(_FRAMES, _REPEATED, _DROPPED, _RESTARTS, _MALFORMED, _PHYSICS_S, _FIRST_WALL, _LAST_WALL,
+ _BUSY_S, _FRAME_RATE) = range(10)
+_COMMANDS, _PULSES, _COUNT = 10, 14, 18
+_HEADER = 19
+_ROW = 7
 
 
 @dataclass(frozen=True)
@@ -241,6 +263,81 @@ class BridgeStats:
         return self.busy_s / self.frames * self.frame_rate
 
 
+class TwinRecord:
+    """The bridge's counters and truth in one float64 array, so that another process can read
+    them (the array may live in shared memory: :class:`BridgeProcess`).
+
+    The truth is a ring of the last ``capacity`` frames (:data:`TRUTH_CAPACITY`: 10 minutes
+    at 1200 Hz, 40 MB), oldest first when read. One writer; readers may run at any time (a
+    read never waits; the counters are each written whole).
+    """
+
+    def __init__(self, array: np.ndarray) -> None:
+        self.array = array
+        self.capacity = (len(array) - _HEADER) // _ROW
+        if self.capacity < 1:
+            raise ValueError("a record needs room for at least one frame")
+        self._rows = array[_HEADER:_HEADER + self.capacity * _ROW].reshape(self.capacity, _ROW)
+
+    @staticmethod
+    def size(capacity: int) -> int:
+        """The array's length (float64 items) for ``capacity`` frames."""
+        return _HEADER + capacity * _ROW
+
+    @classmethod
+    def local(cls, capacity: int = TRUTH_CAPACITY) -> TwinRecord:
+        """A record in this process's memory."""
+        record = cls(np.zeros(cls.size(capacity)))
+        record.array[_FIRST_WALL:_LAST_WALL + 1] = math.nan
+        return record
+
+    def add(self, sample: TruthSample) -> None:
+        """Record one frame's truth (the oldest goes once the ring is full)."""
+        count = int(self.array[_COUNT])
+        self._rows[count % self.capacity] = sample_row(sample)
+        self.array[_COUNT] = count + 1
+
+    def truth_array(self) -> np.ndarray:
+        """The truth so far as rows of :class:`TruthSample`'s fields, oldest first (a copy)."""
+        count = int(self.array[_COUNT])
+        if count <= self.capacity:
+            return np.array(self._rows[:count])
+        cut = count % self.capacity
+        return np.concatenate((self._rows[cut:], self._rows[:cut]))
+
+    def truth(self) -> list[TruthSample]:
+        """The truth so far, oldest first (a copy)."""
+        return [TruthSample(*row) for row in self.truth_array().tolist()]
+
+    def truth_now(self) -> TruthSample:
+        """The latest truth.
+
+        Raises:
+            LookupError: nothing recorded yet.
+        """
+        count = int(self.array[_COUNT])
+        if count == 0:
+            raise LookupError("no truth recorded yet")
+        return TruthSample(*self._rows[(count - 1) % self.capacity].tolist())
+
+    def stats(self) -> BridgeStats:
+        """The counters now."""
+        a = self.array.tolist()[:_HEADER]
+        first, last = a[_FIRST_WALL], a[_LAST_WALL]
+        wall = 0.0 if math.isnan(first) else last - first
+        c, p = a[_COMMANDS:_COMMANDS + 4], [int(v) for v in a[_PULSES:_PULSES + 4]]
+        return BridgeStats(int(a[_FRAMES]), int(a[_REPEATED]), int(a[_DROPPED]),
+                           int(a[_RESTARTS]), int(a[_MALFORMED]), a[_PHYSICS_S], wall,
+                           a[_BUSY_S], int(a[_FRAME_RATE]), (c[0], c[1], c[2], c[3]),
+                           (p[0], p[1], p[2], p[3]))
+
+
+def sample_row(sample: TruthSample) -> tuple[float, ...]:
+    """A truth sample as one row of :meth:`TwinRecord.truth_array`."""
+    return (sample.wall_s, sample.time_s, sample.north_m, sample.east_m, sample.yaw_rad,
+            sample.forward_mps, sample.right_mps)
+
+
 class BridgeCore:
     """The lockstep itself, bytes in, bytes out (see the module's docstring).
 
@@ -248,70 +345,63 @@ class BridgeCore:
         chassis: the MuJoCo chassis, at rest where the twin starts.
         wheels: servo outputs -> wheel commands.
         clock: the wall clock of :attr:`TruthSample.wall_s` (monotonic seconds).
+        record: where the counters and the truth go (default: a :meth:`TwinRecord.local`).
     """
 
     def __init__(self, chassis: MujocoChassis, wheels: WheelMap,
-                 clock: Callable[[], float] = time.monotonic) -> None:
+                 clock: Callable[[], float] = time.monotonic,
+                 record: TwinRecord | None = None) -> None:
         self.chassis = chassis
+        self.record = record if record is not None else TwinRecord.local()
+        self._a = self.record.array
         self._wheels = wheels
         self._sensors = ChassisSensors(chassis)
         self._clock = clock
         self._last_count: int | None = None
         self._epoch_s = 0.0
         self._answer = b""
-        self._frames = self._repeated = self._dropped = self._restarts = self._malformed = 0
-        self._first_wall = self._last_wall = math.nan
-        self._physics_s = 0.0
-        self._busy_s = 0.0
-        self._frame_rate = 0
-        self._commands = (0.0, 0.0, 0.0, 0.0)
-        self._pulses = (0, 0, 0, 0)
-        self._lock = threading.Lock()
-        self._truth: list[TruthSample] = [self._sample(clock())]
+        self.record.add(self._sample(clock()))
 
     def answer(self, data: bytes) -> bytes | None:
         """The answer to one datagram from the firmware, or None for one to ignore."""
         started = time.perf_counter()
+        a = self._a
         packet = decode_servo_packet(data)
         if packet is None:
-            with self._lock:
-                self._malformed += 1
+            a[_MALFORMED] += 1
             return None
         if packet.frame_count == self._last_count:
-            with self._lock:
-                self._repeated += 1
+            a[_REPEATED] += 1
             return self._answer
-        self._step(packet)
+        dt = self._step(packet)
         self._answer = encode_state(self._sensors.read(self._epoch_s))
         now = self._clock()
-        sample = self._sample(now)
-        with self._lock:
-            self._truth.append(sample)
-            if math.isnan(self._first_wall):
-                self._first_wall = now
-            self._last_wall = now
-            self._busy_s += time.perf_counter() - started
+        self.record.add(self._sample(now))
+        if math.isnan(a[_FIRST_WALL]):
+            a[_FIRST_WALL] = now
+        else:
+            a[_PHYSICS_S] += dt
+        a[_LAST_WALL] = now
+        a[_BUSY_S] += time.perf_counter() - started
         return self._answer
 
-    def _step(self, packet: ServoPacket) -> None:
-        last = self._last_count
-        with self._lock:
-            if last is not None and packet.frame_count < last:
-                self._restarts += 1
-                self._epoch_s = self.chassis.time_s
-            elif last is not None and packet.frame_count > last + 1:
-                self._dropped += packet.frame_count - last - 1
-            self._frames += 1
-            self._frame_rate = packet.frame_rate
+    def _step(self, packet: ServoPacket) -> float:
+        """Count the frame and step the chassis one frame period (returned, seconds)."""
+        a, last = self._a, self._last_count
+        if last is not None and packet.frame_count < last:
+            a[_RESTARTS] += 1
+            self._epoch_s = self.chassis.time_s
+        elif last is not None and packet.frame_count > last + 1:
+            a[_DROPPED] += packet.frame_count - last - 1
+        a[_FRAMES] += 1
+        a[_FRAME_RATE] = packet.frame_rate
         self._last_count = packet.frame_count
         commands = self._wheels.commands(packet.pwm)
         dt = 1.0 / packet.frame_rate
         self.chassis.step(dt, commands)
-        with self._lock:
-            self._commands = commands
-            self._pulses = self._wheels.pulses(packet.pwm)
-            if not math.isnan(self._first_wall):
-                self._physics_s += dt
+        a[_COMMANDS:_COMMANDS + 4] = commands
+        a[_PULSES:_PULSES + 4] = self._wheels.pulses(packet.pwm)
+        return dt
 
     def _sample(self, wall_s: float) -> TruthSample:
         c = self.chassis
@@ -322,62 +412,69 @@ class BridgeCore:
 
     def truth(self) -> list[TruthSample]:
         """Every frame's truth so far, oldest first (a copy; the first is the start)."""
-        with self._lock:
-            return list(self._truth)
+        return self.record.truth()
 
     def truth_now(self) -> TruthSample:
         """The latest truth."""
-        with self._lock:
-            return self._truth[-1]
+        return self.record.truth_now()
 
     def stats(self) -> BridgeStats:
-        with self._lock:
-            wall = 0.0 if math.isnan(self._first_wall) else self._last_wall - self._first_wall
-            return BridgeStats(self._frames, self._repeated, self._dropped, self._restarts,
-                               self._malformed, self._physics_s, wall, self._busy_s,
-                               self._frame_rate, self._commands, self._pulses)
+        return self.record.stats()
+
+
+def bridge_socket(host: str = "127.0.0.1") -> socket.socket:
+    """The bridge's UDP socket: bound to a port from the OS, non-blocking."""
+    sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    sock.bind((host, 0))
+    sock.setblocking(False)
+    return sock
+
+
+def serve(sock: socket.socket, core: BridgeCore, stop_fd: int) -> None:
+    """Answer the firmware's datagrams on ``sock`` until ``stop_fd`` is readable (a byte, or
+    its other end closed)."""
+    with selectors.DefaultSelector() as sel:
+        sel.register(sock, selectors.EVENT_READ)
+        sel.register(stop_fd, selectors.EVENT_READ)
+        while True:
+            events = sel.select()
+            if any(key.fd == stop_fd for key, _ in events):
+                return
+            _drain(sock, core)
+
+
+def _drain(sock: socket.socket, core: BridgeCore) -> None:
+    """Answer every datagram waiting, in order."""
+    while True:
+        try:
+            data, peer = sock.recvfrom(512)
+        except OSError:  # (BlockingIOError: nothing more waiting)
+            return
+        reply = core.answer(data)
+        if reply is not None:
+            with contextlib.suppress(OSError):
+                sock.sendto(reply, peer)
 
 
 class TwinBridge:
     """:class:`BridgeCore` on a UDP socket of its own (127.0.0.1, a port from the OS: give
-    :attr:`port` to the firmware's ``--sim-port-out``), served by a thread until
-    :meth:`close`. Answers go to wherever each packet came from (a restarted firmware comes
-    from a new port)."""
+    :attr:`port` to the firmware's ``--sim-port-out``), served by a thread of this process
+    until :meth:`close`.
 
-    def __init__(self, core: BridgeCore, host: str = "127.0.0.1") -> None:
+    A thread shares the interpreter: any CPU-bound Python thread of the same process holds
+    the lock the bridge needs for up to 5 ms at a time, against the firmware's 0.83 ms frames
+    (measured: a busy thread beside it brought the twin to 0.17x real time). The twin runs
+    its bridge in a process of its own (:class:`BridgeProcess`)."""
+
+    def __init__(self, core: BridgeCore) -> None:
         self.core = core
-        self._sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        self._sock.bind((host, 0))
-        self._sock.setblocking(False)
+        self._sock = bridge_socket()
         self.port: int = self._sock.getsockname()[1]
         self._stop_r, self._stop_w = socket.socketpair()
-        self._thread = threading.Thread(target=self._serve, name="twin-bridge", daemon=True)
+        self._thread = threading.Thread(target=serve,
+                                        args=(self._sock, core, self._stop_r.fileno()),
+                                        name="twin-bridge", daemon=True)
         self._thread.start()
-
-    def _serve(self) -> None:
-        sel = selectors.DefaultSelector()
-        sel.register(self._sock, selectors.EVENT_READ)
-        sel.register(self._stop_r, selectors.EVENT_READ)
-        with sel:
-            while True:
-                events = sel.select()
-                if any(key.fileobj is self._stop_r for key, _ in events):
-                    return
-                self._drain()
-
-    def _drain(self) -> None:
-        """Answer every datagram waiting, in order."""
-        while True:
-            try:
-                data, peer = self._sock.recvfrom(512)
-            except (BlockingIOError, InterruptedError):
-                return
-            except OSError:
-                return
-            reply = self.core.answer(data)
-            if reply is not None:
-                with contextlib.suppress(OSError):
-                    self._sock.sendto(reply, peer)
 
     def close(self) -> None:
         """Stop the thread and close the socket; idempotent."""
@@ -387,3 +484,124 @@ class TwinBridge:
             self._thread.join(timeout=5)
         for s in (self._sock, self._stop_r, self._stop_w):
             s.close()
+
+
+class BridgeProcess:
+    """The bridge in a process of its own (``python -m mecanum_mav.sim.twinbridge``), so that
+    nothing in this process can slow the lockstep; its :class:`TwinRecord` is a file both
+    map (in ``/dev/shm`` where there is one), read here through :attr:`record`.
+
+    The process ends when told (:meth:`close`) or when this process is gone (it watches a
+    pipe whose other end only this process holds). It is a child, not a
+    ``multiprocessing`` one: that would import the caller's main script again.
+
+    Args:
+        params: the chassis' parameters (``SIM_*``, geometry) and the ESCs' pulse ranges
+            (``MOT_<W>_MIN/TRIM/MAX/REV``), as a plain mapping.
+        wheel_map: per wheel FL, FR, RL, RR ``(servo channel, sign)``.
+        capacity: frames of truth kept (:data:`TRUTH_CAPACITY`).
+        start_timeout_s: how long the process may take to build the chassis and bind.
+
+    Raises:
+        PhysicsUnavailableError: the process could not import mujoco (the install hint).
+        RuntimeError: it did not come up.
+    """
+
+    def __init__(self, params: Mapping[str, float],
+                 wheel_map: Sequence[tuple[int, float]] = DEFAULT_WHEEL_MAP,
+                 capacity: int = TRUTH_CAPACITY, start_timeout_s: float = 30.0) -> None:
+        require_mujoco()  # (here, at once, rather than from the process)
+        shm = Path("/dev/shm")
+        self._dir = Path(tempfile.mkdtemp(prefix="mecanum-bridge-",
+                                          dir=shm if shm.is_dir() else None))
+        self._proc: subprocess.Popen[bytes] | None = None
+        self._keep_w: int | None = None
+        try:
+            self._start(params, wheel_map, capacity, start_timeout_s)
+        except BaseException:
+            self.close()
+            raise
+
+    def _start(self, params: Mapping[str, float], wheel_map: Sequence[tuple[int, float]],
+               capacity: int, timeout_s: float) -> None:
+        record_path = self._dir / "record.f64"
+        array = np.lib.format.open_memmap(record_path, mode="w+", dtype=np.float64,
+                                          shape=(TwinRecord.size(capacity),))
+        array[_FIRST_WALL:_LAST_WALL + 1] = math.nan
+        array.flush()
+        self.record: TwinRecord = TwinRecord(array)
+        setup = self._dir / "bridge.json"
+        setup.write_text(json.dumps({"params": dict(params), "wheel_map": list(wheel_map),
+                                     "record": str(record_path)}))
+        watch_r, self._keep_w = os.pipe()
+        try:
+            self._proc = subprocess.Popen(
+                [sys.executable, "-m", "mecanum_mav.sim.twinbridge", str(setup), str(watch_r)],
+                stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=None,
+                pass_fds=(watch_r,), start_new_session=True)
+        finally:
+            os.close(watch_r)
+        assert self._proc.stdout is not None
+        ready = select.select([self._proc.stdout], [], [], timeout_s)[0]
+        line = self._proc.stdout.readline().decode(errors="replace").strip() if ready else ""
+        kind, _, value = line.partition(" ")
+        if kind == "no-physics":
+            raise PhysicsUnavailableError(value)
+        if kind != "port":
+            raise RuntimeError(f"the bridge process did not start within {timeout_s:g} s "
+                               f"({line or 'no answer'}; exit code {self._proc.poll()})")
+        self.port = int(value)
+
+    @property
+    def pid(self) -> int | None:
+        return self._proc.pid if self._proc is not None else None
+
+    def alive(self) -> bool:
+        return self._proc is not None and self._proc.poll() is None
+
+    def close(self) -> None:
+        """Stop the process and remove its files; idempotent (:attr:`record` stays readable:
+        the file's memory goes with the last mapping)."""
+        if self._keep_w is not None:
+            os.close(self._keep_w)  # (the process sees the pipe's end and stops)
+            self._keep_w = None
+        if self._proc is not None:
+            try:
+                self._proc.wait(timeout=5)
+            except subprocess.TimeoutExpired:
+                kill_group(self._proc)
+            if self._proc.stdout is not None:
+                self._proc.stdout.close()
+        shutil.rmtree(self._dir, ignore_errors=True)  # (the record stays mapped here)
+
+
+def bridge_main(argv: Sequence[str]) -> int:
+    """The bridge process (``python -m mecanum_mav.sim.twinbridge SETUP.json WATCH_FD``):
+    build the chassis, say ``port N`` on stdout, serve until ``WATCH_FD`` (a pipe's reading
+    end) ends, then remove SETUP.json's folder (the record file too: its memory goes with
+    the last mapping). ``no-physics MESSAGE`` and exit 2 without mujoco."""
+    from mecanum_mav.config.params import Params
+    from mecanum_mav.sim.physics import make_chassis
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # (the parent ends it)
+    setup = json.loads(Path(argv[0]).read_text())
+    watch = int(argv[1])
+    values = Params(setup["params"])
+    try:
+        chassis = cast("MujocoChassis", make_chassis(values, physics="mujoco"))
+    except PhysicsUnavailableError as exc:
+        print(f"no-physics {exc}", flush=True)
+        return 2
+    array = np.load(setup["record"], mmap_mode="r+")
+    wheels = WheelMap(PwmMap.from_params(values), [tuple(e) for e in setup["wheel_map"]],
+                      float(values["SIM_ESC_DZ"]))
+    core = BridgeCore(chassis, wheels, record=TwinRecord(array))
+    with bridge_socket() as sock:
+        print(f"port {sock.getsockname()[1]}", flush=True)
+        serve(sock, core, watch)
+    shutil.rmtree(Path(argv[0]).parent, ignore_errors=True)  # (its starter may be gone)
+    return 0
+
+
+if __name__ == "__main__":  # pragma: no cover (the bridge process)
+    sys.exit(bridge_main(sys.argv[1:]))
