@@ -26,13 +26,12 @@ import time
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from types import TracebackType
 from typing import TYPE_CHECKING, Any, TypeVar
 
 from pymavlink import mavutil
 from support import RawPty, at_most_every, wait_until
 
-from mecanum_mav.sim.firmware import kill_group
+from mecanum_mav.sim.firmware import Started, kill_group
 from mecanum_mav.sim.groundstation import udp_ground_station
 from mecanum_mav.sim.process import CompanionProcess, free_port  # (tests import them here)
 
@@ -306,7 +305,7 @@ class PtyCable:
 # --------------------------------------------------------------------------- the firmware
 
 
-class Sitl:
+class Sitl(Started):
     """``ardurover`` with pass-through parameters, a monitor and an RC receiver.
 
     Use as a context manager; the process group is killed on every way out (also when the
@@ -361,18 +360,6 @@ class Sitl:
         except (OSError, AssertionError):
             return ""
 
-    def __enter__(self) -> Sitl:
-        try:
-            self._start()
-        except BaseException:
-            self.close()
-            raise
-        return self
-
-    def __exit__(self, kind: type[BaseException] | None, exc: BaseException | None,
-                 tb: TracebackType | None) -> None:
-        self.close()
-
     def _fc_port(self) -> str:
         if self.transport == "udp":
             port = free_port(socket.SOCK_DGRAM)
@@ -386,7 +373,7 @@ class Sitl:
         self.fc_url = f"{self.cable.companion_path},115200"
         return f"uart:{self.cable.fc_path}:115200"
 
-    def _start(self) -> None:
+    def start(self) -> None:
         self.workdir = Path(tempfile.mkdtemp(prefix="mecanum-sitl-"))
         defaults = [str(self.binary.with_name("rover.parm"))] * (
             self.binary.with_name("rover.parm").is_file())

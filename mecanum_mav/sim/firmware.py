@@ -29,11 +29,11 @@ import tempfile
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from types import TracebackType
-from typing import Any
+from typing import Any, TypeVar
 
 from mecanum_mav.sim.process import free_port
 
-__all__ = ["ENV_SITL", "Firmware", "kill_group", "parm_text", "sitl_from_env"]
+__all__ = ["ENV_SITL", "Firmware", "Started", "kill_group", "parm_text", "sitl_from_env"]
 
 ENV_SITL = "MECANUM_SITL"
 """The environment variable naming the ``ardurover`` binary."""
@@ -60,7 +60,34 @@ def parm_text(params: Mapping[str, float]) -> str:
                    for name, v in params.items())
 
 
-class Firmware:
+_Started = TypeVar("_Started", bound="Started")
+
+
+class Started:
+    """A context manager for what :meth:`start` starts and :meth:`close` ends: on entry it
+    starts, on every way out it closes, also when starting fails half-way (so ``close`` must
+    cope with a half-started state, and be idempotent)."""
+
+    def start(self) -> None:
+        raise NotImplementedError
+
+    def close(self) -> None:
+        raise NotImplementedError
+
+    def __enter__(self: _Started) -> _Started:
+        try:
+            self.start()
+        except BaseException:
+            self.close()
+            raise
+        return self
+
+    def __exit__(self, kind: type[BaseException] | None, exc: BaseException | None,
+                 tb: TracebackType | None) -> None:
+        self.close()
+
+
+class Firmware(Started):
     """``ardurover`` with the JSON physics backend (a context manager; :meth:`start` and
     :meth:`close` otherwise).
 
@@ -140,14 +167,3 @@ class Firmware:
             shutil.rmtree(self.workdir, ignore_errors=True)
             self.workdir = None
 
-    def __enter__(self) -> Firmware:
-        try:
-            self.start()
-        except BaseException:
-            self.close()
-            raise
-        return self
-
-    def __exit__(self, kind: type[BaseException] | None, exc: BaseException | None,
-                 tb: TracebackType | None) -> None:
-        self.close()

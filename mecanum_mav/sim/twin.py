@@ -37,12 +37,11 @@ import tempfile
 import time
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from types import TracebackType
 
 import numpy as np
 
 from mecanum_mav.config.params import Params
-from mecanum_mav.sim.firmware import Firmware
+from mecanum_mav.sim.firmware import Firmware, Started
 from mecanum_mav.sim.process import CompanionProcess, free_port
 from mecanum_mav.sim.twinbridge import (
     DEFAULT_WHEEL_MAP,
@@ -73,7 +72,7 @@ class TwinError(RuntimeError):
     """The twin could not start (the message says what failed, with the logs' tails)."""
 
 
-class Twin:
+class Twin(Started):
     """The firmware, the MuJoCo chassis and (by default) the companion, together.
 
     Args:
@@ -134,18 +133,6 @@ class Twin:
         self.companion: CompanionProcess | None = None
 
     # ------------------------------------------------------------------ start and stop
-
-    def __enter__(self) -> Twin:
-        try:
-            self.start()
-        except BaseException:
-            self.close()
-            raise
-        return self
-
-    def __exit__(self, kind: type[BaseException] | None, exc: BaseException | None,
-                 tb: TracebackType | None) -> None:
-        self.close()
 
     def start(self, timeout_s: float = READY_TIMEOUT_S) -> None:
         """Start everything and wait until it is ready (the firmware's HEARTBEAT on its
