@@ -35,7 +35,8 @@ LAPSE_S = SAFE_OVERRIDE_TIME_S
 channels go back to the receiver either way: released by the companion, or let go by the
 board this long after the last override it received. Only a release reaching the board
 brings them back before that, so that is the causal bound of the shutdown tests (measured:
-released 37-43 ms after the signal; with no release sent, the board's lapse 560 ms)."""
+released 140-158 ms after the signal, 0.1 s of it the neutral's hold, NEUTRAL_HOLD_S; with
+no release sent, the board's lapse 560 ms)."""
 
 
 @pytest.fixture(scope="module", params=["udp", "tcp", "serial"])

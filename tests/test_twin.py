@@ -150,19 +150,42 @@ def test_manual_sticks_forward_drive_the_mujoco_chassis_north(rig):
     assert stopped is not None, rig.why()
 
 
+def stop_after(rig: Rig, end: Callable[[], object]) -> tuple[TruthSample, TruthSample, float]:
+    """Drive at full stick until 0.95 m/s, then ``end()`` the companion: the truth then, the
+    truth once the chassis stood still, and when ``end`` was called (monotonic s)."""
+    fast = rig.drive(FULL, lambda s: s.forward_mps > 0.95, 15.0)
+    assert fast is not None, f"never 0.95 m/s: {rig.twin.truth_now()}\n{rig.why()}"
+    ended_s = time.monotonic()
+    at_end = rig.twin.truth_now()
+    end()
+    stopped = wait_until(lambda: truth_if(rig.twin, lambda s: math.hypot(
+        s.forward_mps, s.right_mps) < 0.01), 5.0)
+    assert stopped is not None, f"still moving 5 s later: {rig.twin.truth_now()}\n{rig.why()}"
+    return at_end, stopped, ended_s
+
+
+def travel_m(a: TruthSample, b: TruthSample) -> float:
+    return math.hypot(b.north_m - a.north_m, b.east_m - a.east_m)
+
+
+@real_firmware
+def test_a_sigterm_of_the_companion_at_1_m_s_stops_the_chassis_at_once_with_its_neutral(rig):
+    # (the last test on the module's twin: its companion ends here)
+    assert rig.twin.companion is not None
+    at_term, stopped, _ = stop_after(rig, rig.twin.companion.terminate)
+    took_s = stopped.time_s - at_term.time_s
+    print(f"\nSIGTERM at {at_term.forward_mps:.2f} m/s: the chassis stopped "
+          f"{travel_m(at_term, stopped) * 100:.0f} cm and {took_s:.2f} s later")
+    # the neutral reached the wheels before the release: not the radio failsafe's 0.5 s
+    assert took_s < 0.35, rig.why()
+    assert rig.twin.stats().wheel_pulses == (1500, 1500, 1500, 1500), rig.why()
+
+
 @real_firmware
 def test_a_kill_9_of_the_companion_at_1_m_s_stops_the_chassis_by_the_firmwares_failsafe(own_rig):
     rig = own_rig
-    fast = rig.drive(FULL, lambda s: s.forward_mps > 0.95, 15.0)
-    assert fast is not None, f"never 0.95 m/s: {rig.twin.truth_now()}\n{rig.why()}"
-    killed_s = time.monotonic()
-    at_kill = rig.twin.truth_now()
-    rig.twin.kill_companion()
-    stopped = wait_until(lambda: truth_if(rig.twin, lambda s: math.hypot(
-        s.forward_mps, s.right_mps) < 0.01), 5.0)
-    assert stopped is not None, f"still moving 5 s after the kill: {rig.twin.truth_now()}"
-    distance_m = math.hypot(stopped.north_m - at_kill.north_m, stopped.east_m - at_kill.east_m)
-    after = [s for s in rig.twin.truth() if s.wall_s >= stopped.wall_s]
+    at_kill, stopped, killed_s = stop_after(rig, rig.twin.kill_companion)
+    distance_m = travel_m(at_kill, stopped)
     wait_until(lambda: rig.twin.truth_now().time_s > stopped.time_s + 0.5, 5.0)
     settled = rig.twin.truth_now()
     print(f"\nkill -9 at {at_kill.forward_mps:.2f} m/s: the chassis stopped "
@@ -172,8 +195,7 @@ def test_a_kill_9_of_the_companion_at_1_m_s_stops_the_chassis_by_the_firmwares_f
     # the wheels ran on the dead companion's last override until the firmware's radio
     # failsafe took them to trim (0.5 s without RC): not the companion's shutdown path
     assert stopped.time_s - at_kill.time_s > 0.4
-    assert after and math.hypot(settled.north_m - stopped.north_m,
-                                settled.east_m - stopped.east_m) < 0.01  # and stays stopped
+    assert travel_m(stopped, settled) < 0.01  # and stays stopped
     assert rig.twin.stats().wheel_pulses == (1500, 1500, 1500, 1500), rig.why()  # its trim
 
 

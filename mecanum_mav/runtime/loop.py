@@ -37,7 +37,7 @@ One pass, top to bottom:
    up, nothing waiting, watched for reading only on the descriptor it has now.
 
 :meth:`ControlLoop.shutdown` is the way out: neutral, then the channels released, all of them
-in order.
+in order, the release :data:`NEUTRAL_HOLD_S` after the first neutral.
 
 A link that breaks (serial device gone, TCP connection closed) is reported to the core once
 (``core.link_down``: its failsafe fires now), leaves the poller (its dead descriptor would
@@ -50,6 +50,7 @@ neutral. A ``tcpin`` link waits for its next client instead (its descriptor turn
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any, Protocol, cast
 
@@ -57,7 +58,15 @@ from mecanum_mav.control.core import NOTHING, LinkCounts, Outbox, RcOverride, Ro
 from mecanum_mav.io.links import follow
 from mecanum_mav.io.poller import READABLE
 
-__all__ = ["ControlLoop", "LoopLink", "LoopPoller", "link_counts"]
+__all__ = ["NEUTRAL_HOLD_S", "ControlLoop", "LoopLink", "LoopPoller", "link_counts"]
+
+NEUTRAL_HOLD_S = 0.1
+"""How long the companion's last neutral overrides stand before it releases the channels.
+ArduPilot reads its RC input once per main-loop pass: a neutral override followed at once by
+the release never reaches the outputs, which (with no receiver) then hold the last pulse read,
+the drive, until the radio failsafe takes them to trim 0.5 s later. Found with the twin
+(real firmware): a Ctrl-C at 1 m/s kept all four wheels at 2000 us for 0.47 s. 0.1 s is five
+passes of Rover's 50 Hz loop."""
 
 
 class LoopLink(Protocol):
@@ -285,11 +294,23 @@ class ControlLoop:
 
     def shutdown(self) -> None:
         """The last words to the flight controller: neutral, then the channels released, all
-        of them in order (a stream link queues them behind what waits)."""
+        of them in order (a stream link queues them behind what waits), the neutral ones
+        spread over :data:`NEUTRAL_HOLD_S` before the release (see there)."""
         core = self.core
         self._fc_mav.srcSystem = core.identity.fc_gcs_sysid
-        for override in core.shutdown():
+        *neutral, release = core.shutdown()
+        for override in neutral:
             self.fc.send_rc_override(*override, replace=False)
+            self._hold(NEUTRAL_HOLD_S / len(neutral))
+        self.fc.send_rc_override(*release, replace=False)
+
+    def _hold(self, seconds: float) -> None:
+        """Let ``seconds`` of real time pass, handing over what waits in the flight
+        controller's link meanwhile."""
+        deadline = time.monotonic() + seconds
+        while (left := deadline - time.monotonic()) > 0.0:
+            self.fc.flush()
+            time.sleep(min(left, 0.005))
 
     def _drain(self, link: LoopLink) -> None:
         """Read what waits on ``link`` and answer it: on a datagram link from the ground

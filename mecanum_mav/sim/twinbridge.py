@@ -322,7 +322,7 @@ class TwinRecord:
 
     def stats(self) -> BridgeStats:
         """The counters now."""
-        a = self.array.tolist()[:_HEADER]
+        a = self.array[:_HEADER].tolist()
         first, last = a[_FIRST_WALL], a[_LAST_WALL]
         wall = 0.0 if math.isnan(first) else last - first
         c, p = a[_COMMANDS:_COMMANDS + 4], [int(v) for v in a[_PULSES:_PULSES + 4]]
