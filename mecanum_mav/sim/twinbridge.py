@@ -107,9 +107,10 @@ class WheelMap:
     (:meth:`~mecanum_mav.control.pwm.WheelOutput.command_from_pulse`) and, as a car ESC does,
     drives only once it has seen neutral: from power-up, and again after a loss of signal
     (pulse 0, no output), it holds the wheel (command 0) until a pulse inside its dead band
-    (``|command| < esc_dead_band``) arms it. (A booting ArduPilot puts out 1000 us on SERVO1
-    for about 20 ms before its outputs start: without this the twin's chassis lurched at
-    every boot.)
+    (``|command| < esc_dead_band``) arms it. (This SITL sends 1500 us on SERVO1..4 before the
+    firmware runs, which arms them, then 1000 us on SERVO1 alone for about 20 ms at every
+    boot and while setup-fc changes SERVO1_FUNCTION: FL turns backwards briefly, and the
+    chassis starts the twin turned about 1 degree and 5 mm from where it stood.)
 
     Args:
         outputs: each wheel's pulse range (``MOT_<W>_MIN/TRIM/MAX``) and reverse
