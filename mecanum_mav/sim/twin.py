@@ -22,7 +22,7 @@ everything is ready, :meth:`Twin.close` ends everything on every way out):
    and ``--gcs`` on :attr:`Twin.gcs_url`; ``frame="ardupilot-omni"``: no companion (the
    firmware drives the wheels itself; ``firmware_params`` and ``wheel_map`` say how).
 
-The truth (:class:`~mecanum_mav.sim.twinbridge.TruthSample`) is the chassis' state at each
+The truth (:class:`~mecanum_mav.sim.twinrecord.TruthSample`) is the chassis' state at each
 frame the bridge answered.
 """
 
@@ -43,13 +43,8 @@ import numpy as np
 from mecanum_mav.config.params import Params
 from mecanum_mav.sim.firmware import Firmware, Started
 from mecanum_mav.sim.process import CompanionProcess, free_port
-from mecanum_mav.sim.twinbridge import (
-    DEFAULT_WHEEL_MAP,
-    BridgeProcess,
-    BridgeStats,
-    TruthSample,
-    TwinRecord,
-)
+from mecanum_mav.sim.twinbridge import DEFAULT_WHEEL_MAP, BridgeProcess
+from mecanum_mav.sim.twinrecord import BridgeStats, TruthSample, TwinRecord
 
 __all__ = ["FRAMES", "NO_RECEIVER", "READY_TIMEOUT_S", "TruthSample", "Twin", "TwinError",
            "describe"]
@@ -259,12 +254,12 @@ class Twin(Started):
 
     def truth(self) -> list[TruthSample]:
         """The chassis' true state at every frame so far (the last
-        :data:`~mecanum_mav.sim.twinbridge.TRUTH_CAPACITY`), oldest first (a copy)."""
+        :data:`~mecanum_mav.sim.twinrecord.TRUTH_CAPACITY`), oldest first (a copy)."""
         return self._record().truth()
 
     def truth_array(self) -> np.ndarray:
         """:meth:`truth` as an array, one row per frame: the fields of
-        :class:`~mecanum_mav.sim.twinbridge.TruthSample` in order (faster for long runs)."""
+        :class:`~mecanum_mav.sim.twinrecord.TruthSample` in order (faster for long runs)."""
         return self._record().truth_array()
 
     def truth_now(self) -> TruthSample:

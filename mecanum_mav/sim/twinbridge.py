@@ -23,7 +23,9 @@ What it tells the firmware (:class:`ChassisSensors`), all in NED/FRD: physics ti
 frame minus gravity, rotated into the body: ``(0, 0, -g)`` at rest), position NED from the
 start, roll/pitch/yaw, velocity NED. Every frame it records the truth (:class:`TruthSample`).
 
-:class:`TwinBridge` serves the core on a UDP socket in a thread of its own.
+:class:`BridgeProcess` serves the core in a process of its own (what the twin uses),
+:class:`TwinBridge` in a thread; the counters and the truth go to a
+:class:`~mecanum_mav.sim.twinrecord.TwinRecord` (re-exported here with its types).
 """
 
 from __future__ import annotations
@@ -43,7 +45,6 @@ import tempfile
 import threading
 import time
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, cast
 
@@ -53,6 +54,25 @@ from mecanum_mav.control.pwm import PwmMap, WheelOutput
 from mecanum_mav.sim.firmware import kill_group
 from mecanum_mav.sim.physics import PhysicsUnavailableError, require_mujoco
 from mecanum_mav.sim.sitljson import PhysicsState, ServoPacket, decode_servo_packet, encode_state
+from mecanum_mav.sim.twinrecord import (
+    BUSY_S,
+    COMMANDS,
+    DROPPED,
+    FIRST_WALL,
+    FRAME_RATE,
+    FRAMES,
+    LAST_WALL,
+    MALFORMED,
+    PHYSICS_S,
+    PULSES,
+    REPEATED,
+    RESTARTS,
+    TRUTH_CAPACITY,
+    BridgeStats,
+    TruthSample,
+    TwinRecord,
+    sample_row,
+)
 
 if TYPE_CHECKING:  # (mujoco is an optional extra: only the twin imports it)
     from mecanum_mav.sim.mujocochassis import MujocoChassis
@@ -64,40 +84,9 @@ __all__ = ["DEFAULT_WHEEL_MAP", "TRUTH_CAPACITY", "BridgeCore", "BridgeProcess",
 DEFAULT_WHEEL_MAP: tuple[tuple[int, float], ...] = ((1, 1.0), (2, 1.0), (3, 1.0), (4, 1.0))
 """Servo channel (1-based) and sign of FL, FR, RL, RR: SERVO1..4, as the companion's
 pass-through board puts them (CONVENTIONS.md)."""
-TRUTH_CAPACITY = 720_000
-"""Frames of truth a twin keeps (the last 10 minutes at the firmware's 1200 Hz; 40 MB)."""
 _NWU_TO_NED = np.diag([1.0, -1.0, -1.0])
 """MuJoCo's world is x north, y west, z up and the body x forward, y left, z up: flipping y
 and z turns either into NED / FRD."""
-
-
-# The layout of a TwinRecord's array: the counters, then the truth's rows.
-(_FRAMES, _REPEATED, _DROPPED, _RESTARTS, _MALFORMED, _PHYSICS_S, _FIRST_WALL, _LAST_WALL,
- _BUSY_S, _FRAME_RATE) = range(10)
-_COMMANDS, _PULSES, _COUNT = 10, 14, 18
-_HEADER = 19
-_ROW = 7
-
-
-@dataclass(frozen=True)
-class TruthSample:
-    """Where the chassis really was when the bridge answered a frame.
-
-    Attributes:
-        wall_s: ``time.monotonic()`` when the frame was answered.
-        time_s: physics time, seconds.
-        north_m, east_m: true position, local NED from the start, metres.
-        yaw_rad: true heading, radians clockwise from north, [-pi, pi).
-        forward_mps, right_mps: true velocity, body FRD, m/s.
-    """
-
-    wall_s: float
-    time_s: float
-    north_m: float
-    east_m: float
-    yaw_rad: float
-    forward_mps: float
-    right_mps: float
 
 
 class WheelMap:
@@ -219,126 +208,6 @@ class ChassisSensors:
         )
 
 
-@dataclass(frozen=True)
-class BridgeStats:
-    """What the bridge has done so far.
-
-    Attributes:
-        frames: frames stepped (new frame counts answered).
-        repeated: packets with the frame count just answered (answered again, no step).
-        dropped: frame counts skipped (a count ahead of the next one: the gap's size).
-        restarts: times the count went back (the firmware restarted).
-        malformed: packets that were not servo packets (ignored).
-        physics_s: physics seconds stepped.
-        wall_s: wall seconds from the first frame answered to the last.
-        busy_s: wall seconds spent answering (decode, step, read, encode).
-        frame_rate: the firmware's last frame rate, Hz (0 before any).
-        commands: the wheel commands FL, FR, RL, RR of the last frame.
-        wheel_pulses: the pulse widths (us) the firmware put out for FL, FR, RL, RR in the
-            last frame (0: no output).
-    """
-
-    frames: int
-    repeated: int
-    dropped: int
-    restarts: int
-    malformed: int
-    physics_s: float
-    wall_s: float
-    busy_s: float
-    frame_rate: int
-    commands: tuple[float, float, float, float]
-    wheel_pulses: tuple[int, int, int, int]
-
-    @property
-    def real_time_factor(self) -> float:
-        """Physics seconds per wall second while stepping (NaN before two frames)."""
-        return self.physics_s / self.wall_s if self.wall_s > 0.0 else math.nan
-
-    @property
-    def busy_fraction(self) -> float:
-        """Mean busy time per frame over the frame period: the bridge's load at real time
-        (1 / this is how much faster than real time it could go; NaN before any frame)."""
-        if self.frames == 0 or self.frame_rate == 0:
-            return math.nan
-        return self.busy_s / self.frames * self.frame_rate
-
-
-class TwinRecord:
-    """The bridge's counters and truth in one float64 array, so that another process can read
-    them (the array may live in shared memory: :class:`BridgeProcess`).
-
-    The truth is a ring of the last ``capacity`` frames (:data:`TRUTH_CAPACITY`: 10 minutes
-    at 1200 Hz, 40 MB), oldest first when read. One writer; readers may run at any time (a
-    read never waits; the counters are each written whole).
-    """
-
-    def __init__(self, array: np.ndarray) -> None:
-        self.array = array
-        self.capacity = (len(array) - _HEADER) // _ROW
-        if self.capacity < 1:
-            raise ValueError("a record needs room for at least one frame")
-        self._rows = array[_HEADER:_HEADER + self.capacity * _ROW].reshape(self.capacity, _ROW)
-
-    @staticmethod
-    def size(capacity: int) -> int:
-        """The array's length (float64 items) for ``capacity`` frames."""
-        return _HEADER + capacity * _ROW
-
-    @classmethod
-    def local(cls, capacity: int = TRUTH_CAPACITY) -> TwinRecord:
-        """A record in this process's memory."""
-        record = cls(np.zeros(cls.size(capacity)))
-        record.array[_FIRST_WALL:_LAST_WALL + 1] = math.nan
-        return record
-
-    def add(self, sample: TruthSample) -> None:
-        """Record one frame's truth (the oldest goes once the ring is full)."""
-        count = int(self.array[_COUNT])
-        self._rows[count % self.capacity] = sample_row(sample)
-        self.array[_COUNT] = count + 1
-
-    def truth_array(self) -> np.ndarray:
-        """The truth so far as rows of :class:`TruthSample`'s fields, oldest first (a copy)."""
-        count = int(self.array[_COUNT])
-        if count <= self.capacity:
-            return np.array(self._rows[:count])
-        cut = count % self.capacity
-        return np.concatenate((self._rows[cut:], self._rows[:cut]))
-
-    def truth(self) -> list[TruthSample]:
-        """The truth so far, oldest first (a copy)."""
-        return [TruthSample(*row) for row in self.truth_array().tolist()]
-
-    def truth_now(self) -> TruthSample:
-        """The latest truth.
-
-        Raises:
-            LookupError: nothing recorded yet.
-        """
-        count = int(self.array[_COUNT])
-        if count == 0:
-            raise LookupError("no truth recorded yet")
-        return TruthSample(*self._rows[(count - 1) % self.capacity].tolist())
-
-    def stats(self) -> BridgeStats:
-        """The counters now."""
-        a = self.array[:_HEADER].tolist()
-        first, last = a[_FIRST_WALL], a[_LAST_WALL]
-        wall = 0.0 if math.isnan(first) else last - first
-        c, p = a[_COMMANDS:_COMMANDS + 4], [int(v) for v in a[_PULSES:_PULSES + 4]]
-        return BridgeStats(int(a[_FRAMES]), int(a[_REPEATED]), int(a[_DROPPED]),
-                           int(a[_RESTARTS]), int(a[_MALFORMED]), a[_PHYSICS_S], wall,
-                           a[_BUSY_S], int(a[_FRAME_RATE]), (c[0], c[1], c[2], c[3]),
-                           (p[0], p[1], p[2], p[3]))
-
-
-def sample_row(sample: TruthSample) -> tuple[float, ...]:
-    """A truth sample as one row of :meth:`TwinRecord.truth_array`."""
-    return (sample.wall_s, sample.time_s, sample.north_m, sample.east_m, sample.yaw_rad,
-            sample.forward_mps, sample.right_mps)
-
-
 class BridgeCore:
     """The lockstep itself, bytes in, bytes out (see the module's docstring).
 
@@ -369,39 +238,39 @@ class BridgeCore:
         a = self._a
         packet = decode_servo_packet(data)
         if packet is None:
-            a[_MALFORMED] += 1
+            a[MALFORMED] += 1
             return None
         if packet.frame_count == self._last_count:
-            a[_REPEATED] += 1
+            a[REPEATED] += 1
             return self._answer
         dt = self._step(packet)
         self._answer = encode_state(self._sensors.read(self._epoch_s))
         now = self._clock()
         self.record.add(self._sample(now))
-        if math.isnan(a[_FIRST_WALL]):
-            a[_FIRST_WALL] = now
+        if math.isnan(a[FIRST_WALL]):
+            a[FIRST_WALL] = now
         else:
-            a[_PHYSICS_S] += dt
-        a[_LAST_WALL] = now
-        a[_BUSY_S] += time.perf_counter() - started
+            a[PHYSICS_S] += dt
+        a[LAST_WALL] = now
+        a[BUSY_S] += time.perf_counter() - started
         return self._answer
 
     def _step(self, packet: ServoPacket) -> float:
         """Count the frame and step the chassis one frame period (returned, seconds)."""
         a, last = self._a, self._last_count
         if last is not None and packet.frame_count < last:
-            a[_RESTARTS] += 1
+            a[RESTARTS] += 1
             self._epoch_s = self.chassis.time_s
         elif last is not None and packet.frame_count > last + 1:
-            a[_DROPPED] += packet.frame_count - last - 1
-        a[_FRAMES] += 1
-        a[_FRAME_RATE] = packet.frame_rate
+            a[DROPPED] += packet.frame_count - last - 1
+        a[FRAMES] += 1
+        a[FRAME_RATE] = packet.frame_rate
         self._last_count = packet.frame_count
         commands = self._wheels.commands(packet.pwm)
         dt = 1.0 / packet.frame_rate
         self.chassis.step(dt, commands)
-        a[_COMMANDS:_COMMANDS + 4] = commands
-        a[_PULSES:_PULSES + 4] = self._wheels.pulses(packet.pwm)
+        a[COMMANDS:COMMANDS + 4] = commands
+        a[PULSES:PULSES + 4] = self._wheels.pulses(packet.pwm)
         return dt
 
     def _sample(self, wall_s: float) -> TruthSample:
@@ -528,7 +397,7 @@ class BridgeProcess:
         record_path = self._dir / "record.f64"
         array = np.lib.format.open_memmap(record_path, mode="w+", dtype=np.float64,
                                           shape=(TwinRecord.size(capacity),))
-        array[_FIRST_WALL:_LAST_WALL + 1] = math.nan
+        array[FIRST_WALL:LAST_WALL + 1] = math.nan
         array.flush()
         self.record: TwinRecord = TwinRecord(array)
         setup = self._dir / "bridge.json"
