@@ -5,7 +5,8 @@ Sub-commands:
     run     the companion between a ground station (--gcs) and a flight controller (--fc)
     setup-fc  check (and with --apply fix) an ArduPilot flight controller for the companion
     simfc   the simulated flight controller alone, as its own process
-    log     summarize and plot a tlog (a recorded drive)
+    log     summarize and plot a tlog (a recorded drive); --rerun/--view: its Rerun view
+    view    watch the rover live in Rerun's viewer, from any MAVLink stream or a tlog
     mix     wheel outputs (normalized and PWM) for one command, or a batch from stdin
     plot    the speed-envelope figures of seed 000 (and of our mixers) as PNGs
     params  validate a parameter file, print the parameters, or the schema as Markdown
@@ -61,6 +62,7 @@ from mecanum_mav.app.mixcommand import (
     run_batch,
     stick_from_fields,
 )
+from mecanum_mav.app.view import DEFAULT_CONNECT, DEFAULT_WEB_PORT
 from mecanum_mav.config.params import (
     ParamError,
     ParamFileError,
@@ -201,7 +203,14 @@ def cmd_demo(args: argparse.Namespace, params: Params) -> int:
 def cmd_log(args: argparse.Namespace, params: Params) -> int:
     from mecanum_mav.app.logview import run_log
 
-    return run_log(args.tlog, args.png)
+    return run_log(args.tlog, args.png, rerun=args.rerun, view=args.view, params=params,
+                   web_port=args.web_port)
+
+
+def cmd_view(args: argparse.Namespace, params: Params) -> int:
+    from mecanum_mav.app.view import run_view
+
+    return run_view(args.connect, params, save=args.save, web_port=args.web_port)
 
 
 def cmd_setup_fc(args: argparse.Namespace, params: Params) -> int:
@@ -376,7 +385,38 @@ def build_parser() -> argparse.ArgumentParser:
     log.add_argument("tlog", type=Path, metavar="FILE.tlog", help="the telemetry log")
     log.add_argument("--png", type=Path, metavar="OUT",
                      help="where to write the figure (default: FILE.png beside the tlog)")
+    log.add_argument("--rerun", type=Path, metavar="OUT.rrd",
+                     help="also write the Rerun view of the drive (as 'view' shows it live; "
+                     "open it with 'rerun OUT.rrd'; needs pip install 'mecanum-mav[view]')")
+    log.add_argument("--view", action="store_true",
+                     help="open the Rerun view of the drive (native viewer with a display, "
+                     "else the web viewer on 127.0.0.1, its address printed; Ctrl-C ends)")
+    log.add_argument("--web-port", type=int, default=DEFAULT_WEB_PORT, metavar="P",
+                     help=f"the web viewer's port (default {DEFAULT_WEB_PORT})")
     log.set_defaults(handler=cmd_log)
+
+    view = sub.add_parser(
+        "view", parents=[common], help="watch the rover live in Rerun's viewer",
+        description="A live view of any MAVLink stream in Rerun's viewer: the map (mission "
+        "plan, estimated path, the true path where SIM_STATE is on the stream), the chassis "
+        "to scale with each wheel's command, time series of the sticks, wheel commands, PWM, "
+        "speed and cross-track, and modes, arming and failsafes on the timeline. It only "
+        "listens. The native viewer opens where a display exists, else the web viewer is "
+        "served on 127.0.0.1 and its address printed. Ctrl-C ends. Needs pip install "
+        "'mecanum-mav[view]'. --params/--set give the PWM map and chassis size (PARAM_VALUE "
+        "on the stream updates them).")
+    view.add_argument("--connect", default=DEFAULT_CONNECT, metavar="URL",
+                      help=f"a pymavlink URL or a tlog being written (followed). Default "
+                      f"{DEFAULT_CONNECT}: an extra output of MAVProxy (mavproxy.py "
+                      f"--master=udpin:127.0.0.1:14550 --out=udpout:127.0.0.1:14551), beside "
+                      f"the ground station. Without a ground station on 14550: "
+                      f"udpin:127.0.0.1:14550 (the companion's own link)")
+    view.add_argument("--save", type=Path, metavar="OUT.rrd",
+                      help="also record the view to OUT.rrd (open it later with 'rerun')")
+    view.add_argument("--web-port", type=int, default=DEFAULT_WEB_PORT, metavar="P",
+                      help=f"the web viewer's port when there is no display (default "
+                      f"{DEFAULT_WEB_PORT})")
+    view.set_defaults(handler=cmd_view)
 
     plot = sub.add_parser("plot", parents=[common], help="speed-envelope figures (PNG)")
     plot.add_argument("--out", default="figures", metavar="DIR", help="output folder")
