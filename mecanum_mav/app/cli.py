@@ -172,8 +172,18 @@ def cmd_sim(args: argparse.Namespace, params: Params) -> int:
             print(f"mecanum-mav sim: warning: the MuJoCo chassis runs only {factor:.1f}x real "
                   f"time (under {MIN_REAL_TIME_FACTOR:g}x): a busy machine may make it fall "
                   "behind", file=sys.stderr, flush=True)
-    return serve(params, gcs, "sim", args.params, args.tlog, args.keys, quiet=args.quiet,
-                 physics=args.physics)
+    if not args.view:
+        return serve(params, gcs, "sim", args.params, args.tlog, args.keys, quiet=args.quiet,
+                     physics=args.physics)
+    from mecanum_mav.app.view import follow_in_viewer
+
+    args.tlog, viewer = follow_in_viewer(args.tlog, args.params, args.set, args.web_port)
+    try:
+        return serve(params, gcs, "sim", args.params, args.tlog, args.keys, quiet=args.quiet,
+                     physics=args.physics)
+    finally:
+        viewer.terminate()
+        viewer.wait()
 
 
 def cmd_demo(args: argparse.Namespace, params: Params) -> int:
@@ -297,6 +307,13 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--params-reset", action="store_true", help=PARAMS_RESET_HELP)
     sim.add_argument("--signing-key", type=Path, metavar="FILE", help=SIGNING_KEY_HELP)
     sim.add_argument("--quiet", action="store_true", help=QUIET_HELP)
+    sim.add_argument("--view", action="store_true",
+                     help="watch it in Rerun's viewer, the true pose and the companion's "
+                     "output to the flight controller included: 'view' follows the --tlog "
+                     "(a temporary one without it); needs pip install 'mecanum-mav[view]'")
+    sim.add_argument("--web-port", type=int, default=DEFAULT_WEB_PORT, metavar="P",
+                     help=f"with --view and no display, the web viewer's port (default "
+                     f"{DEFAULT_WEB_PORT})")
     sim.set_defaults(handler=cmd_sim, default_log_level="INFO", creates_params=True)
 
     demo = sub.add_parser("demo", parents=[common],

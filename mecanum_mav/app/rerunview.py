@@ -521,9 +521,9 @@ class ViewMapping:
         rr = rerun_module()
         recording.send_blueprint(blueprint())
         recording.log("map/path", rr.LineStrips2D.from_fields(
-            colors=[_PATH_COLOUR], radii=[0.012], draw_order=[31.0]), static=True)
+            colors=[_PATH_COLOUR], radii=[0.008], draw_order=[31.0]), static=True)
         recording.log("map/truth", rr.LineStrips2D.from_fields(
-            colors=[_TRUTH_COLOUR], radii=[0.03], draw_order=[30.0]), static=True)
+            colors=[_TRUTH_COLOUR], radii=[0.02], draw_order=[30.0]), static=True)
         for entity, name in (("speed/estimated", "speed (estimated)"),
                              ("speed/true", "speed (true)"),
                              ("track/cross_track", "cross-track")):

@@ -39,7 +39,8 @@ from mecanum_mav.io.tlog import STAMP_LEN, TlogEntry, parse_tlog
 from mecanum_mav.protocol.dialect import mavutil
 
 __all__ = ["DEFAULT_CONNECT", "DEFAULT_WEB_PORT", "FLUSH_PERIOD_S", "TlogFollower", "Viewer",
-           "has_display", "open_viewer", "run_view", "serve_rrd", "show_log", "viewer_url",
+           "follow_in_viewer", "has_display", "open_viewer", "run_view", "serve_rrd",
+           "show_log", "viewer_url",
            "write_rrd"]
 
 DEFAULT_CONNECT = "udpin:127.0.0.1:14551"
@@ -75,7 +76,20 @@ def viewer_url(web_port: int, grpc_port: int) -> str:
 
 
 def _rerun_cli(*args: str) -> list[str]:
-    return [sys.executable, "-m", "rerun", *args]
+    """The Rerun viewer's command line: its binary itself (``python -m rerun`` would run it as
+    a child of its own, which stopping the wrapper leaves behind)."""
+    import importlib.util
+
+    spec = importlib.util.find_spec("rerun_cli")  # (rerun-sdk's; untyped: not imported)
+    if spec is None or spec.origin is None:
+        raise RuntimeError("the Rerun viewer (rerun_cli, in rerun-sdk) is not installed")
+    binary = os.environ.get("RERUN_CLI_PATH") or str(Path(spec.origin).parent / "rerun")
+    return [binary, *args]
+
+
+def _quiet_env() -> dict[str, str]:
+    """The environment for the viewer: warnings and errors only on stderr."""
+    return {**os.environ, "RUST_LOG": os.environ.get("RUST_LOG", "warn")}
 
 
 @dataclass
@@ -120,13 +134,13 @@ def serve_rrd(rrd: Path | None, web_port: int, *, native: bool,
     quiet = subprocess.DEVNULL
     if native:
         args = _rerun_cli("--port", str(grpc_port), *([str(rrd)] if rrd else []))
-        process = subprocess.Popen(args, stdin=quiet, stdout=quiet)
+        process = subprocess.Popen(args, stdin=quiet, stdout=quiet, env=_quiet_env())
         url = None
     else:
         web_port = web_port or free_port()
         args = _rerun_cli("--serve-web", "--bind", "127.0.0.1", "--port", str(grpc_port),
                           "--web-viewer-port", str(web_port), *([str(rrd)] if rrd else []))
-        process = subprocess.Popen(args, stdin=quiet, stdout=quiet)
+        process = subprocess.Popen(args, stdin=quiet, stdout=quiet, env=_quiet_env())
         url = viewer_url(web_port, grpc_port)
     try:
         _wait_listening(grpc_port, process, timeout_s)
@@ -297,3 +311,23 @@ def show_log(entries: list[TlogEntry], params: Params, rrd: Path | None, view: b
         with contextlib.suppress(KeyboardInterrupt):
             viewer.process.wait()
     return 0
+
+
+def follow_in_viewer(tlog: Path | None, params_path: Path | None, assignments: list[str],
+                     web_port: int) -> tuple[Path, subprocess.Popen[bytes]]:
+    """``sim --view``: ``mecanum-mav view`` in its own process (the companion's loop is not
+    slowed), following ``tlog`` (created now; a temporary file when None), which the companion
+    records both of its links to: the simulator's SIM_STATE (the true path and speed) and the
+    companion's every override reach the view. Returns the tlog and the process."""
+    import tempfile
+
+    if tlog is None:
+        tlog = Path(tempfile.gettempdir()) / f"mecanum-mav-sim-{os.getpid()}.tlog"
+    tlog.touch()
+    args = [sys.executable, "-m", "mecanum_mav", "view", "--connect", str(tlog),
+            "--web-port", str(web_port)]
+    if params_path is not None and params_path.exists():
+        args += ["--params", str(params_path)]
+    for assignment in assignments:
+        args += ["--set", assignment]
+    return tlog, subprocess.Popen(args, stdin=subprocess.DEVNULL)
