@@ -20,7 +20,7 @@ from mecanum_mav.app.rerunview import ENTITIES, ViewMapping, to_map  # noqa: E40
 from mecanum_mav.app.view import TlogFollower  # noqa: E402
 from mecanum_mav.config.params import Params  # noqa: E402
 from mecanum_mav.control.pwm import PwmMap  # noqa: E402
-from mecanum_mav.io.tlog import tlog_record  # noqa: E402
+from mecanum_mav.io.tlog import read_tlog, tlog_record  # noqa: E402
 from mecanum_mav.protocol.dialect import mavlink  # noqa: E402
 from mecanum_mav.protocol.mission import LOCAL_XY_SCALE  # noqa: E402
 from mecanum_mav.protocol.modes import Mode  # noqa: E402
@@ -58,7 +58,7 @@ def drive(tmp_path_factory):
     rrd = folder / "drive.rrd"
     assert main(["log", str(tlog), "--png", str(folder / "drive.png"), "--rerun", str(rrd)]) == 0
     temporal, static = read_rrd(rrd)
-    return result, temporal, static
+    return result, temporal, static, tlog
 
 
 def scalars(temporal, entity) -> list[tuple[int, float]]:
@@ -66,13 +66,13 @@ def scalars(temporal, entity) -> list[tuple[int, float]]:
 
 
 def test_the_recording_of_a_drive_holds_every_entity_of_the_view(drive):
-    _, temporal, static = drive
+    _, temporal, static, _ = drive
     missing = [e for e in ENTITIES if e not in temporal and e not in static]
     assert missing == []
 
 
 def test_the_sticks_are_the_scripted_manual_control_segments(drive):
-    _, temporal, _ = drive
+    _, temporal, _, _ = drive
     for axis, k in (("x", 0), ("y", 1), ("r", 2)):
         values = {v for _, v in scalars(temporal, f"sticks/{axis}")}
         assert max(values) == pytest.approx(max(s[k] for s in MANUAL_SEGMENTS) / 1000.0)
@@ -83,7 +83,7 @@ def test_the_wheel_commands_follow_the_x_roller_mixing_while_driving_right(drive
     # Strafing right (y 0.5, the second segment): FL and RR forward, FR and RL backward,
     # each the PWM read back through the PWM map. Kills: command_from_pulse not used (PWM
     # shown as commands), wheel order or reverse lost in the mapping.
-    _, temporal, _ = drive
+    _, temporal, _, _ = drive
     sticks = scalars(temporal, "sticks/y")
     right = [t for t, v in sticks if v == pytest.approx(0.5)]
     start, end = right[len(right) // 3], right[-1]
@@ -98,7 +98,7 @@ def test_the_wheel_commands_follow_the_x_roller_mixing_while_driving_right(drive
 
 
 def test_the_map_holds_the_planned_square_and_the_true_path_where_the_simulator_was(drive):
-    result, temporal, static = drive
+    result, temporal, static, _ = drive
     plan = np.array(static["map/plan/items"]["Points2D:positions"])
     side = result.items[1].x / LOCAL_XY_SCALE  # north 1.5 m: the square's first corner
     # North up: (north, east) is drawn at (east, -north) in Rerun's y-down 2D view.
@@ -113,7 +113,7 @@ def test_the_map_holds_the_planned_square_and_the_true_path_where_the_simulator_
 
 
 def test_the_rover_pose_is_a_transform_with_the_estimated_heading(drive):
-    result, temporal, _ = drive
+    result, temporal, _, _ = drive
     poses = temporal["map/rover"]
     path_ends = [row["LineStrips2D:strips"][0][1] for _, row in temporal["map/path"]]
     translation = poses[-1][1]["Transform3D:translation"][0]
@@ -128,7 +128,7 @@ def test_the_rover_pose_is_a_transform_with_the_estimated_heading(drive):
 
 
 def test_modes_arming_and_failsafes_are_on_the_timeline(drive):
-    result, temporal, _ = drive
+    result, temporal, _, _ = drive
     modes = [row["StateChange:state"][0] for _, row in temporal["state/mode"]]
     expected = [m.name for _, m in result.mode_starts]
     assert modes == expected
@@ -142,7 +142,7 @@ def test_modes_arming_and_failsafes_are_on_the_timeline(drive):
 
 
 def test_cross_track_is_logged_only_in_auto_and_stays_small_on_the_square(drive):
-    _, temporal, _ = drive
+    _, temporal, _, _ = drive
     modes = temporal["state/mode"]
     auto_from = next(t for t, row in modes if row["StateChange:state"][0] == "AUTO")
     track = scalars(temporal, "track/cross_track")
@@ -195,3 +195,36 @@ def test_a_tlog_being_written_is_followed_a_record_cut_short_waiting_for_its_res
         assert follower.poll() == []
     finally:
         follower.close()
+
+
+def test_the_live_view_of_a_tlog_being_written_records_what_the_log_view_has(drive, tmp_path):
+    # One mapping: 'view --connect FILE.tlog --save' (the web viewer served, no display)
+    # records the same modes and path as 'log --rerun', half of the tlog written while it
+    # runs. Kills: the live loop not flushing its last rows, the file not followed.
+    import time
+
+    from mecanum_mav.app.view import run_view
+
+    _, temporal, _, tlog = drive
+    data = tlog.read_bytes()
+    entries = read_tlog(tlog).entries
+    half = entries[len(entries) // 2].offset
+    source = tmp_path / "live.tlog"
+    source.write_bytes(data[:half])  # the rest is written while the view runs
+    saved = tmp_path / "live.rrd"
+    out = io.StringIO()
+    deadline = time.monotonic() + 60.0
+
+    def stop(mapping) -> bool:
+        if mapping.messages >= len(entries) // 2 and source.stat().st_size == half:
+            with source.open("ab") as f:
+                f.write(data[half:])
+        return mapping.messages >= len(entries) or time.monotonic() > deadline
+
+    status = run_view(str(source), Params(), save=saved, web_port=0, out=out, stop_when=stop)
+    assert status == 0
+    assert "http://127.0.0.1:" in out.getvalue()
+    live, _ = read_rrd(saved)
+    assert [row["StateChange:state"] for _, row in live["state/mode"]] == \
+        [row["StateChange:state"] for _, row in temporal["state/mode"]]
+    assert len(live["map/path"]) == len(temporal["map/path"])

@@ -26,7 +26,7 @@ import subprocess
 import sys
 import time
 import urllib.parse
-from collections.abc import Generator
+from collections.abc import Callable, Generator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TextIO
@@ -128,19 +128,23 @@ def serve_rrd(rrd: Path | None, web_port: int, *, native: bool,
               timeout_s: float = 20.0) -> Viewer:
     """Start Rerun's viewer, bound to 127.0.0.1: native (``native``) or the web viewer on
     ``web_port`` (0: any free port), showing ``rrd`` (None: what is sent to its
-    ``grpc_url``). Raises RuntimeError when it does not start."""
+    ``grpc_url``), in a session of its own (a Ctrl-C meant for us leaves it: the native
+    window stays open, the web one is stopped by :meth:`Viewer.close` once all is sent).
+    Raises RuntimeError when it does not start."""
     rerun_module()
     grpc_port = free_port()
     quiet = subprocess.DEVNULL
     if native:
         args = _rerun_cli("--port", str(grpc_port), *([str(rrd)] if rrd else []))
-        process = subprocess.Popen(args, stdin=quiet, stdout=quiet, env=_quiet_env())
+        process = subprocess.Popen(args, stdin=quiet, stdout=quiet, env=_quiet_env(),
+                                   start_new_session=True)
         url = None
     else:
         web_port = web_port or free_port()
         args = _rerun_cli("--serve-web", "--bind", "127.0.0.1", "--port", str(grpc_port),
                           "--web-viewer-port", str(web_port), *([str(rrd)] if rrd else []))
-        process = subprocess.Popen(args, stdin=quiet, stdout=quiet, env=_quiet_env())
+        process = subprocess.Popen(args, stdin=quiet, stdout=quiet, env=_quiet_env(),
+                                   start_new_session=True)
         url = viewer_url(web_port, grpc_port)
     try:
         _wait_listening(grpc_port, process, timeout_s)
@@ -237,8 +241,9 @@ def _messages(connect: str) -> Generator[list[tuple[float, Any]], None, None]:
 
 def run_view(connect: str, params: Params, *, save: Path | None = None,
              web_port: int = DEFAULT_WEB_PORT, out: TextIO | None = None,
-             stop_after_s: float | None = None) -> int:
-    """The ``view`` command: the live view of ``connect`` until Ctrl-C (or ``stop_after_s``).
+             stop_when: Callable[[ViewMapping], bool] | None = None) -> int:
+    """The ``view`` command: the live view of ``connect`` until Ctrl-C (or ``stop_when`` the
+    mapping says so).
     Returns the exit status (0; 2 when the link or the viewer cannot be opened)."""
     out = out or sys.stdout
     try:
@@ -262,7 +267,6 @@ def run_view(connect: str, params: Params, *, save: Path | None = None,
         try:
             batches = _messages(connect)
             stack.callback(batches.close)
-            end = None if stop_after_s is None else time.monotonic() + stop_after_s
             next_flush = time.monotonic()
             for batch in batches:
                 mapping.feed_all(batch)
@@ -270,7 +274,7 @@ def run_view(connect: str, params: Params, *, save: Path | None = None,
                 if now >= next_flush:
                     mapping.flush(recording)
                     next_flush = now + FLUSH_PERIOD_S
-                if end is not None and now >= end:
+                if stop_when is not None and stop_when(mapping):
                     break
         except KeyboardInterrupt:
             pass
@@ -278,8 +282,11 @@ def run_view(connect: str, params: Params, *, save: Path | None = None,
             print(f"mecanum-mav view: {connect}: {exc}", file=sys.stderr)
             return 2
         finally:
-            mapping.flush(recording)
-            recording.flush()
+            # (the web viewer is in a session of its own: a Ctrl-C has not stopped it yet)
+            with contextlib.suppress(RuntimeError):  # the viewer gone: the file still gets it
+                mapping.flush(recording)
+                recording.flush()
+            recording.disconnect()  # (before the web viewer stops: nothing left to send)
         print(f"mecanum-mav view: {mapping.messages} messages", file=out, flush=True)
     return 0
 
