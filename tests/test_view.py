@@ -95,6 +95,16 @@ def test_the_wheel_commands_follow_the_x_roller_mixing_while_driving_right(drive
         pulses = [v for t, v in scalars(temporal, f"wheels/pwm/{name}") if start <= t <= end]
         assert commands and all(sign * c > 0.2 for c in commands), name
         assert commands == pytest.approx([wheel.command_from_pulse(p) for p in pulses]), name
+    # Each wheel's arrow points forward (map -y, nose up) by its command, GEO_HALF_LEN long
+    # at full command.
+    half_len = Params()["GEO_HALF_LEN"]
+    arrows = [np.array(row["Arrows2D:vectors"]) for t, row in temporal["map/rover/wheels"]
+              if start <= t <= end]
+    assert arrows
+    for vectors in arrows:
+        np.testing.assert_allclose(vectors[:, 0], 0.0)
+        assert list(np.sign(-vectors[:, 1])) == [1, -1, -1, 1]
+        assert np.abs(vectors[:, 1]).max() <= half_len + 1e-6
 
 
 def test_the_map_holds_the_planned_square_and_the_true_path_where_the_simulator_was(drive):

@@ -103,6 +103,9 @@ _PLAN_COLOUR = (150, 150, 150)
 _CHASSIS_COLOUR = (220, 220, 220)
 _WHEEL_COLOUR = (44, 160, 44)
 _MAP_PARAMS = ("GEO_HALF_LEN", "GEO_HALF_WID")
+_CHANNEL_FIELDS = tuple(f"chan{i}_raw" for i in range(1, 19))
+_LEAVE = (0, 65534, 65535)
+"""RC_CHANNELS_OVERRIDE values that leave a channel alone or release it (not a pulse)."""
 
 
 def rerun_module() -> Any:
@@ -182,9 +185,6 @@ def _columns(rr: Any, kind: str, values: list[Any]) -> Any:
         return rr.Transform3D.columns(
             translation=np.column_stack((pose[:, 0], pose[:, 1], zeros)),
             quaternion=np.column_stack((zeros, zeros, np.sin(half), np.cos(half))))
-    if kind == "arrows":
-        return rr.Arrows2D.columns(
-            vectors=np.asarray(values, dtype=np.float32).reshape(n * 4, 2)).partition([4] * n)
     if kind == "state":
         return rr.StateChange.columns(state=values)
     text, level = zip(*values, strict=True)
@@ -215,6 +215,7 @@ class ViewMapping:
         self._split = False  # ODOMETRY seen: modes and PWM from the companion's sender only
         self._odometry = False  # ODOMETRY seen: the pose comes from it alone
         self._overrides = False  # the companion's overrides seen: PWM from them alone
+        self._override_kinds: dict[tuple[Any, ...], bool] = {}
         self._yaw = 0.0
         self._position: tuple[float, float] | None = None  # estimated (north, east)
         self._true_position: tuple[float, float] | None = None
@@ -382,27 +383,50 @@ class ViewMapping:
                          for w in self.pwm.wheels])
 
     def _override(self, t: float, msg: Any) -> None:
-        channels = [getattr(msg, f"chan{i}_raw", 0) for i in range(1, 19)]
-        if override_from_pilot(msg, channels, self.vehicle):
+        channels = [getattr(msg, name, 0) for name in _CHANNEL_FIELDS]
+        # Whose it is depends on the ids and which channels it leaves alone: decided once per
+        # kind (the companion sends one kind 25 times a second).
+        key = (msg.get_srcSystem(), msg.get_srcComponent(), msg.target_system,
+               msg.target_component, self.vehicle, *(c if c in _LEAVE else -1 for c in channels))
+        pilot = self._override_kinds.get(key)
+        if pilot is None:
+            pilot = self._override_kinds[key] = override_from_pilot(msg, channels, self.vehicle)
+        if pilot:
             return
         self._overrides = True  # the companion's own output: every one, not 2 Hz reports
         self._wheels(t, [channels[w.channel - 1] for w in self.pwm.wheels])
 
     def _wheels(self, t: float, pulses: list[int]) -> None:
         """The wheels' pulses (us; FL, FR, RL, RR; 0 or an override's no-pulse value: no
-        output) as PWM, commands and the chassis's arrows."""
-        commands = []
-        for name, wheel, pulse in zip(WHEELS, self.pwm.wheels, pulses, strict=True):
-            if pulse in NO_OVERRIDE:
-                commands.append(0.0)
-                continue
-            command = wheel.command_from_pulse(pulse)
-            commands.append(command)
-            self._add(f"wheels/pwm/{name}", "scalar", t, float(pulse))
-            self._add(f"wheels/command/{name}", "scalar", t, command)
-        half_len = float(self.params["GEO_HALF_LEN"])
-        self._add("map/rover/wheels", "arrows", t,
-                  [_body_to_map(c * half_len, 0.0) for c in commands])
+        output): one row, made PWM, commands and arrows in columns at :meth:`flush`."""
+        self._add("wheels", "wheels", t, pulses)
+
+    def _send_wheels(self, rr: Any, recording: rr.RecordingStream, rows: _Rows) -> int:
+        """The wheels' rows as ``wheels/pwm/W`` and ``wheels/command/W`` (where a wheel had a
+        pulse) and the chassis's arrows: the PWM map's inverse
+        (:meth:`~mecanum_mav.control.pwm.WheelOutput.command_from_pulse`) on whole columns."""
+        times = np.asarray(rows.times)
+        pulses = np.asarray(rows.values, dtype=np.float64)
+        live = ~np.isin(pulses, NO_OVERRIDE)
+        commands = np.zeros_like(pulses)
+        for k, (name, wheel) in enumerate(zip(WHEELS, self.pwm.wheels, strict=True)):
+            p = np.clip(pulses[:, k], wheel.minimum, wheel.maximum)
+            above = p >= wheel.trim
+            span = np.where(above, wheel.maximum - wheel.trim, wheel.trim - wheel.minimum)
+            c = (p - wheel.trim) / np.where(span == 0, 1, span)
+            commands[:, k] = np.where(live[:, k], -c if wheel.reversed else c, 0.0)
+            at = [rr.TimeColumn(TIMELINE, timestamp=times[live[:, k]])]
+            recording.send_columns(f"wheels/pwm/{name}", indexes=at,
+                                   columns=rr.Scalars.columns(scalars=pulses[live[:, k], k]))
+            recording.send_columns(f"wheels/command/{name}", indexes=at,
+                                   columns=rr.Scalars.columns(scalars=commands[live[:, k], k]))
+        n = len(times)
+        vectors = np.zeros((n, 4, 2), dtype=np.float32)
+        vectors[:, :, 1] = -commands * float(self.params["GEO_HALF_LEN"])  # forward: map -y
+        recording.send_columns(
+            "map/rover/wheels", indexes=[rr.TimeColumn(TIMELINE, timestamp=times)],
+            columns=rr.Arrows2D.columns(vectors=vectors.reshape(n * 4, 2)).partition([4] * n))
+        return n
 
     def _statustext(self, t: float, msg: Any) -> None:
         self._texts(self._status.add(t, msg))
@@ -482,6 +506,10 @@ class ViewMapping:
         sent = 0
         for entity, rows in self._rows.items():
             if not rows.times:
+                continue
+            if rows.kind == "wheels":
+                sent += self._send_wheels(rr, recording, rows)
+                rows.times, rows.values = [], []
                 continue
             recording.send_columns(
                 entity, indexes=[rr.TimeColumn(TIMELINE, timestamp=np.asarray(rows.times))],
