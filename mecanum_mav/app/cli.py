@@ -400,8 +400,6 @@ def build_parser() -> argparse.ArgumentParser:
                          "with their byte ranges and skipped; exit status 2 if nothing could be "
                          "read.")
     log.add_argument("tlog", type=Path, metavar="FILE.tlog", help="the telemetry log")
-    log.add_argument("--png", type=Path, metavar="OUT",
-                     help="where to write the figure (default: FILE.png beside the tlog)")
     log.add_argument("--rerun", type=Path, metavar="OUT.rrd",
                      help="also write the Rerun view of the drive (as 'view' shows it live; "
                      "open it with 'rerun OUT.rrd'; needs pip install 'mecanum-mav[view]')")
@@ -410,6 +408,8 @@ def build_parser() -> argparse.ArgumentParser:
                      "else the web viewer on 127.0.0.1, its address printed; Ctrl-C ends)")
     log.add_argument("--web-port", type=int, default=DEFAULT_WEB_PORT, metavar="P",
                      help=f"the web viewer's port (default {DEFAULT_WEB_PORT})")
+    log.add_argument("--png", type=Path, metavar="OUT",
+                     help="where to write the figure (default: FILE.png beside the tlog)")
     log.set_defaults(handler=cmd_log)
 
     view = sub.add_parser(

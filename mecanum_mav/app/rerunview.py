@@ -531,7 +531,7 @@ class ViewMapping:
             colors=[_CHASSIS_COLOUR], radii=[half_wid * 0.04]), static=True)
         recording.log("map/rover/chassis/wheels", rr.Boxes2D(
             centers=[_body_to_map(*p) for p in wheels], half_sizes=[wheel_size] * 4,
-            labels=list(WHEELS), colors=[_CHASSIS_COLOUR]), static=True)
+            colors=[_CHASSIS_COLOUR]), static=True)
         recording.log("map/rover/wheels", rr.Arrows2D.from_fields(
             origins=[_body_to_map(*p) for p in wheels], colors=[_WHEEL_COLOUR],
             radii=[half_wid * 0.06]), static=True)
