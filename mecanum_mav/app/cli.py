@@ -175,15 +175,14 @@ def cmd_sim(args: argparse.Namespace, params: Params) -> int:
     if not args.view:
         return serve(params, gcs, "sim", args.params, args.tlog, args.keys, quiet=args.quiet,
                      physics=args.physics)
-    from mecanum_mav.app.view import follow_in_viewer
+    from mecanum_mav.app.view import follow_in_viewer, stop_view
 
     args.tlog, viewer = follow_in_viewer(args.tlog, args.params, args.set, args.web_port)
     try:
         return serve(params, gcs, "sim", args.params, args.tlog, args.keys, quiet=args.quiet,
                      physics=args.physics)
     finally:
-        viewer.terminate()
-        viewer.wait()
+        stop_view(viewer)
 
 
 def cmd_demo(args: argparse.Namespace, params: Params) -> int:
@@ -266,6 +265,13 @@ def cmd_params(args: argparse.Namespace, params: Params) -> int:
 # --------------------------------------------------------------------------- parser
 
 
+def add_web_port(parser: argparse.ArgumentParser, when: str) -> None:
+    """``--web-port P``: where the Rerun web viewer is served (``when``: in which case)."""
+    parser.add_argument("--web-port", type=int, default=DEFAULT_WEB_PORT, metavar="P",
+                        help=f"{when}the Rerun web viewer's port on 127.0.0.1 (default "
+                        f"{DEFAULT_WEB_PORT})")
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="mecanum-mav",
@@ -311,9 +317,7 @@ def build_parser() -> argparse.ArgumentParser:
                      help="watch it in Rerun's viewer, the true pose and the companion's "
                      "output to the flight controller included: 'view' follows the --tlog "
                      "(a temporary one without it); needs pip install 'mecanum-mav[view]'")
-    sim.add_argument("--web-port", type=int, default=DEFAULT_WEB_PORT, metavar="P",
-                     help=f"with --view and no display, the web viewer's port (default "
-                     f"{DEFAULT_WEB_PORT})")
+    add_web_port(sim, "with --view and no display, ")
     sim.set_defaults(handler=cmd_sim, default_log_level="INFO", creates_params=True)
 
     demo = sub.add_parser("demo", parents=[common],
@@ -406,8 +410,7 @@ def build_parser() -> argparse.ArgumentParser:
     log.add_argument("--view", action="store_true",
                      help="open the Rerun view of the drive (native viewer with a display, "
                      "else the web viewer on 127.0.0.1, its address printed; Ctrl-C ends)")
-    log.add_argument("--web-port", type=int, default=DEFAULT_WEB_PORT, metavar="P",
-                     help=f"the web viewer's port (default {DEFAULT_WEB_PORT})")
+    add_web_port(log, "with --view and no display, ")
     log.add_argument("--png", type=Path, metavar="OUT",
                      help="where to write the figure (default: FILE.png beside the tlog)")
     log.set_defaults(handler=cmd_log)
@@ -430,9 +433,7 @@ def build_parser() -> argparse.ArgumentParser:
                       f"udpin:127.0.0.1:14550 (the companion's own link)")
     view.add_argument("--save", type=Path, metavar="OUT.rrd",
                       help="also record the view to OUT.rrd (open it later with 'rerun')")
-    view.add_argument("--web-port", type=int, default=DEFAULT_WEB_PORT, metavar="P",
-                      help=f"the web viewer's port when there is no display (default "
-                      f"{DEFAULT_WEB_PORT})")
+    add_web_port(view, "without a display, ")
     view.set_defaults(handler=cmd_view)
 
     plot = sub.add_parser("plot", parents=[common], help="speed-envelope figures (PNG)")

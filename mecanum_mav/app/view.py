@@ -40,8 +40,7 @@ from mecanum_mav.protocol.dialect import mavutil
 
 __all__ = ["DEFAULT_CONNECT", "DEFAULT_WEB_PORT", "FLUSH_PERIOD_S", "TlogFollower", "Viewer",
            "follow_in_viewer", "has_display", "open_viewer", "run_view", "serve_rrd",
-           "show_log", "viewer_url",
-           "write_rrd"]
+           "show_log", "stop_view", "viewer_url", "write_rrd"]
 
 DEFAULT_CONNECT = "udpin:127.0.0.1:14551"
 """Where ``view`` listens by default: MAVProxy's extra output (``--out=udpout:127.0.0.1:14551``
@@ -239,6 +238,21 @@ def _messages(connect: str) -> Generator[list[tuple[float, Any]], None, None]:
         conn.close()
 
 
+def _interrupt(signum: int, frame: Any) -> None:
+    raise KeyboardInterrupt
+
+
+def _sigterm_interrupts(stack: contextlib.ExitStack) -> None:
+    """SIGTERM ends the view as Ctrl-C does (its web viewer stopped, nothing left behind),
+    until ``stack`` closes; in the main thread only (where signals are handled)."""
+    import signal
+    import threading
+
+    if threading.current_thread() is threading.main_thread():
+        previous = signal.signal(signal.SIGTERM, _interrupt)
+        stack.callback(signal.signal, signal.SIGTERM, previous)
+
+
 def run_view(connect: str, params: Params, *, save: Path | None = None,
              web_port: int = DEFAULT_WEB_PORT, out: TextIO | None = None,
              stop_when: Callable[[ViewMapping], bool] | None = None) -> int:
@@ -260,6 +274,7 @@ def run_view(connect: str, params: Params, *, save: Path | None = None,
         return 2
     with contextlib.ExitStack() as stack:
         stack.callback(viewer.close)
+        _sigterm_interrupts(stack)
         mapping.start(recording)
         where = viewer.url or "the native viewer"
         print(f"mecanum-mav view: {connect} -> {where}"
@@ -283,7 +298,8 @@ def run_view(connect: str, params: Params, *, save: Path | None = None,
             return 2
         finally:
             # (the web viewer is in a session of its own: a Ctrl-C has not stopped it yet)
-            with contextlib.suppress(RuntimeError):  # the viewer gone: the file still gets it
+            # (the viewer gone: the file still gets it; a second Ctrl-C: as it is)
+            with contextlib.suppress(RuntimeError, KeyboardInterrupt):
                 mapping.flush(recording)
                 recording.flush()
             recording.disconnect()  # (before the web viewer stops: nothing left to send)
@@ -338,3 +354,17 @@ def follow_in_viewer(tlog: Path | None, params_path: Path | None, assignments: l
     for assignment in assignments:
         args += ["--set", assignment]
     return tlog, subprocess.Popen(args, stdin=subprocess.DEVNULL)
+
+
+def stop_view(process: subprocess.Popen[bytes], timeout_s: float = 10.0) -> None:
+    """Stop a ``view`` process as Ctrl-C does (it sends what it has and stops its web
+    viewer), killed if it has not ended after ``timeout_s``."""
+    import signal
+
+    if process.poll() is None:
+        process.send_signal(signal.SIGINT)
+    try:
+        process.wait(timeout_s)
+    except subprocess.TimeoutExpired:
+        process.kill()
+        process.wait()
