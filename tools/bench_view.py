@@ -27,7 +27,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from mecanum_mav.app.view import write_rrd
+from mecanum_mav.app.view import gc_paused, write_rrd
 from mecanum_mav.config.params import Params
 from mecanum_mav.io.tlog import STAMP_LEN, parse_tlog, read_tlog, tlog_record
 from mecanum_mav.sim.sampledrive import sample_drive
@@ -72,7 +72,8 @@ def main() -> int:
         tlog, rrd = folder / "long.tlog", folder / "long.rrd"
         messages = long_tlog(tlog, args.minutes)
         started = time.perf_counter()
-        entries = read_tlog(tlog).entries
+        with gc_paused():  # as 'log' reads
+            entries = read_tlog(tlog).entries
         read_s = time.perf_counter() - started
         started = time.perf_counter()
         rows = write_rrd(entries, Params(), rrd)

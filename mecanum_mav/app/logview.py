@@ -268,7 +268,10 @@ def run_log(tlog: Path, png: Path | None, out: TextIO | None = None,
     PWM map and chassis size). Returns the exit status."""
     out = out or sys.stdout
     err = err or sys.stderr
-    read = read_tlog(tlog)
+    from mecanum_mav.app.view import gc_paused
+
+    with gc_paused():
+        read = read_tlog(tlog)
     for problem in read.problems:
         print(f"mecanum-mav log: {problem}", file=err)
     if not read.entries:

@@ -26,7 +26,7 @@ import subprocess
 import sys
 import time
 import urllib.parse
-from collections.abc import Callable, Generator
+from collections.abc import Callable, Generator, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TextIO
@@ -39,7 +39,7 @@ from mecanum_mav.io.tlog import STAMP_LEN, TlogEntry, parse_tlog
 from mecanum_mav.protocol.dialect import mavutil
 
 __all__ = ["DEFAULT_CONNECT", "DEFAULT_WEB_PORT", "FLUSH_PERIOD_S", "TlogFollower", "Viewer",
-           "follow_in_viewer", "has_display", "open_viewer", "run_view", "serve_rrd",
+           "follow_in_viewer", "gc_paused", "has_display", "open_viewer", "run_view", "serve_rrd",
            "show_log", "stop_view", "viewer_url", "write_rrd"]
 
 DEFAULT_CONNECT = "udpin:127.0.0.1:14551"
@@ -53,6 +53,22 @@ _MAX_TAIL = 1 << 16
 """Bytes of a followed tlog kept unread at most (a record cut short by the writer)."""
 _WAIT_S = 0.05
 """How long a live read waits for a message (s)."""
+
+
+@contextlib.contextmanager
+def gc_paused() -> Iterator[None]:
+    """Python's cyclic garbage collector paused: reading a long tlog makes hundreds of
+    thousands of messages and no cycles, and the collector's passes over them took more than
+    half the time (a 30-minute tlog: 5.0 s read with it, 2.0 s without)."""
+    import gc
+
+    was = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if was:
+            gc.enable()
 
 
 def has_display() -> bool:
@@ -176,9 +192,10 @@ def write_rrd(entries: list[TlogEntry], params: Params, out: Path) -> int:
     out.parent.mkdir(parents=True, exist_ok=True)
     recording.save(str(out))
     mapping.start(recording)
-    mapping.feed_all((e.time_s, e.msg) for e in entries)
-    mapping.finish()
-    rows = mapping.flush(recording)
+    with gc_paused():
+        mapping.feed_all((e.time_s, e.msg) for e in entries)
+        mapping.finish()
+        rows = mapping.flush(recording)
     recording.flush()
     recording.disconnect()
     return rows
