@@ -103,6 +103,7 @@ AR = T + "test_auto_arrival.py::"
 MJ = T + "test_mujoco_chassis.py::"
 PC = T + "test_shaping_pwm.py::"
 PL = T + "test_plant_calibration.py::"
+VW = T + "test_view.py::"
 
 MUTATIONS: tuple[Mutation, ...] = (
     # ---------------------------------------------------------------- neutral on every way out
@@ -1008,6 +1009,34 @@ MUTATIONS: tuple[Mutation, ...] = (
       MJ + "test_translating_while_turning_the_wheels_odometry_stays_within_0_3_percent_"
       "sideways",
       MJ + "test_a_roller_passes_the_floor_in_at_least_one_and_a_half_integration_steps"),
+    # The Rerun view (mecanum_mav/app/rerunview.py, app/view.py; issue 27). VW: test_view.py.
+    M("view-wheel-channel", "each wheel's PWM and command come from its own channel (MOT_<W>_CH)",
+      PKG + "app/rerunview.py",
+      "self._wheels(t, [channels[w.channel - 1] for w in self.pwm.wheels])",
+      "self._wheels(t, [channels[w.channel % 4] for w in self.pwm.wheels])",
+      VW + "test_the_wheel_commands_follow_the_x_roller_mixing_while_driving_right"),
+    M("view-pwm-inverse", "wheel commands are the PWM read back through the PWM map's spans",
+      PKG + "app/rerunview.py",
+      "c = (p - wheel.trim) / np.where(span == 0, 1, span)",
+      "c = (p - wheel.trim) / 400.0",
+      VW + "test_the_wheel_commands_follow_the_x_roller_mixing_while_driving_right"),
+    M("view-companion-modes", "the vehicle's modes come from the companion, not its flight "
+      "controller sharing its ids",
+      PKG + "app/rerunview.py",
+      'or self._senders.role(index) == "vehicle")', "or True)",
+      VW + "test_modes_arming_and_failsafes_are_on_the_timeline"),
+    M("view-north-up", "the map draws north up (east, -north in Rerun's y-down 2D view)",
+      PKG + "app/rerunview.py",
+      "    return east_m, -north_m", "    return east_m, north_m",
+      VW + "test_the_map_holds_the_planned_square_and_the_true_path_where_the_simulator_was"),
+    M("view-last-rows", "the live view sends its last rows when it stops",
+      PKG + "app/view.py",
+      """                mapping.flush(recording)
+                recording.flush()
+            recording.disconnect()""",
+      """                recording.flush()
+            recording.disconnect()""",
+      VW + "test_the_live_view_of_a_tlog_being_written_records_what_the_log_view_has"),
 )
 
 # ====================================================================== running

@@ -5,7 +5,8 @@ Sub-commands:
     run     the companion between a ground station (--gcs) and a flight controller (--fc)
     setup-fc  check (and with --apply fix) an ArduPilot flight controller for the companion
     simfc   the simulated flight controller alone, as its own process
-    log     summarize and plot a tlog (a recorded drive)
+    log     summarize and plot a tlog (a recorded drive); --rerun/--view: its Rerun view
+    view    watch the rover live in Rerun's viewer, from any MAVLink stream or a tlog
     mix     wheel outputs (normalized and PWM) for one command, or a batch from stdin
     plot    the speed-envelope figures of seed 000 (and of our mixers) as PNGs
     params  validate a parameter file, print the parameters, or the schema as Markdown
@@ -61,6 +62,7 @@ from mecanum_mav.app.mixcommand import (
     run_batch,
     stick_from_fields,
 )
+from mecanum_mav.app.view import DEFAULT_CONNECT, DEFAULT_WEB_PORT
 from mecanum_mav.config.params import (
     ParamError,
     ParamFileError,
@@ -170,8 +172,17 @@ def cmd_sim(args: argparse.Namespace, params: Params) -> int:
             print(f"mecanum-mav sim: warning: the MuJoCo chassis runs only {factor:.1f}x real "
                   f"time (under {MIN_REAL_TIME_FACTOR:g}x): a busy machine may make it fall "
                   "behind", file=sys.stderr, flush=True)
-    return serve(params, gcs, "sim", args.params, args.tlog, args.keys, quiet=args.quiet,
-                 physics=args.physics)
+    if not args.view:
+        return serve(params, gcs, "sim", args.params, args.tlog, args.keys, quiet=args.quiet,
+                     physics=args.physics)
+    from mecanum_mav.app.view import follow_in_viewer, stop_view
+
+    args.tlog, viewer = follow_in_viewer(args.tlog, args.params, args.set, args.web_port)
+    try:
+        return serve(params, gcs, "sim", args.params, args.tlog, args.keys, quiet=args.quiet,
+                     physics=args.physics)
+    finally:
+        stop_view(viewer)
 
 
 def cmd_twin(args: argparse.Namespace, params: Params) -> int:
@@ -213,7 +224,14 @@ def cmd_demo(args: argparse.Namespace, params: Params) -> int:
 def cmd_log(args: argparse.Namespace, params: Params) -> int:
     from mecanum_mav.app.logview import run_log
 
-    return run_log(args.tlog, args.png)
+    return run_log(args.tlog, args.png, rerun=args.rerun, view=args.view, params=params,
+                   web_port=args.web_port)
+
+
+def cmd_view(args: argparse.Namespace, params: Params) -> int:
+    from mecanum_mav.app.view import run_view
+
+    return run_view(args.connect, params, save=args.save, web_port=args.web_port)
 
 
 def cmd_setup_fc(args: argparse.Namespace, params: Params) -> int:
@@ -259,6 +277,13 @@ def cmd_params(args: argparse.Namespace, params: Params) -> int:
 # --------------------------------------------------------------------------- parser
 
 
+def add_web_port(parser: argparse.ArgumentParser, when: str) -> None:
+    """``--web-port P``: where the Rerun web viewer is served (``when``: in which case)."""
+    parser.add_argument("--web-port", type=int, default=DEFAULT_WEB_PORT, metavar="P",
+                        help=f"{when}the Rerun web viewer's port on 127.0.0.1 (default "
+                        f"{DEFAULT_WEB_PORT})")
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="mecanum-mav",
@@ -300,6 +325,11 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--params-reset", action="store_true", help=PARAMS_RESET_HELP)
     sim.add_argument("--signing-key", type=Path, metavar="FILE", help=SIGNING_KEY_HELP)
     sim.add_argument("--quiet", action="store_true", help=QUIET_HELP)
+    sim.add_argument("--view", action="store_true",
+                     help="watch it in Rerun's viewer, the true pose and the companion's "
+                     "output to the flight controller included: 'view' follows the --tlog "
+                     "(a temporary one without it); needs pip install 'mecanum-mav[view]'")
+    add_web_port(sim, "with --view and no display, ")
     sim.set_defaults(handler=cmd_sim, default_log_level="INFO", creates_params=True)
 
     twin = sub.add_parser("twin", parents=[common],
@@ -400,9 +430,37 @@ def build_parser() -> argparse.ArgumentParser:
                          "with their byte ranges and skipped; exit status 2 if nothing could be "
                          "read.")
     log.add_argument("tlog", type=Path, metavar="FILE.tlog", help="the telemetry log")
+    log.add_argument("--rerun", type=Path, metavar="OUT.rrd",
+                     help="also write the Rerun view of the drive (as 'view' shows it live; "
+                     "open it with 'rerun OUT.rrd'; needs pip install 'mecanum-mav[view]')")
+    log.add_argument("--view", action="store_true",
+                     help="open the Rerun view of the drive (native viewer with a display, "
+                     "else the web viewer on 127.0.0.1, its address printed; Ctrl-C ends)")
+    add_web_port(log, "with --view and no display, ")
     log.add_argument("--png", type=Path, metavar="OUT",
                      help="where to write the figure (default: FILE.png beside the tlog)")
     log.set_defaults(handler=cmd_log)
+
+    view = sub.add_parser(
+        "view", parents=[common], help="watch the rover live in Rerun's viewer",
+        description="A live view of any MAVLink stream in Rerun's viewer: the map (mission "
+        "plan, estimated path, the true path where SIM_STATE is on the stream), the chassis "
+        "to scale with each wheel's command, time series of the sticks, wheel commands, PWM, "
+        "speed and cross-track, and modes, arming and failsafes on the timeline. It only "
+        "listens. The native viewer opens where a display exists, else the web viewer is "
+        "served on 127.0.0.1 and its address printed. Ctrl-C ends. Needs pip install "
+        "'mecanum-mav[view]'. --params/--set give the PWM map and chassis size (PARAM_VALUE "
+        "on the stream updates them).")
+    view.add_argument("--connect", default=DEFAULT_CONNECT, metavar="URL",
+                      help=f"a pymavlink URL or a tlog being written (followed). Default "
+                      f"{DEFAULT_CONNECT}: an extra output of MAVProxy (mavproxy.py "
+                      f"--master=udpin:127.0.0.1:14550 --out=udpout:127.0.0.1:14551), beside "
+                      f"the ground station. Without a ground station on 14550: "
+                      f"udpin:127.0.0.1:14550 (the companion's own link)")
+    view.add_argument("--save", type=Path, metavar="OUT.rrd",
+                      help="also record the view to OUT.rrd (open it later with 'rerun')")
+    add_web_port(view, "without a display, ")
+    view.set_defaults(handler=cmd_view)
 
     plot = sub.add_parser("plot", parents=[common], help="speed-envelope figures (PNG)")
     plot.add_argument("--out", default="figures", metavar="DIR", help="output folder")

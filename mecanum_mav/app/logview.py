@@ -36,6 +36,7 @@ from mecanum_mav.app.loganalysis import (
     ModeSpan,
     analyse,
 )
+from mecanum_mav.config.params import Params
 from mecanum_mav.io.tlog import TlogRead, read_tlog
 from mecanum_mav.protocol.dialect import mavlink
 
@@ -259,12 +260,18 @@ def plot_log(a: LogAnalysis, path: Path, title: str) -> Path:
 
 
 def run_log(tlog: Path, png: Path | None, out: TextIO | None = None,
-            err: TextIO | None = None) -> int:
+            err: TextIO | None = None, *, rerun: Path | None = None, view: bool = False,
+            params: Params | None = None, web_port: int = 9090) -> int:
     """The ``log`` command: summary to ``out`` (stdout), problems to ``err`` (stderr), the
-    PNG to ``png`` (its default beside the tlog). Returns the exit status."""
+    PNG to ``png`` (its default beside the tlog); with ``rerun`` the Rerun view to that
+    ``.rrd``, with ``view`` that view opened (:mod:`~mecanum_mav.app.view`; ``params``: the
+    PWM map and chassis size). Returns the exit status."""
     out = out or sys.stdout
     err = err or sys.stderr
-    read = read_tlog(tlog)
+    from mecanum_mav.app.view import gc_paused
+
+    with gc_paused():
+        read = read_tlog(tlog)
     for problem in read.problems:
         print(f"mecanum-mav log: {problem}", file=err)
     if not read.entries:
@@ -279,4 +286,8 @@ def run_log(tlog: Path, png: Path | None, out: TextIO | None = None,
         print(f"mecanum-mav log: no PNG: {exc}", file=err)
     except OSError as exc:
         print(f"mecanum-mav log: cannot write {target}: {exc}", file=err)
+    if rerun is not None or view:
+        from mecanum_mav.app.view import show_log
+
+        return show_log(read.entries, params or Params(), rerun, view, web_port, out, err)
     return 0

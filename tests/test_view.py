@@ -1,0 +1,240 @@
+"""The Rerun view (mecanum_mav.app.rerunview, app.view): a scripted drive's recording, read
+back with Rerun's own reader (rerun.chunk.RrdReader), holds the entities and values the drive
+had; the mapping never raises on odd messages; a tlog being written is followed."""
+
+from __future__ import annotations
+
+import io
+import math
+from collections import defaultdict
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+rr = pytest.importorskip("rerun", reason="the view extra (rerun-sdk) is not installed")
+from rerun.chunk import RrdReader  # noqa: E402
+
+from mecanum_mav.app.cli import main  # noqa: E402
+from mecanum_mav.app.rerunview import ENTITIES, ViewMapping, to_map  # noqa: E402
+from mecanum_mav.app.view import TlogFollower  # noqa: E402
+from mecanum_mav.config.params import Params  # noqa: E402
+from mecanum_mav.control.pwm import PwmMap  # noqa: E402
+from mecanum_mav.io.tlog import read_tlog, tlog_record  # noqa: E402
+from mecanum_mav.protocol.dialect import mavlink  # noqa: E402
+from mecanum_mav.protocol.mission import LOCAL_XY_SCALE  # noqa: E402
+from mecanum_mav.protocol.modes import Mode  # noqa: E402
+from mecanum_mav.sim.sampledrive import MANUAL_SEGMENTS, sample_drive  # noqa: E402
+
+
+def read_rrd(path: Path) -> tuple[dict[str, list[tuple[int, dict]]], dict[str, dict]]:
+    """Entity -> (time ns, row) of every temporal row, in time order; entity -> static row."""
+    temporal: dict[str, list[tuple[int, dict]]] = defaultdict(list)
+    static: dict[str, dict] = {}
+    for chunk in RrdReader(path).stream():
+        batch = chunk.to_record_batch()
+        names = [n for n in batch.schema.names if ":" in n]
+        columns = {n: batch.column(n).to_pylist() for n in names}
+        entity = chunk.entity_path.lstrip("/")
+        if chunk.is_static:
+            static.setdefault(entity, {}).update({n: v[-1] for n, v in columns.items()})
+            continue
+        times = batch.column("time").cast("int64").to_pylist()
+        for k, t in enumerate(times):
+            temporal[entity].append((t, {n: v[k] for n, v in columns.items()}))
+    for rows in temporal.values():
+        rows.sort(key=lambda row: row[0])
+    return temporal, static
+
+
+@pytest.fixture(scope="module")
+def drive(tmp_path_factory):
+    """The sample drive (MANUAL sticks, failsafes, an AUTO square) recorded to a tlog and
+    turned into a view with ``mecanum-mav log --rerun``."""
+    folder = tmp_path_factory.mktemp("view")
+    tlog = folder / "drive.tlog"
+    with tlog.open("wb") as f:
+        result = sample_drive(f)
+    rrd = folder / "drive.rrd"
+    assert main(["log", str(tlog), "--png", str(folder / "drive.png"), "--rerun", str(rrd)]) == 0
+    temporal, static = read_rrd(rrd)
+    return result, temporal, static, tlog
+
+
+def scalars(temporal, entity) -> list[tuple[int, float]]:
+    return [(t, row["Scalars:scalars"][0]) for t, row in temporal[entity]]
+
+
+def test_the_recording_of_a_drive_holds_every_entity_of_the_view(drive):
+    _, temporal, static, _ = drive
+    missing = [e for e in ENTITIES if e not in temporal and e not in static]
+    assert missing == []
+
+
+def test_the_sticks_are_the_scripted_manual_control_segments(drive):
+    _, temporal, _, _ = drive
+    for axis, k in (("x", 0), ("y", 1), ("r", 2)):
+        values = {v for _, v in scalars(temporal, f"sticks/{axis}")}
+        assert max(values) == pytest.approx(max(s[k] for s in MANUAL_SEGMENTS) / 1000.0)
+        assert 0.0 in values
+
+
+def test_the_wheel_commands_follow_the_x_roller_mixing_while_driving_right(drive):
+    # Strafing right (y 0.5, the second segment): FL and RR forward, FR and RL backward,
+    # each the PWM read back through the PWM map. Kills: command_from_pulse not used (PWM
+    # shown as commands), wheel order or reverse lost in the mapping.
+    _, temporal, _, _ = drive
+    sticks = scalars(temporal, "sticks/y")
+    right = [t for t, v in sticks if v == pytest.approx(0.5)]
+    start, end = right[len(right) // 3], right[-1]
+    pwm = PwmMap.from_params(Params())
+    for name, wheel, sign in zip(("FL", "FR", "RL", "RR"), pwm.wheels, (1, -1, -1, 1),
+                                 strict=True):
+        commands = [v for t, v in scalars(temporal, f"wheels/command/{name}")
+                    if start <= t <= end]
+        pulses = [v for t, v in scalars(temporal, f"wheels/pwm/{name}") if start <= t <= end]
+        assert commands and all(sign * c > 0.2 for c in commands), name
+        assert commands == pytest.approx([wheel.command_from_pulse(p) for p in pulses]), name
+    # Each wheel's arrow points forward (map -y, nose up) by its command, GEO_HALF_LEN long
+    # at full command.
+    half_len = Params()["GEO_HALF_LEN"]
+    arrows = [np.array(row["Arrows2D:vectors"]) for t, row in temporal["map/rover/wheels"]
+              if start <= t <= end]
+    assert arrows
+    for vectors in arrows:
+        np.testing.assert_allclose(vectors[:, 0], 0.0)
+        assert list(np.sign(-vectors[:, 1])) == [1, -1, -1, 1]
+        assert np.abs(vectors[:, 1]).max() <= half_len + 1e-6
+
+
+def test_the_map_holds_the_planned_square_and_the_true_path_where_the_simulator_was(drive):
+    result, temporal, static, _ = drive
+    plan = np.array(static["map/plan/items"]["Points2D:positions"])
+    side = result.items[1].x / LOCAL_XY_SCALE  # north 1.5 m: the square's first corner
+    # North up: (north, east) is drawn at (east, -north) in Rerun's y-down 2D view.
+    np.testing.assert_allclose(plan, [(0, -side), (side, -side), (side, 0), (0, 0)], atol=1e-6)
+    truth = temporal["map/truth"]
+    last = truth[-1][1]["LineStrips2D:strips"][0][1]  # the last segment's end
+    _, n, e = result.true_path[-1]
+    assert last == pytest.approx(list(to_map(n, e)), abs=0.02)
+    path = temporal["map/path"]
+    end = path[-1][1]["LineStrips2D:strips"][0][1]
+    assert math.dist(end, last) < 0.1  # the estimate ends near the truth
+
+
+def test_the_rover_pose_is_a_transform_with_the_estimated_heading(drive):
+    result, temporal, _, _ = drive
+    poses = temporal["map/rover"]
+    path_ends = [row["LineStrips2D:strips"][0][1] for _, row in temporal["map/path"]]
+    translation = poses[-1][1]["Transform3D:translation"][0]
+    assert translation[:2] == pytest.approx(path_ends[-1], abs=1e-4)
+    quaternions = [row["Transform3D:quaternion"][0] for _, row in poses]
+    yaws = [2 * math.atan2(q[2], q[3]) for q in quaternions]
+    assert len({round(y, 2) for y in yaws}) > 3  # it turned (the clockwise stick segment)
+    # Clockwise from north, as the map's y-down frame turns: the true heading at the end.
+    true_yaw = result.harness.truth().pose.yaw_rad
+    assert math.remainder(yaws[-1] - true_yaw, math.tau) == pytest.approx(0.0, abs=0.05)
+    assert abs(true_yaw) > 0.2
+
+
+def test_modes_arming_and_failsafes_are_on_the_timeline(drive):
+    result, temporal, _, _ = drive
+    modes = [row["StateChange:state"][0] for _, row in temporal["state/mode"]]
+    expected = [m.name for _, m in result.mode_starts]
+    assert modes == expected
+    armed = [row["StateChange:state"][0] for _, row in temporal["state/armed"]]
+    assert armed == ["disarmed", "armed", "disarmed"]
+    events = [(row["TextLog:text"][0], row["TextLog:level"][0]) for _, row in temporal["events"]]
+    failsafes = [text for text, level in events if level == "ERROR"]
+    assert any("Manual input lost" in text for text in failsafes)
+    assert any("GCS link lost" in text for text in failsafes)
+    assert (f"mode {Mode.AUTO.name}", "INFO") in events
+
+
+def test_cross_track_is_logged_only_in_auto_and_stays_small_on_the_square(drive):
+    _, temporal, _, _ = drive
+    modes = temporal["state/mode"]
+    auto_from = next(t for t, row in modes if row["StateChange:state"][0] == "AUTO")
+    track = scalars(temporal, "track/cross_track")
+    assert track and all(t >= auto_from for t, _ in track)
+    assert max(v for _, v in track) < 0.3
+
+
+def _message(build, *args):
+    mav = mavlink.MAVLink(io.BytesIO(), srcSystem=1, srcComponent=1)
+    msg = getattr(mav, f"{build}_encode")(*args)
+    msg.pack(mav)
+    return mav.decode(bytearray(msg.get_msgbuf()))
+
+
+def test_odd_messages_never_raise_and_a_non_finite_position_draws_nothing():
+    mapping = ViewMapping()
+    mapping.feed(1.0, object())
+    mapping.feed(1.0, None)
+    nan = float("nan")
+    mapping.feed(2.0, _message("local_position_ned", 0, nan, 1.0, 0.0, nan, 0.0, 0.0))
+    mapping.feed(2.0, _message("local_position_ned", 0, 1.0, math.inf, 0.0, 0.0, 0.0, 0.0))
+    assert mapping.pending() == 0
+    mapping.feed(3.0, _message("local_position_ned", 0, 1.0, 2.0, 0.0, 0.0, 0.0, 0.0))
+    assert mapping.pending() == 2  # the pose and the speed, no segment yet
+
+
+def test_the_chassis_size_follows_param_value_on_the_stream():
+    mapping = ViewMapping()
+    mapping.feed(1.0, _message("param_value", b"GEO_HALF_LEN", 0.4,
+                               mavlink.MAV_PARAM_TYPE_REAL32, 100, 1))
+    assert mapping.params["GEO_HALF_LEN"] == pytest.approx(0.4)
+    mapping.feed(1.0, _message("param_value", b"GEO_HALF_LEN", -3.0,
+                               mavlink.MAV_PARAM_TYPE_REAL32, 100, 1))
+    assert mapping.params["GEO_HALF_LEN"] == pytest.approx(0.4)  # out of range: kept
+
+
+def test_a_tlog_being_written_is_followed_a_record_cut_short_waiting_for_its_rest(tmp_path):
+    path = tmp_path / "live.tlog"
+    records = [tlog_record(1_800_000_000_000_000 + k * 100_000,
+                           _message("heartbeat", 10, 3, 0, 0, 0, 3).get_msgbuf())
+               for k in range(3)]
+    path.write_bytes(records[0] + records[1][:7])
+    follower = TlogFollower(path)
+    try:
+        assert [t for t, _ in follower.poll()] == [1_800_000_000.0]
+        with path.open("ab") as f:
+            f.write(records[1][7:] + records[2])
+        assert [t for t, _ in follower.poll()] == pytest.approx([1_800_000_000.1,
+                                                                  1_800_000_000.2])
+        assert follower.poll() == []
+    finally:
+        follower.close()
+
+
+def test_the_live_view_of_a_tlog_being_written_records_what_the_log_view_has(drive, tmp_path):
+    # One mapping: 'view --connect FILE.tlog --save' (the web viewer served, no display)
+    # records the same modes and path as 'log --rerun', half of the tlog written while it
+    # runs. Kills: the live loop not flushing its last rows, the file not followed.
+    import time
+
+    from mecanum_mav.app.view import run_view
+
+    _, temporal, _, tlog = drive
+    data = tlog.read_bytes()
+    entries = read_tlog(tlog).entries
+    half = entries[len(entries) // 2].offset
+    source = tmp_path / "live.tlog"
+    source.write_bytes(data[:half])  # the rest is written while the view runs
+    saved = tmp_path / "live.rrd"
+    out = io.StringIO()
+    deadline = time.monotonic() + 60.0
+
+    def stop(mapping) -> bool:
+        if mapping.messages >= len(entries) // 2 and source.stat().st_size == half:
+            with source.open("ab") as f:
+                f.write(data[half:])
+        return mapping.messages >= len(entries) or time.monotonic() > deadline
+
+    status = run_view(str(source), Params(), save=saved, web_port=0, out=out, stop_when=stop)
+    assert status == 0
+    assert "http://127.0.0.1:" in out.getvalue()
+    live, _ = read_rrd(saved)
+    assert [row["StateChange:state"] for _, row in live["state/mode"]] == \
+        [row["StateChange:state"] for _, row in temporal["state/mode"]]
+    assert len(live["map/path"]) == len(temporal["map/path"])

@@ -1,0 +1,100 @@
+"""How long the Rerun view of a 30-minute tlog takes to open (goal: under 5 s).
+
+    python tools/bench_view.py [--minutes 30] [--keep DIR]
+
+Makes a tlog of ``--minutes`` of driving from the lockstep sample drive
+(:mod:`mecanum_mav.sim.sampledrive`: both of the companion's links at their real rates,
+about 125 messages a second: MANUAL sticks, failsafes, an AUTO square), repeated end to end
+with its stamps shifted, then times:
+
+- ``read``: reading the tlog (:func:`mecanum_mav.io.tlog.read_tlog`);
+- ``view``: the mapping and writing the ``.rrd`` (:func:`mecanum_mav.app.view.write_rrd`);
+- ``load``: Rerun reading the ``.rrd`` back whole (``rerun.chunk.RrdReader``), as a viewer
+  loads it;
+- ``log --rerun``: the whole command in a fresh process (``mecanum-mav log FILE --rerun OUT
+  --png OUT.png``: the summary and the PNG too), wall time.
+
+"open" = read + view + load: from the tlog to a recording a viewer has in memory. Prints each
+time in seconds, the message and row counts and the sizes.
+"""
+
+from __future__ import annotations
+
+import argparse
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from mecanum_mav.app.view import gc_paused, write_rrd
+from mecanum_mav.config.params import Params
+from mecanum_mav.io.tlog import STAMP_LEN, parse_tlog, read_tlog, tlog_record
+from mecanum_mav.sim.sampledrive import sample_drive
+
+GOAL_S = 5.0
+"""A 30-minute tlog's view opens in under this (s)."""
+
+
+def long_tlog(path: Path, minutes: float) -> int:
+    """Write ``minutes`` of driving to ``path`` (the sample drive repeated); returns the
+    messages written."""
+    sample = path.with_suffix(".one.tlog")
+    with sample.open("wb") as f:
+        sample_drive(f)
+    data = sample.read_bytes()
+    sample.unlink()
+    read = parse_tlog(data)
+    records = [(round(e.time_s * 1e6), data[e.offset + STAMP_LEN:
+                                            e.offset + STAMP_LEN + len(e.msg.get_msgbuf())])
+               for e in read.entries]
+    span_us = records[-1][0] - records[0][0] + 100_000
+    count = 0
+    with path.open("wb") as out:
+        shift = 0
+        while shift < minutes * 60e6:
+            out.write(b"".join(tlog_record(stamp + shift, packet) for stamp, packet in records))
+            count += len(records)
+            shift += span_us
+    return count
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--minutes", type=float, default=30.0)
+    parser.add_argument("--keep", type=Path, help="keep the tlog and .rrd in this folder")
+    args = parser.parse_args()
+    from rerun.chunk import RrdReader
+
+    with tempfile.TemporaryDirectory() as scratch:
+        folder = args.keep or Path(scratch)
+        folder.mkdir(parents=True, exist_ok=True)
+        tlog, rrd = folder / "long.tlog", folder / "long.rrd"
+        messages = long_tlog(tlog, args.minutes)
+        started = time.perf_counter()
+        with gc_paused():  # as 'log' reads
+            entries = read_tlog(tlog).entries
+        read_s = time.perf_counter() - started
+        started = time.perf_counter()
+        rows = write_rrd(entries, Params(), rrd)
+        view_s = time.perf_counter() - started
+        started = time.perf_counter()
+        chunks = RrdReader(rrd).stream().to_chunks()
+        load_s = time.perf_counter() - started
+        started = time.perf_counter()
+        subprocess.run([sys.executable, "-m", "mecanum_mav", "log", str(tlog), "--rerun",
+                        str(folder / "cli.rrd"), "--png", str(folder / "cli.png")],
+                       check=True, stdout=subprocess.DEVNULL)
+        cli_s = time.perf_counter() - started
+        open_s = read_s + view_s + load_s
+        print(f"{args.minutes:g} min tlog: {messages} messages, {tlog.stat().st_size / 1e6:.1f} "
+              f"MB -> {rows} rows, {len(chunks)} chunks, {rrd.stat().st_size / 1e6:.1f} MB .rrd")
+        verdict = "met" if open_s < GOAL_S else "NOT met"
+        print(f"read {read_s:.2f} s, view {view_s:.2f} s, load {load_s:.2f} s: "
+              f"open {open_s:.2f} s (goal < {GOAL_S:g} s: {verdict})")
+        print(f"log --rerun (whole command, with summary and PNG): {cli_s:.2f} s")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
