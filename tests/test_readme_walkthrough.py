@@ -23,6 +23,7 @@ import subprocess
 import sys
 import threading
 import time
+import urllib.request
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
@@ -473,9 +474,78 @@ def test_readme_signing_how_to_with_mavproxy_arms_only_once_it_has_the_key(workd
 
 
 def test_readme_looking_at_a_drive_summarizes_the_sample_drive(workdir):
-    (block,) = [b for b in plan.section("Looking at a drive", "sh")]
+    (block,) = [b for b in plan.section("Looking at a drive", "sh") if "log_example" in b.text]
     for command in plan.shell_commands(block.text):
         done = run_step(plan.localize(command, gcs_port=0), workdir)
         assert done.returncode == 0, done.stdout + done.stderr
     assert "distance" in done.stdout and "modes:" in done.stdout, done.stdout
     assert (workdir / "sample.png").stat().st_size > 10_000
+
+
+# --------------------------------------------------------------------------- the live view
+
+VIEW_PORT = 14551
+"""The README's port for MAVProxy's extra output, where ``mecanum-mav view`` listens."""
+VIEWER_ADDRESS = re.compile(r"(http://127\.0\.0\.1:\d+/\S*)")
+
+
+def view_command(command: str, gcs_port: int, view_port: int) -> str:
+    """A README command of the live view, localized: the ground station's port and the view's
+    to free ones, the web viewer on a free port (``--web-port 0``) and ``view`` told where
+    MAVProxy's extra output now goes."""
+    local = plan.localize(command, gcs_port=gcs_port).replace(str(VIEW_PORT), str(view_port))
+    words = shlex.split(local)
+    if words[:2] == ["mecanum-mav", "view"] and "--connect" not in words:
+        words += ["--connect", f"udpin:127.0.0.1:{view_port}"]
+    if words[0] == "mecanum-mav" and ("view" in words[:2] or "--view" in words):
+        words += ["--web-port", "0"]
+    return shlex.join(words)
+
+
+def served_viewer(job: Background) -> str:
+    """The web viewer's address ``job`` printed (no display here), once it answers."""
+    found = wait_until(lambda: VIEWER_ADDRESS.search(job.log()), REACT_S)
+    assert found, f"{job.command}: no viewer address printed\n{job.log()}"
+    address = found.group(1)
+    with urllib.request.urlopen(address.split("?")[0], timeout=10) as page:
+        assert page.status == 200 and b"rerun" in page.read().lower(), address
+    return address
+
+
+def interrupted(job: Background) -> int | None:
+    """Ctrl-C to ``job``, as a user ends it; its exit status."""
+    job.signal(signal.SIGINT)
+    try:
+        job.proc.wait(20)
+    except subprocess.TimeoutExpired:
+        raise AssertionError(f"{job.command}: still running 20 s after Ctrl-C\n{job.log()}"
+                             ) from None
+    return job.proc.returncode
+
+
+def test_readme_watch_it_live_serves_the_view_of_the_sim_of_mavproxys_output_and_of_a_log(
+        workdir):
+    """Watch it live, as written: ``sim --view`` serves its view; MAVProxy's extra output
+    feeds ``mecanum-mav view``, which counts what it showed when Ctrl-C ends it; a finished
+    drive's ``log ... --view`` serves its view too. Each ends with status 0 on Ctrl-C."""
+    (sample,) = [b for b in plan.section("Looking at a drive", "sh") if "log_example" in b.text]
+    for command in plan.shell_commands(sample.text)[:1]:  # the sample drive's tlog
+        assert run_step(plan.localize(command, gcs_port=0), workdir).returncode == 0
+    (block,) = [b for b in plan.section("Watch it live", "sh")]
+    sim, mavproxy, view, log = plan.shell_commands(block.text)
+    gcs_port, view_port = free_port(), free_port()
+    with background(view_command(sim, gcs_port, view_port), workdir) as rover, \
+            background(view_command(mavproxy, gcs_port, view_port), workdir), \
+            background(view_command(view, gcs_port, view_port), workdir) as live:
+        served_viewer(rover)
+        served_viewer(live)
+        forwarded = workdir / "mav.tlog"  # what MAVProxy relayed, its extra output's too
+        assert wait_until(lambda: forwarded.exists() and forwarded.stat().st_size > 20_000,
+                          REACT_S), "MAVProxy relayed nothing"
+        assert interrupted(live) == 0, live.log()
+        shown = re.search(r"(\d+) messages", live.log())
+        assert shown and int(shown.group(1)) > 50, live.log()
+        assert interrupted(rover) == 0, rover.log()
+    with background(view_command(log, gcs_port, view_port), workdir) as finished:
+        served_viewer(finished)
+        assert interrupted(finished) == 0, finished.log()
