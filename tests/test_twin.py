@@ -248,3 +248,42 @@ def test_the_twin_command_starts_everything_says_where_to_connect_and_ends_it_on
         if proc.poll() is None:
             os.killpg(proc.pid, signal.SIGKILL)
             proc.wait(timeout=10)
+
+
+@real_firmware
+def test_the_twin_command_with_view_serves_the_view_of_the_companions_links_and_ends_it(
+        tmp_path):
+    """``twin --view``: a view follows the companion's tlog (its overrides and the firmware's
+    SIMSTATE), serves the web viewer here (no display) and, at SIGTERM, ends after saying how
+    many messages it showed; the tlog holds the firmware's truth (SIMSTATE)."""
+    assert BINARY is not None
+    log = tmp_path / "twin.log"
+    with log.open("wb") as out:
+        proc = subprocess.Popen([sys.executable, "-m", "mecanum_mav", "twin", "--sitl",
+                                 str(BINARY), "--gcs", "udpout:127.0.0.1:9", "--view",
+                                 "--web-port", "0"], stdout=out, stderr=subprocess.STDOUT,
+                                start_new_session=True,
+                                env={**os.environ, "DISPLAY": "", "WAYLAND_DISPLAY": ""})
+    try:
+        ready = wait_until(lambda: "ready." in log.read_text() or proc.poll() is not None,
+                           READY_S)
+        text = log.read_text()
+        assert ready and "ready." in text and "mecanum-mav view: " in text, text
+        followed = Path(text.split("mecanum-mav view: ", 1)[1].split(" -> ", 1)[0])
+        assert " -> http://127.0.0.1:" in text, text
+        from mecanum_mav.io.tlog import parse_tlog
+
+        def truth_recorded() -> bool:
+            entries = parse_tlog(followed.read_bytes(), followed.name).entries
+            return any(e.msg.get_type() == "SIMSTATE" for e in entries)
+
+        assert wait_until(truth_recorded, 10.0), "no SIMSTATE in the companion's tlog"
+        proc.send_signal(signal.SIGTERM)
+        assert proc.wait(timeout=30) == 0, log.read_text()
+        shown = log.read_text().split("mecanum-mav view: ")[-1]
+        assert shown.split(" ", 1)[0].isdigit() and int(shown.split(" ", 1)[0]) > 0, \
+            log.read_text()
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait(timeout=10)

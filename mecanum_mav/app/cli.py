@@ -194,7 +194,15 @@ def cmd_twin(args: argparse.Namespace, params: Params) -> int:
         print("mecanum-mav twin: give --sitl PATH (ArduPilot's ardurover) or set "
               "$MECANUM_SITL", file=sys.stderr)
         return 2
-    return run_twin(params, sitl, friction=args.friction, gcs=args.gcs)
+    if not args.view:
+        return run_twin(params, sitl, friction=args.friction, gcs=args.gcs)
+    from mecanum_mav.app.view import follow_in_viewer, stop_view
+
+    tlog, viewer = follow_in_viewer(None, args.params, args.set, args.web_port)
+    try:
+        return run_twin(params, sitl, friction=args.friction, gcs=args.gcs, tlog=tlog)
+    finally:
+        stop_view(viewer)
 
 
 def cmd_demo(args: argparse.Namespace, params: Params) -> int:
@@ -344,6 +352,11 @@ def build_parser() -> argparse.ArgumentParser:
                       help="the floor's friction coefficient (SIM_FRICTION; default 0.8)")
     twin.add_argument("--gcs", default=DEFAULT_GCS_URL, metavar="URL",
                       help=f"the companion's ground-station link (default {DEFAULT_GCS_URL})")
+    twin.add_argument("--view", action="store_true",
+                      help="watch it in Rerun's viewer: 'view' follows the companion's tlog "
+                      "(both links: its overrides, and the firmware's SIMSTATE, the true pose "
+                      "as the firmware has it, 1 Hz); needs pip install 'mecanum-mav[view]'")
+    add_web_port(twin, "with --view and no display, ")
     twin.set_defaults(handler=cmd_twin)
 
     demo = sub.add_parser("demo", parents=[common],

@@ -28,9 +28,11 @@ REPORT_PERIOD_S = 5.0
 
 
 def run_twin(params: Params, sitl: Path, *, friction: float, gcs: str,
-             report_period_s: float = REPORT_PERIOD_S, out: TextIO | None = None) -> int:
+             report_period_s: float = REPORT_PERIOD_S, out: TextIO | None = None,
+             tlog: Path | None = None) -> int:
     """Run the twin until SIGINT/SIGTERM or until a part of it dies; the exit status. The
-    figures go to ``out`` (default: standard output), problems to standard error."""
+    figures go to ``out`` (default: standard output), problems to standard error; the
+    companion records both of its links to ``tlog`` (``twin --view`` follows it)."""
     out = out if out is not None else sys.stdout
     say = f"mecanum-mav twin: firmware {sitl}, MuJoCo chassis on friction {friction:g}"
     print(f"{say}; starting (setup-fc --apply --reboot, then the companion) ...", file=out,
@@ -38,7 +40,7 @@ def run_twin(params: Params, sitl: Path, *, friction: float, gcs: str,
     stop = threading.Event()
     with terminate_in_order() as termination:
         try:
-            twin = Twin(sitl, friction=friction, params=params, gcs=gcs)
+            twin = Twin(sitl, friction=friction, params=params, gcs=gcs, tlog=tlog)
             with twin:
                 termination.running(stop.set)
                 print(f"mecanum-mav twin: ready. Ground station -> companion: the companion "

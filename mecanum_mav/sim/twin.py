@@ -86,6 +86,9 @@ class Twin(Started):
             for a ground station listening on 14550).
         workdir: where the companion's log goes (default: a temporary directory, removed on
             close).
+        tlog: the companion records both of its links there (``run --tlog``): the firmware's
+            SIMSTATE and SIM_STATE on its link are the chassis's truth as the firmware has it
+            (what ``twin --view`` shows as the true path).
     """
 
     def __init__(self, sitl: Path, *, friction: float = 0.8, params: Params | None = None,
@@ -93,7 +96,8 @@ class Twin(Started):
                  wheel_map: Sequence[tuple[int, float]] | None = None,
                  firmware_params: Mapping[str, float] | None = None,
                  companion: bool = True, gcs_port: int | None = None,
-                 gcs: str | None = None, workdir: Path | None = None) -> None:
+                 gcs: str | None = None, workdir: Path | None = None,
+                 tlog: Path | None = None) -> None:
         if frame not in FRAMES:
             raise ValueError(f"unknown frame {frame!r}: one of {', '.join(FRAMES)}")
         self.sitl = Path(sitl)
@@ -120,6 +124,7 @@ class Twin(Started):
         self.companion_pid: int | None = None
         self.setup_output = ""
         """What ``setup-fc --apply --reboot`` printed (with a companion)."""
+        self.tlog = tlog
         self._own_workdir = workdir is None
         self.workdir = Path(workdir) if workdir is not None else Path(
             tempfile.mkdtemp(prefix="mecanum-twin-"))
@@ -146,8 +151,9 @@ class Twin(Started):
         if not self.with_companion:
             return
         self._setup_fc(timeout_s)
+        tlog = ["--tlog", str(self.tlog)] if self.tlog is not None else []
         self.companion = CompanionProcess(self._companion_gcs, self.firmware.fc_url,
-                                          self.workdir, *self._param_args())
+                                          self.workdir, *self._param_args(), *tlog)
         self.companion_pid = self.companion.pid
         if self._wait_on_gcs:
             self._wait_heartbeat(self.gcs_url, timeout_s, "the companion")
