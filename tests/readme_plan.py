@@ -19,6 +19,8 @@ ROOT = Path(__file__).resolve().parent.parent
 README = ROOT / "README.md"
 README_GCS_PORT = 14550
 README_FC_DEVICE = "/dev/ttyACM0,115200"
+README_SITL = "ardupilot/build/sitl/bin/ardurover"
+"""Where the README's ``twin`` finds ArduPilot's SITL (an ArduPilot clone's build output)."""
 _FENCE = re.compile(r"^```(\w*)[^\n]*\n(.*?)^```[ \t]*$", re.MULTILINE | re.DOTALL)
 _HEADING = re.compile(r"^(#{1,6})\s+(.+?)\s*$", re.MULTILINE)
 
@@ -89,19 +91,24 @@ def _strip_comment(line: str) -> str:
     return line
 
 
-def localize(command: str, *, gcs_port: int, fc_url: str | None = None) -> str:
+def localize(command: str, *, gcs_port: int, fc_url: str | None = None,
+             sitl: str | None = None) -> str:
     """``command`` for this machine: 14550 -> ``gcs_port``, the README's serial device ->
-    ``fc_url``, repository paths absolute; a ``mecanum-mav sim`` or ``run`` that relies on
-    the default ground-station address gets it with the free port."""
+    ``fc_url``, its ArduPilot SITL -> ``sitl``, repository paths absolute; a ``mecanum-mav
+    sim``, ``run`` or ``twin`` that relies on the default ground-station address gets it with
+    the free port."""
     out = command.replace(str(README_GCS_PORT), str(gcs_port))
     if fc_url is not None:
         out = out.replace(README_FC_DEVICE, fc_url)
+    if sitl is not None:
+        out = out.replace(README_SITL, sitl)
     words = shlex.split(out)
     for i, word in enumerate(words):
         first = word.split("/", 1)[0]
         if "/" in word and first in ("params", "docs", "tools") and (ROOT / word).exists():
             words[i] = str(ROOT / word)
-    if words[:2] in (["mecanum-mav", "sim"], ["mecanum-mav", "run"]) and "--gcs" not in words \
+    if words[:2] in (["mecanum-mav", "sim"], ["mecanum-mav", "run"], ["mecanum-mav", "twin"]) \
+            and "--gcs" not in words \
             and "--instance" not in words:
         words += ["--gcs", f"udpout:127.0.0.1:{gcs_port}"]
     return shlex.join(words)

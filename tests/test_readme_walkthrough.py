@@ -549,3 +549,42 @@ def test_readme_watch_it_live_serves_the_view_of_the_sim_of_mavproxys_output_and
     with background(view_command(log, gcs_port, view_port), workdir) as finished:
         served_viewer(finished)
         assert interrupted(finished) == 0, finished.log()
+
+
+# --------------------------------------------------------------------------- the twin
+
+
+@needs_sitl
+def test_readme_twin_command_brings_up_a_companion_a_ground_station_arms_and_drives_north(
+        workdir):
+    """The quick start's twin, as written (ArduPilot's SITL where this machine has it): it
+    says it is ready; a ground station on the port arms the companion with the firmware's
+    pre-arm checks on and drives it forward in MANUAL; the twin's own report then shows the
+    true pose north of the start; Ctrl-C ends it with status 0."""
+    pytest.importorskip("mujoco", reason="the twin needs the physics extra")
+    (block,) = [b for b in plan.section("Quick start", "sh") if "twin" in b.text]
+    (command,) = plan.shell_commands(block.text)
+    port = free_port()
+    station, udp = udp_ground_station(f"udpin:127.0.0.1:{port}")
+    true_north = re.compile(r"true pose N ([+-][\d.]+) m")
+    try:
+        with background(plan.localize(command, gcs_port=port, sitl=str(BINARY)),
+                        workdir) as twin:
+            assert wait_until(lambda: "ready." in twin.log() or twin.proc.poll() is not None,
+                              90.0) and "ready." in twin.log(), twin.log()
+            station.arm(timeout_s=60.0)
+
+            def driven_north() -> bool:
+                station.sticks(x=500)
+                station.pump(0.05)
+                estimates = station.received("LOCAL_POSITION_NED")
+                return bool(estimates) and estimates[-1].x > 0.8
+
+            assert wait_until(driven_north, 20.0), f"did not drive north\n{twin.log()}"
+            station.sticks()
+            reports = len(true_north.findall(twin.log()))
+            assert wait_until(lambda: len(true_north.findall(twin.log())) > reports, 10.0)
+            assert float(true_north.findall(twin.log())[-1]) > 0.5, twin.log()
+            assert interrupted(twin) == 0, twin.log()
+    finally:
+        udp.close()
