@@ -1008,6 +1008,18 @@ MUTATIONS: tuple[Mutation, ...] = (
       MJ + "test_translating_while_turning_the_wheels_odometry_stays_within_0_3_percent_"
       "sideways",
       MJ + "test_a_roller_passes_the_floor_in_at_least_one_and_a_half_integration_steps"),
+    M("odom-cmd-lag", "commanded wheel speeds pass the ODOM_CMD_TAU lag before they count",
+      PKG + "control/estimator.py", "if tau <= 0.0 or dt_s <= 0.0:",
+      "if True or tau <= 0.0 or dt_s <= 0.0:",
+      T + "test_estimator_commanded.py::test_a_lagged_commanded_step_rolls_as_a_first_order_"
+      "motor_does",
+      T + "test_estimator_commanded.py::test_the_lagged_odometry_follows_the_simulated_"
+      "chassis_wheel_for_wheel"),
+    M("odom-yaw-carried", "the gyro yaw is carried to the update's moment at its rate",
+      PKG + "control/estimator.py", "self._yaw_rate_gyro * max(age, 0.0)",
+      "0.0 * self._yaw_rate_gyro * max(age, 0.0)",
+      T + "test_estimator_commanded.py::test_the_gyro_yaw_is_carried_forward_at_its_rate_to_"
+      "the_update"),
 )
 
 # ====================================================================== running
