@@ -1,0 +1,268 @@
+"""The twin: the real ArduPilot Rover firmware (SITL) driving the MuJoCo chassis, with the
+companion unchanged in the loop.
+
+::
+
+    ground station --gcs_url--> companion (python -m mecanum_mav run) --fc--> ardurover SERIAL0
+    ground station --firmware_url--> ardurover SERIAL1
+    ardurover --JSON servo packets--> bridge (MuJoCo chassis) --JSON sensors--> ardurover
+
+:class:`Twin` starts the three (a context manager: :meth:`Twin.__enter__` returns once
+everything is ready, :meth:`Twin.close` ends everything on every way out):
+
+1. the bridge (:mod:`mecanum_mav.sim.twinbridge`) on a UDP port from the OS, served by a
+   thread of this process (measured: its busy time per frame is a small part of a frame, so
+   a ground station in the same process does not slow it below real time);
+2. the firmware (:class:`~mecanum_mav.sim.firmware.Firmware`) with ArduPilot's ``rover.parm``
+   and ``firmware_params``; with a companion, ``SIM_RC_FAIL 1`` too: a board whose only RC
+   input is the companion, no receiver (the simulated hardware, not a setting of the board);
+3. ``frame="companion"``: the companion's user path, as a person sets up a new board:
+   ``setup-fc --apply --reboot`` on the firmware, then ``run`` with ``--fc`` on its SERIAL0
+   and ``--gcs`` on :attr:`Twin.gcs_url`; ``frame="ardupilot-omni"``: no companion (the
+   firmware drives the wheels itself; ``firmware_params`` and ``wheel_map`` say how).
+
+The truth (:class:`~mecanum_mav.sim.twinbridge.TruthSample`) is the chassis' state at each
+frame the bridge answered.
+"""
+
+from __future__ import annotations
+
+import math
+import shutil
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from types import TracebackType
+from typing import TYPE_CHECKING, cast
+
+from mecanum_mav.config.params import Params
+from mecanum_mav.control.pwm import PwmMap
+from mecanum_mav.sim.firmware import Firmware
+from mecanum_mav.sim.physics import make_chassis
+from mecanum_mav.sim.process import CompanionProcess, free_port
+from mecanum_mav.sim.twinbridge import (
+    DEFAULT_WHEEL_MAP,
+    BridgeCore,
+    BridgeStats,
+    TruthSample,
+    TwinBridge,
+    WheelMap,
+)
+
+if TYPE_CHECKING:
+    from mecanum_mav.sim.mujocochassis import MujocoChassis
+
+__all__ = ["FRAMES", "NO_RECEIVER", "READY_TIMEOUT_S", "TruthSample", "Twin", "TwinError",
+           "describe"]
+
+FRAMES = ("companion", "ardupilot-omni")
+"""Who drives the wheels: the companion through the firmware's pass-through, or ArduPilot
+Rover's own omni frame."""
+READY_TIMEOUT_S = 60.0
+"""How long the firmware may take to boot, and setup-fc to set it up."""
+NO_RECEIVER = {"SIM_RC_FAIL": 1.0}
+"""The simulated hardware of a board whose only RC input is the companion: no receiver."""
+SETUP_OK = "the flight controller is set up safely"
+"""What setup-fc says when the board is safe."""
+
+
+class TwinError(RuntimeError):
+    """The twin could not start (the message says what failed, with the logs' tails)."""
+
+
+class Twin:
+    """The firmware, the MuJoCo chassis and (by default) the companion, together.
+
+    Args:
+        sitl: the ``ardurover`` binary.
+        friction: the floor's friction coefficient (``SIM_FRICTION``).
+        params: the companion's parameters and the chassis' ``SIM_*`` (default: defaults);
+            ``friction`` wins over its ``SIM_FRICTION``.
+        frame: ``"companion"`` or ``"ardupilot-omni"`` (:data:`FRAMES`).
+        wheel_map: per wheel FL, FR, RL, RR ``(servo channel 1-based, sign)``; default
+            SERVO1..4, as the companion's pass-through puts them.
+        firmware_params: extra defaults for the firmware (after ``rover.parm``).
+        companion: start the companion (only with ``frame="companion"``).
+        gcs_port: the UDP port a ground station listens on for the companion (default: a
+            free one); :attr:`gcs_url` is what it passes to pymavlink.
+        workdir: where the companion's log goes (default: a temporary directory, removed on
+            close).
+    """
+
+    def __init__(self, sitl: Path, *, friction: float = 0.8, params: Params | None = None,
+                 frame: str = "companion",
+                 wheel_map: Sequence[tuple[int, float]] | None = None,
+                 firmware_params: Mapping[str, float] | None = None,
+                 companion: bool = True, gcs_port: int | None = None,
+                 workdir: Path | None = None) -> None:
+        if frame not in FRAMES:
+            raise ValueError(f"unknown frame {frame!r}: one of {', '.join(FRAMES)}")
+        self.sitl = Path(sitl)
+        self.frame = frame
+        self.params = params.copy() if params is not None else Params()
+        self.params.set("SIM_FRICTION", friction)
+        self.with_companion = companion and frame == "companion"
+        self.wheel_map = tuple(wheel_map or DEFAULT_WHEEL_MAP)
+        self.firmware_params: dict[str, float] = {
+            **(NO_RECEIVER if self.with_companion else {}), **(firmware_params or {})}
+        port = gcs_port if gcs_port is not None else free_port(socket.SOCK_DGRAM)
+        self.gcs_url = f"udpin:127.0.0.1:{port}"
+        """What a ground station passes to pymavlink to talk to the companion."""
+        self._companion_gcs = f"udpout:127.0.0.1:{port}"
+        self.firmware_url = ""
+        """What a ground station passes to pymavlink to talk to the firmware (SERIAL1)."""
+        self.companion_pid: int | None = None
+        self.setup_output = ""
+        """What ``setup-fc --apply --reboot`` printed (with a companion)."""
+        self._own_workdir = workdir is None
+        self.workdir = Path(workdir) if workdir is not None else Path(
+            tempfile.mkdtemp(prefix="mecanum-twin-"))
+        self.bridge: TwinBridge | None = None
+        self.firmware: Firmware | None = None
+        self.companion: CompanionProcess | None = None
+
+    # ------------------------------------------------------------------ start and stop
+
+    def __enter__(self) -> Twin:
+        try:
+            self.start()
+        except BaseException:
+            self.close()
+            raise
+        return self
+
+    def __exit__(self, kind: type[BaseException] | None, exc: BaseException | None,
+                 tb: TracebackType | None) -> None:
+        self.close()
+
+    def start(self, timeout_s: float = READY_TIMEOUT_S) -> None:
+        """Start everything and wait until it is ready (the firmware's HEARTBEAT on its
+        second port; with a companion, setup-fc done and the companion's HEARTBEAT).
+
+        Raises:
+            PhysicsUnavailableError: without the physics extra (mujoco).
+            FileNotFoundError: ``sitl`` is not an executable file.
+            TwinError: something did not come up within ``timeout_s``.
+        """
+        chassis = cast("MujocoChassis", make_chassis(self.params, physics="mujoco"))
+        wheels = WheelMap(PwmMap.from_params(self.params), self.wheel_map)
+        self.bridge = TwinBridge(BridgeCore(chassis, wheels))
+        self.firmware = Firmware(self.sitl, self.bridge.port, params=self.firmware_params)
+        self.firmware_url = self.firmware.gcs_url
+        self.firmware.start()
+        self._wait_heartbeat(self.firmware_url, timeout_s, "the firmware")
+        if not self.with_companion:
+            return
+        self._setup_fc(timeout_s)
+        self.companion = CompanionProcess(self._companion_gcs, self.firmware.fc_url,
+                                          self.workdir, *self._param_args())
+        self.companion_pid = self.companion.pid
+        self._wait_heartbeat(self.gcs_url, timeout_s, "the companion")
+
+    def _param_args(self) -> list[str]:
+        """``--set NAME=VALUE`` for every parameter not at its default."""
+        args: list[str] = []
+        for name in self.params.changed():
+            args += ["--set", f"{name}={self.params[name]}"]
+        return args
+
+    def _setup_fc(self, timeout_s: float) -> None:
+        """``mecanum-mav setup-fc --apply --reboot`` on the firmware, as a user runs it."""
+        assert self.firmware is not None
+        command = [sys.executable, "-m", "mecanum_mav", "setup-fc", "--fc", self.firmware.fc_url,
+                   "--apply", "--reboot", *self._param_args()]
+        try:
+            done = subprocess.run(command, capture_output=True, text=True, timeout=timeout_s,
+                                  check=False)
+        except subprocess.TimeoutExpired as exc:
+            raise TwinError(f"setup-fc did not end within {timeout_s:g} s\n"
+                            f"{self.firmware.log()}") from exc
+        self.setup_output = done.stdout
+        if done.returncode != 0 or SETUP_OK not in done.stdout:
+            raise TwinError(f"setup-fc --apply --reboot failed ({done.returncode}):\n"
+                            f"{done.stdout}{done.stderr}\nfirmware:\n{self.firmware.log()}")
+
+    def _wait_heartbeat(self, url: str, timeout_s: float, who: str) -> None:
+        """Listen on ``url`` (a ``udpin:``) until a HEARTBEAT comes, then let the port go."""
+        from pymavlink import mavutil
+
+        conn = mavutil.mavlink_connection(url, source_system=254, source_component=190)
+        try:
+            deadline = time.monotonic() + timeout_s
+            while (left := deadline - time.monotonic()) > 0.0:
+                if conn.recv_match(type="HEARTBEAT", blocking=True, timeout=min(left, 1.0)):
+                    return
+                self._check_alive()
+        finally:
+            conn.close()
+        raise TwinError(f"no HEARTBEAT from {who} within {timeout_s:g} s\n{self.why()}")
+
+    def _check_alive(self) -> None:
+        if self.firmware is not None and self.firmware.proc is not None \
+                and not self.firmware.alive():
+            raise TwinError(f"the firmware exited ({self.firmware.proc.returncode})\n"
+                            f"{self.firmware.log()}")
+
+    def why(self) -> str:
+        """The tails of the firmware's and the companion's output (for error messages)."""
+        parts = [f"firmware: {self.firmware.log() if self.firmware else ''}"]
+        if self.companion is not None:
+            parts.append(f"companion: {self.companion.log()}")
+        return "\n".join(parts)
+
+    def kill_companion(self) -> None:
+        """SIGKILL the companion's process group, as a crash would (no shutdown path)."""
+        if self.companion is not None:
+            self.companion.kill()
+
+    def close(self) -> None:
+        """End the companion, the firmware and the bridge; idempotent."""
+        if self.companion is not None:
+            self.companion.kill()
+        if self.firmware is not None:
+            self.firmware.close()
+        if self.bridge is not None:
+            self.bridge.close()
+        if self._own_workdir:
+            shutil.rmtree(self.workdir, ignore_errors=True)
+
+    # ------------------------------------------------------------------ what happened
+
+    def _core(self) -> BridgeCore:
+        if self.bridge is None:
+            raise RuntimeError("the twin has not started")
+        return self.bridge.core
+
+    def truth(self) -> list[TruthSample]:
+        """The chassis' true state at every frame so far, oldest first (a copy)."""
+        return self._core().truth()
+
+    def truth_now(self) -> TruthSample:
+        """The chassis' true state at the last frame."""
+        return self._core().truth_now()
+
+    def stats(self) -> BridgeStats:
+        """The bridge's counters (frames, dropped, repeated, busy time)."""
+        return self._core().stats()
+
+    def real_time_factor(self) -> float:
+        """Physics seconds per wall second since the first frame (NaN before two)."""
+        return self.stats().real_time_factor
+
+    def dropped_frames(self) -> int:
+        """Frame counts the firmware skipped (0 in a healthy lockstep)."""
+        return self.stats().dropped
+
+
+def describe(stats: BridgeStats) -> str:
+    """One line of the bridge's figures, for the twin command and the tests' output."""
+    busy = stats.busy_fraction
+    return (f"real-time factor {stats.real_time_factor:.3f}, {stats.frames} frames at "
+            f"{stats.frame_rate} Hz, dropped {stats.dropped}, repeated {stats.repeated}, "
+            f"bridge busy {busy * 100:.0f} % of each frame" if not math.isnan(busy)
+            else "no frame yet")
+
