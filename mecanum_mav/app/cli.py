@@ -174,6 +174,18 @@ def cmd_sim(args: argparse.Namespace, params: Params) -> int:
                  physics=args.physics)
 
 
+def cmd_twin(args: argparse.Namespace, params: Params) -> int:
+    from mecanum_mav.app.twin import run_twin
+    from mecanum_mav.sim.firmware import sitl_from_env
+
+    sitl = args.sitl or sitl_from_env()
+    if sitl is None:
+        print("mecanum-mav twin: give --sitl PATH (ArduPilot's ardurover) or set "
+              "$MECANUM_SITL", file=sys.stderr)
+        return 2
+    return run_twin(params, sitl, friction=args.friction, gcs=args.gcs)
+
+
 def cmd_demo(args: argparse.Namespace, params: Params) -> int:
     from mecanum_mav.app.demo import TABLE_HEADER, LegReport, leg_row, plot_demo, run_demo
 
@@ -289,6 +301,20 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--signing-key", type=Path, metavar="FILE", help=SIGNING_KEY_HELP)
     sim.add_argument("--quiet", action="store_true", help=QUIET_HELP)
     sim.set_defaults(handler=cmd_sim, default_log_level="INFO", creates_params=True)
+
+    twin = sub.add_parser("twin", parents=[common],
+                          help="real ArduPilot firmware (SITL) + MuJoCo chassis + companion",
+                          description="Run the digital twin: ArduPilot Rover's own firmware "
+                          "(SITL, JSON physics backend) drives the MuJoCo chassis, set up by "
+                          "setup-fc --apply --reboot, with the companion in the loop; a ground "
+                          "station drives the companion. Needs the physics extra.")
+    twin.add_argument("--sitl", type=Path, metavar="PATH",
+                      help="the ardurover binary (default: $MECANUM_SITL)")
+    twin.add_argument("--friction", type=float, default=0.8, metavar="F",
+                      help="the floor's friction coefficient (SIM_FRICTION; default 0.8)")
+    twin.add_argument("--gcs", default=DEFAULT_GCS_URL, metavar="URL",
+                      help=f"the companion's ground-station link (default {DEFAULT_GCS_URL})")
+    twin.set_defaults(handler=cmd_twin)
 
     demo = sub.add_parser("demo", parents=[common],
                           help="the whole product in one command: an AUTO mission in the "

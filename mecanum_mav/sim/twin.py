@@ -66,6 +66,9 @@ READY_TIMEOUT_S = 60.0
 """How long the firmware may take to boot, and setup-fc to set it up."""
 NO_RECEIVER = {"SIM_RC_FAIL": 1.0}
 """The simulated hardware of a board whose only RC input is the companion: no receiver."""
+COMPANION_GRACE_S = 2.0
+"""Where a ground station already listens, the twin only checks that long that the companion
+stays up."""
 SETUP_OK = "the flight controller is set up safely"
 """What setup-fc says when the board is safe."""
 
@@ -87,8 +90,10 @@ class Twin:
             SERVO1..4, as the companion's pass-through puts them.
         firmware_params: extra defaults for the firmware (after ``rover.parm``).
         companion: start the companion (only with ``frame="companion"``).
-        gcs_port: the UDP port a ground station listens on for the companion (default: a
-            free one); :attr:`gcs_url` is what it passes to pymavlink.
+        gcs_port: the UDP port on 127.0.0.1 a ground station listens on for the companion
+            (default: a free one); :attr:`gcs_url` is what it passes to pymavlink.
+        gcs: instead, the companion's ``--gcs`` URL itself (e.g. ``udpout:127.0.0.1:14550``
+            for a ground station listening on 14550).
         workdir: where the companion's log goes (default: a temporary directory, removed on
             close).
     """
@@ -98,7 +103,7 @@ class Twin:
                  wheel_map: Sequence[tuple[int, float]] | None = None,
                  firmware_params: Mapping[str, float] | None = None,
                  companion: bool = True, gcs_port: int | None = None,
-                 workdir: Path | None = None) -> None:
+                 gcs: str | None = None, workdir: Path | None = None) -> None:
         if frame not in FRAMES:
             raise ValueError(f"unknown frame {frame!r}: one of {', '.join(FRAMES)}")
         self.sitl = Path(sitl)
@@ -109,10 +114,17 @@ class Twin:
         self.wheel_map = tuple(wheel_map or DEFAULT_WHEEL_MAP)
         self.firmware_params: dict[str, float] = {
             **(NO_RECEIVER if self.with_companion else {}), **(firmware_params or {})}
-        port = gcs_port if gcs_port is not None else free_port(socket.SOCK_DGRAM)
-        self.gcs_url = f"udpin:127.0.0.1:{port}"
-        """What a ground station passes to pymavlink to talk to the companion."""
-        self._companion_gcs = f"udpout:127.0.0.1:{port}"
+        self._wait_on_gcs = gcs is None and gcs_port is None
+        """The twin chose the ground station's port: nobody listens there yet, so it can wait
+        there for the companion's HEARTBEAT (else it must not take the port)."""
+        if gcs is None:
+            port = gcs_port if gcs_port is not None else free_port(socket.SOCK_DGRAM)
+            gcs = f"udpout:127.0.0.1:{port}"
+        self._companion_gcs = gcs
+        self.gcs_url = gcs.replace("udpout:", "udpin:", 1) if gcs.startswith("udpout:") else ""
+        """What a ground station passes to pymavlink to talk to the companion (the companion
+        sends to ``udpout:HOST:PORT``, the ground station listens with ``udpin:HOST:PORT``;
+        "" for another kind of ``gcs``)."""
         self.firmware_url = ""
         """What a ground station passes to pymavlink to talk to the firmware (SERIAL1)."""
         self.companion_pid: int | None = None
@@ -149,7 +161,8 @@ class Twin:
             TwinError: something did not come up within ``timeout_s``.
         """
         chassis = cast("MujocoChassis", make_chassis(self.params, physics="mujoco"))
-        wheels = WheelMap(PwmMap.from_params(self.params), self.wheel_map)
+        wheels = WheelMap(PwmMap.from_params(self.params), self.wheel_map,
+                          float(self.params["SIM_ESC_DZ"]))
         self.bridge = TwinBridge(BridgeCore(chassis, wheels))
         self.firmware = Firmware(self.sitl, self.bridge.port, params=self.firmware_params)
         self.firmware_url = self.firmware.gcs_url
@@ -161,7 +174,10 @@ class Twin:
         self.companion = CompanionProcess(self._companion_gcs, self.firmware.fc_url,
                                           self.workdir, *self._param_args())
         self.companion_pid = self.companion.pid
-        self._wait_heartbeat(self.gcs_url, timeout_s, "the companion")
+        if self._wait_on_gcs:
+            self._wait_heartbeat(self.gcs_url, timeout_s, "the companion")
+        else:  # (a ground station listens there: it sees the companion come up)
+            self._wait_alive(COMPANION_GRACE_S)
 
     def _param_args(self) -> list[str]:
         """``--set NAME=VALUE`` for every parameter not at its default."""
@@ -201,11 +217,27 @@ class Twin:
             conn.close()
         raise TwinError(f"no HEARTBEAT from {who} within {timeout_s:g} s\n{self.why()}")
 
+    def _wait_alive(self, seconds: float) -> None:
+        """Check every 0.1 s for ``seconds`` that nothing died."""
+        deadline = time.monotonic() + seconds
+        while time.monotonic() < deadline:
+            self._check_alive()
+            time.sleep(0.1)
+        self._check_alive()
+
     def _check_alive(self) -> None:
-        if self.firmware is not None and self.firmware.proc is not None \
-                and not self.firmware.alive():
-            raise TwinError(f"the firmware exited ({self.firmware.proc.returncode})\n"
-                            f"{self.firmware.log()}")
+        dead = self.dead()
+        if dead:
+            raise TwinError(f"{dead}\n{self.why()}")
+
+    def dead(self) -> str:
+        """What has died ("the firmware exited (-9)"), or "" while all runs (a companion
+        killed by :meth:`kill_companion` counts)."""
+        for name, part in (("the firmware", self.firmware), ("the companion", self.companion)):
+            proc = getattr(part, "proc", None)
+            if proc is not None and proc.poll() is not None:
+                return f"{name} exited ({proc.returncode})"
+        return ""
 
     def why(self) -> str:
         """The tails of the firmware's and the companion's output (for error messages)."""
@@ -213,6 +245,12 @@ class Twin:
         if self.companion is not None:
             parts.append(f"companion: {self.companion.log()}")
         return "\n".join(parts)
+
+    @property
+    def firmware_pid(self) -> int | None:
+        """The firmware's process id (None before it started)."""
+        proc = self.firmware.proc if self.firmware is not None else None
+        return proc.pid if proc is not None else None
 
     def kill_companion(self) -> None:
         """SIGKILL the companion's process group, as a crash would (no shutdown path)."""

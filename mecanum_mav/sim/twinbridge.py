@@ -13,7 +13,9 @@ The firmware paces the pair: it sends a servo packet per frame and waits for the
   answer again, no step (:attr:`BridgeStats.repeated`);
 - a count that skips ahead: one step, the gap counted (:attr:`BridgeStats.dropped`); a count
   that goes back (the firmware restarted, e.g. ``setup-fc --reboot``): one step, counted in
-  :attr:`BridgeStats.restarts`; the physics goes on (a rebooted board does not move the robot);
+  :attr:`BridgeStats.restarts`; the physics goes on (a rebooted board does not move the robot)
+  but the time the firmware is told starts again from 0 (a restarted firmware's clock takes
+  the first timestamp as its time since boot; setup-fc tells a reboot by that clock);
 - anything else (wrong magic, wrong size): ignored, counted, never an answer.
 
 What it tells the firmware (:class:`ChassisSensors`), all in NED/FRD: physics time, the gyro
@@ -77,21 +79,30 @@ class TruthSample:
 
 
 class WheelMap:
-    """Servo outputs -> the four wheel commands FL, FR, RL, RR.
+    """Servo outputs -> the four wheel commands FL, FR, RL, RR, through four ESCs.
+
+    Each ESC reads its pulse as the simulated board does
+    (:meth:`~mecanum_mav.control.pwm.WheelOutput.command_from_pulse`) and, as a car ESC does,
+    drives only once it has seen neutral: from power-up, and again after a loss of signal
+    (pulse 0, no output), it holds the wheel (command 0) until a pulse inside its dead band
+    (``|command| < esc_dead_band``) arms it. (A booting ArduPilot puts out 1000 us on SERVO1
+    for about 20 ms before its outputs start: without this the twin's chassis lurched at
+    every boot.)
 
     Args:
-        outputs: each wheel's ESC: its pulse range (``MOT_<W>_MIN/TRIM/MAX``) and reverse
+        outputs: each wheel's pulse range (``MOT_<W>_MIN/TRIM/MAX``) and reverse
             (``MOT_<W>_REV``), from a :class:`~mecanum_mav.control.pwm.PwmMap`; its channel
-            is not used (the map below says which servo drives it).
+            is not used (``channels`` says which servo drives the wheel).
         channels: per wheel FL, FR, RL, RR ``(servo channel 1-based, sign)``; a negative sign
             is a motor wired the other way round.
+        esc_dead_band: the ESCs' dead band, a fraction of full command (``SIM_ESC_DZ``).
 
     Raises:
         ValueError: not four entries, a channel outside 1..32, or a sign of 0.
     """
 
-    def __init__(self, outputs: PwmMap, channels: Sequence[tuple[int, float]] = DEFAULT_WHEEL_MAP
-                 ) -> None:
+    def __init__(self, outputs: PwmMap, channels: Sequence[tuple[int, float]] = DEFAULT_WHEEL_MAP,
+                 esc_dead_band: float = 0.02) -> None:
         if len(channels) != 4:
             raise ValueError(f"need 4 (channel, sign) pairs FL, FR, RL, RR, got {len(channels)}")
         self._wheels: list[tuple[int, WheelOutput]] = []
@@ -101,13 +112,30 @@ class WheelMap:
             esc = WheelOutput(int(channel), out.minimum, out.trim, out.maximum,
                               out.reversed != (sign < 0.0))
             self._wheels.append((int(channel) - 1, esc))
+        self._band = max(float(esc_dead_band), 1e-9)
+        self._armed = [False, False, False, False]
+
+    def pulses(self, pwm: Sequence[int]) -> tuple[int, int, int, int]:
+        """The pulse widths (us) of the wheels' channels FL, FR, RL, RR (0: none)."""
+        fl, fr, rl, rr = (pwm[i] if i < len(pwm) else 0 for i, _ in self._wheels)
+        return (fl, fr, rl, rr)
 
     def commands(self, pwm: Sequence[int]) -> tuple[float, float, float, float]:
-        """Wheel commands FL, FR, RL, RR in [-1, 1] from the servo outputs (SERVO1 first): 0
-        for a channel that outputs nothing (pulse 0) or is not in the packet."""
-        fl, fr, rl, rr = (esc.command_from_pulse(pwm[i]) if i < len(pwm) and pwm[i] > 0 else 0.0
-                          for i, esc in self._wheels)
-        return (fl, fr, rl, rr)
+        """Wheel commands FL, FR, RL, RR in [-1, 1] from one frame's servo outputs (SERVO1
+        first): 0 for a channel that outputs nothing (pulse 0, or not in the packet) and for
+        an ESC that has not seen neutral since it last had no signal."""
+        out = [0.0, 0.0, 0.0, 0.0]
+        for wheel, (i, esc) in enumerate(self._wheels):
+            pulse = pwm[i] if i < len(pwm) else 0
+            if pulse <= 0:
+                self._armed[wheel] = False
+                continue
+            command = esc.command_from_pulse(pulse)
+            if not self._armed[wheel]:
+                self._armed[wheel] = abs(command) < self._band
+                continue
+            out[wheel] = command
+        return (out[0], out[1], out[2], out[3])
 
 
 class ChassisSensors:
@@ -141,8 +169,9 @@ class ChassisSensors:
         rotation: np.ndarray = _NWU_TO_NED @ flu_to_nwu @ _NWU_TO_NED
         return rotation
 
-    def read(self) -> PhysicsState:
-        """The state now (call once per frame, after the step)."""
+    def read(self, epoch_s: float = 0.0) -> PhysicsState:
+        """The state now (call once per frame, after the step), its time counted from the
+        physics time ``epoch_s`` (where the firmware last started)."""
         c = self._chassis
         data = c.data
         velocity = self._velocity_ned()
@@ -158,7 +187,7 @@ class ChassisSensors:
         roll, pitch = c.roll_pitch
         down = -(float(data.qpos[2]) - self._z0)
         return PhysicsState(
-            time_s=c.time_s,
+            time_s=c.time_s - epoch_s,
             gyro=(float(gyro[0]), float(gyro[1]), float(gyro[2])),
             accel_body=(float(accel_body[0]), float(accel_body[1]), float(accel_body[2])),
             position_ned=(float(pose.x_m), float(pose.y_m), down),
@@ -182,6 +211,8 @@ class BridgeStats:
         busy_s: wall seconds spent answering (decode, step, read, encode).
         frame_rate: the firmware's last frame rate, Hz (0 before any).
         commands: the wheel commands FL, FR, RL, RR of the last frame.
+        wheel_pulses: the pulse widths (us) the firmware put out for FL, FR, RL, RR in the
+            last frame (0: no output).
     """
 
     frames: int
@@ -194,6 +225,7 @@ class BridgeStats:
     busy_s: float
     frame_rate: int
     commands: tuple[float, float, float, float]
+    wheel_pulses: tuple[int, int, int, int]
 
     @property
     def real_time_factor(self) -> float:
@@ -225,6 +257,7 @@ class BridgeCore:
         self._sensors = ChassisSensors(chassis)
         self._clock = clock
         self._last_count: int | None = None
+        self._epoch_s = 0.0
         self._answer = b""
         self._frames = self._repeated = self._dropped = self._restarts = self._malformed = 0
         self._first_wall = self._last_wall = math.nan
@@ -232,6 +265,7 @@ class BridgeCore:
         self._busy_s = 0.0
         self._frame_rate = 0
         self._commands = (0.0, 0.0, 0.0, 0.0)
+        self._pulses = (0, 0, 0, 0)
         self._lock = threading.Lock()
         self._truth: list[TruthSample] = [self._sample(clock())]
 
@@ -248,7 +282,7 @@ class BridgeCore:
                 self._repeated += 1
             return self._answer
         self._step(packet)
-        self._answer = encode_state(self._sensors.read())
+        self._answer = encode_state(self._sensors.read(self._epoch_s))
         now = self._clock()
         sample = self._sample(now)
         with self._lock:
@@ -264,6 +298,7 @@ class BridgeCore:
         with self._lock:
             if last is not None and packet.frame_count < last:
                 self._restarts += 1
+                self._epoch_s = self.chassis.time_s
             elif last is not None and packet.frame_count > last + 1:
                 self._dropped += packet.frame_count - last - 1
             self._frames += 1
@@ -274,6 +309,7 @@ class BridgeCore:
         self.chassis.step(dt, commands)
         with self._lock:
             self._commands = commands
+            self._pulses = self._wheels.pulses(packet.pwm)
             if not math.isnan(self._first_wall):
                 self._physics_s += dt
 
@@ -299,7 +335,7 @@ class BridgeCore:
             wall = 0.0 if math.isnan(self._first_wall) else self._last_wall - self._first_wall
             return BridgeStats(self._frames, self._repeated, self._dropped, self._restarts,
                                self._malformed, self._physics_s, wall, self._busy_s,
-                               self._frame_rate, self._commands)
+                               self._frame_rate, self._commands, self._pulses)
 
 
 class TwinBridge:

@@ -1,0 +1,228 @@
+"""The twin (mecanum_mav.sim.twin): real ArduPilot Rover firmware (SITL) driving the MuJoCo
+chassis through its JSON backend, with the companion unchanged in the loop, set up by the
+user's path (``setup-fc --apply --reboot``, then ``run``), driven by a ground station on the
+companion. Skipped, with the reason, without the firmware or mujoco (in CI a skip fails).
+
+``pytest -rP tests/test_twin.py`` shows the figures: the real-time factor, the bridge's load,
+and how far and how long the chassis ran on after the companion was killed at 1 m/s."""
+
+from __future__ import annotations
+
+import importlib.util
+import math
+import os
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import TypeVar
+
+import pytest
+from pymavlink import mavutil
+from sitl import find_sitl
+from support import wait_until
+
+from mecanum_mav.app.cli import main
+from mecanum_mav.sim.groundstation import ScriptedGroundStation, UdpPort, udp_ground_station
+from mecanum_mav.sim.twin import SETUP_OK, TruthSample, Twin, describe
+
+BINARY, WHY_NOT = find_sitl()
+HAS_MUJOCO = importlib.util.find_spec("mujoco") is not None
+REAL_FIRMWARE = (pytest.mark.sitl, pytest.mark.skipif(BINARY is None, reason=WHY_NOT),
+                 pytest.mark.skipif(not HAS_MUJOCO, reason="the twin's chassis needs the "
+                                    "physics extra (mujoco)"))
+
+
+def real_firmware(test: T) -> T:
+    """Marks a test that runs the real firmware on the MuJoCo chassis (skipped without)."""
+    for mark in REAL_FIRMWARE:
+        test = mark(test)
+    return test
+
+
+T = TypeVar("T")
+READY_S = 60.0
+FULL = 1000
+"""Full stick: WHL_MAX_SPD (1 m/s by default) straight ahead."""
+
+
+def truth_if(twin: Twin, predicate: Callable[[TruthSample], bool]) -> TruthSample | None:
+    """The twin's latest truth if it satisfies ``predicate``, else None."""
+    sample = twin.truth_now()
+    return sample if predicate(sample) else None
+
+
+class Rig:
+    """A twin and a scripted ground station on its companion."""
+
+    def __init__(self, twin: Twin, gcs: ScriptedGroundStation) -> None:
+        self.twin = twin
+        self.gcs = gcs
+
+    def drive(self, x: int, until: Callable[[TruthSample], bool],
+              timeout_s: float) -> TruthSample | None:
+        """Stream MANUAL_CONTROL x forward at 20 Hz until ``until(truth)``; that truth."""
+        def pump(wait_s: float) -> None:
+            self.gcs.sticks(x, 0, 0)
+            self.gcs.pump(wait_s)
+        return wait_until(lambda: truth_if(self.twin, until), timeout_s, pump=pump)
+
+    def why(self) -> str:
+        return f"{describe(self.twin.stats())}\n{self.twin.why()}"
+
+
+def _rig() -> Iterator[Rig]:
+    assert BINARY is not None
+    gcs, port = udp_ground_station()
+    try:
+        with Twin(BINARY, gcs_port=_port_number(port)) as twin:
+            rig = Rig(twin, gcs)
+            try:
+                gcs.arm(timeout_s=READY_S)
+            except RuntimeError:
+                raise AssertionError(f"the companion never armed\n{rig.why()}") from None
+            yield rig
+    finally:
+        port.close()
+
+
+def _port_number(port: UdpPort) -> int:
+    return int(port.url.rsplit(":", 1)[1])
+
+
+@pytest.fixture(scope="module")
+def rig() -> Iterator[Rig]:
+    yield from _rig()
+
+
+@pytest.fixture
+def own_rig() -> Iterator[Rig]:
+    """A twin of the test's own (for a test that kills the companion)."""
+    yield from _rig()
+
+
+def firmware_param(twin: Twin, name: str, timeout_s: float = 10.0) -> float | None:
+    """``name`` read from the firmware itself, on its own port (SERIAL1)."""
+    conn = mavutil.mavlink_connection(twin.firmware_url, source_system=250, source_component=190)
+    try:
+        deadline = time.monotonic() + timeout_s
+        asked = 0.0
+        while (now := time.monotonic()) < deadline:
+            if now - asked > 1.0:
+                conn.mav.param_request_read_send(1, 1, name.encode(), -1)
+                asked = now
+            msg = conn.recv_match(type="PARAM_VALUE", blocking=True, timeout=0.5)
+            if msg is not None and msg.param_id.rstrip("\x00") == name:
+                return float(msg.param_value)
+        return None
+    finally:
+        conn.close()
+
+
+@real_firmware
+def test_the_twin_is_set_up_by_setup_fc_and_steps_in_lockstep_with_the_firmware(rig):
+    twin = rig.twin
+    assert SETUP_OK in twin.setup_output, twin.setup_output
+    stats = twin.stats()
+    assert stats.restarts >= 1, rig.why()  # setup-fc --reboot rebooted the firmware
+    assert stats.frames > 1000 and stats.dropped == 0 and stats.malformed == 0, rig.why()
+    assert stats.real_time_factor == pytest.approx(1.0, abs=0.1), rig.why()
+    print(f"\ntwin: {describe(stats)}")
+
+
+@real_firmware
+def test_the_companion_arms_while_the_firmwares_own_prearm_checks_stay_on(rig):
+    # (the fixture armed the companion with a ground station's COMMAND_LONG, as a user does)
+    assert rig.gcs.wait("HEARTBEAT", lambda m: m.base_mode & 128, 5.0) is not None, rig.why()
+    assert firmware_param(rig.twin, "ARMING_CHECK") == 1.0, rig.why()
+
+
+@real_firmware
+def test_manual_sticks_forward_drive_the_mujoco_chassis_north(rig):
+    start = rig.twin.truth_now()
+    moved = rig.drive(FULL // 2, lambda s: s.north_m - start.north_m > 0.5, 15.0)
+    assert moved is not None, f"not 0.5 m north: {rig.twin.truth_now()}\n{rig.why()}"
+    assert abs(moved.east_m - start.east_m) < 0.1 * (moved.north_m - start.north_m)
+    assert moved.forward_mps > 0.3
+    stopped = rig.drive(0, lambda s: abs(s.forward_mps) < 0.01, 5.0)
+    assert stopped is not None, rig.why()
+
+
+@real_firmware
+def test_a_kill_9_of_the_companion_at_1_m_s_stops_the_chassis_by_the_firmwares_failsafe(own_rig):
+    rig = own_rig
+    fast = rig.drive(FULL, lambda s: s.forward_mps > 0.95, 15.0)
+    assert fast is not None, f"never 0.95 m/s: {rig.twin.truth_now()}\n{rig.why()}"
+    killed_s = time.monotonic()
+    at_kill = rig.twin.truth_now()
+    rig.twin.kill_companion()
+    stopped = wait_until(lambda: truth_if(rig.twin, lambda s: math.hypot(
+        s.forward_mps, s.right_mps) < 0.01), 5.0)
+    assert stopped is not None, f"still moving 5 s after the kill: {rig.twin.truth_now()}"
+    distance_m = math.hypot(stopped.north_m - at_kill.north_m, stopped.east_m - at_kill.east_m)
+    after = [s for s in rig.twin.truth() if s.wall_s >= stopped.wall_s]
+    wait_until(lambda: rig.twin.truth_now().time_s > stopped.time_s + 0.5, 5.0)
+    settled = rig.twin.truth_now()
+    print(f"\nkill -9 at {at_kill.forward_mps:.2f} m/s: the chassis stopped "
+          f"{distance_m * 100:.0f} cm and {stopped.time_s - at_kill.time_s:.2f} s (physics; "
+          f"{stopped.wall_s - killed_s:.2f} s wall) later; {describe(rig.twin.stats())}")
+    assert distance_m < 1.5
+    # the wheels ran on the dead companion's last override until the firmware's radio
+    # failsafe took them to trim (0.5 s without RC): not the companion's shutdown path
+    assert stopped.time_s - at_kill.time_s > 0.4
+    assert after and math.hypot(settled.north_m - stopped.north_m,
+                                settled.east_m - stopped.east_m) < 0.01  # and stays stopped
+    assert rig.twin.stats().wheel_pulses == (1500, 1500, 1500, 1500), rig.why()  # its trim
+
+
+# --------------------------------------------------------------------------- the command
+
+
+def test_the_twin_command_without_sitl_or_mecanum_sitl_says_so_and_exits_2(monkeypatch, capsys):
+    monkeypatch.delenv("MECANUM_SITL", raising=False)
+    assert main(["twin"]) == 2
+    assert "--sitl PATH" in capsys.readouterr().err
+
+
+def test_the_twin_command_with_a_sitl_that_is_not_a_program_exits_2(tmp_path, capsys):
+    assert main(["twin", "--sitl", str(tmp_path / "ardurover")]) == 2
+    assert "is not an executable file" in capsys.readouterr().err
+
+
+def test_the_twin_command_without_mujoco_gives_the_install_hint_and_exits_2(monkeypatch, capsys):
+    monkeypatch.setitem(sys.modules, "mujoco", None)  # (import mujoco raises ImportError)
+    monkeypatch.delitem(sys.modules, "mecanum_mav.sim.mujocochassis", raising=False)
+    started = time.monotonic()
+    assert main(["twin", "--sitl", sys.executable, "--gcs", "udpout:127.0.0.1:9"]) == 2
+    assert time.monotonic() - started < 5.0  # nothing was started
+    assert "pip install 'mecanum-mav[physics]'" in capsys.readouterr().err
+
+
+@real_firmware
+def test_the_twin_command_starts_everything_says_where_to_connect_and_ends_it_on_sigterm(
+        tmp_path):
+    assert BINARY is not None
+    log = tmp_path / "twin.log"
+    with log.open("wb") as out:
+        proc = subprocess.Popen([sys.executable, "-m", "mecanum_mav", "twin", "--sitl",
+                                 str(BINARY), "--gcs", "udpout:127.0.0.1:9"], stdout=out,
+                                stderr=subprocess.STDOUT, start_new_session=True)
+    try:
+        ready = wait_until(lambda: "ready." in log.read_text() or proc.poll() is not None,
+                           READY_S)
+        text = log.read_text()
+        assert ready and "ready." in text, text
+        firmware_pid = int(text.split("firmware pid ", 1)[1].split(",", 1)[0])
+        companion_pid = int(text.split("companion pid ", 1)[1].split(")", 1)[0])
+        assert "firmware directly: udpin:127.0.0.1:" in text
+        proc.send_signal(signal.SIGTERM)
+        assert proc.wait(timeout=20) == 0, log.read_text()
+        assert "stopped; real-time factor" in log.read_text()
+        for pid in (firmware_pid, companion_pid):
+            assert not Path(f"/proc/{pid}").exists(), f"{pid} still runs"
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait(timeout=10)
