@@ -71,3 +71,30 @@ def test_the_gyro_yaw_is_carried_forward_at_its_rate_to_the_update():
     est.on_attitude(0.1, 1.0, 0.03)  # 0.1 rad, turning clockwise at 1 rad/s
     est.on_commanded([1.0] * 4, 0.02, 0.05)  # 0.02 s later: 0.12 rad
     assert est.pose.yaw_rad == pytest.approx(0.12, abs=1e-12)
+
+
+def test_an_attitude_before_the_first_update_sets_the_starting_heading_itself():
+    """The flight controller's north is the local frame's north, whatever heading the rover
+    starts at (an EKF's heading: GLOBAL_POSITION_INT and the missions are in its frame)."""
+    est = commanded(ODOM_CMD_TAU=0.0)
+    est.on_attitude(0.5, 0.0, 0.0)
+    assert est.pose.yaw_rad == pytest.approx(0.5)
+    est.on_commanded([1.0] * 4, 0.1, 0.1)  # forward along 0.5 rad
+    assert (est.pose.x_m, est.pose.y_m) == pytest.approx((0.1 * math.cos(0.5),
+                                                          0.1 * math.sin(0.5)))
+    assert est.reset_counter == 0
+
+
+def test_an_attitude_after_the_odometry_moved_does_not_turn_its_heading():
+    est = commanded(ODOM_CMD_TAU=0.0, ODOM_YAW_SRC=0)
+    est.on_commanded([1.0] * 4, 0.1, 0.1)  # moved on the wheels' heading (0)
+    est.on_attitude(0.5, 0.0, 0.2)
+    est.on_commanded([1.0] * 4, 0.1, 0.3)
+    assert est.pose.yaw_rad == pytest.approx(0.0)  # the offset is anchored, not the yaw
+
+
+def test_standing_still_before_the_first_attitude_does_not_stop_it_setting_the_heading():
+    est = commanded(ODOM_CMD_TAU=0.0)
+    est.on_commanded([0.0] * 4, 0.02, 0.02)  # the companion's neutral outputs, standing
+    est.on_attitude(-0.04, 0.0, 0.03)
+    assert est.pose.yaw_rad == pytest.approx(-0.04)

@@ -1020,6 +1020,11 @@ MUTATIONS: tuple[Mutation, ...] = (
       "0.0 * self._yaw_rate_gyro * max(age, 0.0)",
       T + "test_estimator_commanded.py::test_the_gyro_yaw_is_carried_forward_at_its_rate_to_"
       "the_update"),
+    M("odom-start-heading", "an ATTITUDE before the first update sets the starting heading",
+      PKG + "control/estimator.py", "if first and self.config.yaw_from_gyro",
+      "if False and first and self.config.yaw_from_gyro",
+      T + "test_estimator_commanded.py::test_an_attitude_before_the_first_update_sets_the_"
+      "starting_heading_itself"),
 )
 
 # ====================================================================== running

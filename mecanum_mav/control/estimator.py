@@ -18,8 +18,11 @@ heading of the moment it was commanded, not of the moment it was driven (a 90 de
 
 Heading (parameter ``ODOM_YAW_SRC``): 0 auto (default) takes the flight controller's
 ``ATTITUDE`` yaw while it is fresh, because a gyro beats wheel-derived yaw on a slipping
-mecanum base; 1 uses the wheels' own turn. Translation always comes from the wheels by least
-squares (:class:`~mecanum_mav.mecanum.kinematics.MecanumKinematics`) and the SE(2) exponential.
+mecanum base; 1 uses the wheels' own turn. The first ATTITUDE, if the odometry has not moved
+yet, sets the starting heading itself (its north is the local frame's north); later ones steer
+the heading from where it is (a gyro that came back after a gap does not turn it). Translation
+always comes from the wheels by least squares
+(:class:`~mecanum_mav.mecanum.kinematics.MecanumKinematics`) and the SE(2) exponential.
 
 Everything is in the local NED frame (x north, y east, yaw clockwise from north) with the
 origin where the companion started or was last reset; velocities are body FRD. Time is passed
@@ -88,6 +91,7 @@ class WheelOdometryEstimator:
         self._attitude_s = -math.inf
         self._yaw: float | None = None
         self._yaw_rate_gyro = 0.0
+        self._first_attitude = True  # none used yet (it may set the starting heading)
         self._last_update_s: float | None = None
         self._moved = False  # commanded distance added since the last odometry update
         self.velocity_body = (0.0, 0.0)
@@ -128,6 +132,13 @@ class WheelOdometryEstimator:
         if not (abs(yaw_rad) <= 2 * math.pi and abs(yaw_rate) <= MAX_YAW_RATE):  # NaN too
             return f"ATTITUDE yaw {yaw_rad:g} rad, rate {yaw_rate:g} rad/s"
         self._yaw, self._yaw_rate_gyro, self._attitude_s = yaw_rad, yaw_rate, now_s
+        first, self._first_attitude = self._first_attitude, False
+        if first and self.config.yaw_from_gyro and self.odometry.reset_counter == 0 \
+                and self.odometry.pose == (0.0, 0.0, 0.0):
+            # The first one, not moved yet: start from the flight controller's heading itself,
+            # so the local frame's north is its north (not the heading the rover started at).
+            self.odometry = MecanumOdometry(self.odometry.kinematics, self._virtual,
+                                            Pose2d(0.0, 0.0, wrap_pi(yaw_rad)), yaw_rad)
         return None
 
     def on_wheel_distance(self, distances_m: Sequence[float], now_s: float) -> str | None:

@@ -1,0 +1,449 @@
+"""Missions on the twin (:mod:`mecanum_mav.sim.twin`): in real time over MAVLink, graded
+against the chassis's truth matched by wall time.
+
+Two drivers fly the same missions (:func:`~mecanum_mav.sim.missionrun.waypoint_mission`):
+
+- the companion (:func:`fly_companion`): a scripted ground station on :attr:`Twin.gcs_url
+  <mecanum_mav.sim.twin.Twin.gcs_url>` uploads the mission, arms (the companion's pre-arm
+  checks on), switches to AUTO and listens until the rover holds
+  (:func:`~mecanum_mav.sim.missionrun.fly`);
+- ArduPilot Rover's own omni frame (:func:`fly_firmware`, the anchor): the ground station
+  talks to the firmware itself (:attr:`Twin.firmware_url`), uploads the waypoints in the
+  global frame about the firmware's home (ArduPilot's missions take no local frame), waits for
+  its pre-arm checks (EKF, GPS) to pass, arms, AUTO, and listens until it holds.
+
+Either way the ground station only records: every message with the wall time it arrived
+(``time.monotonic()``, the clock of :class:`~mecanum_mav.sim.twinbridge.TruthSample`'s
+``wall_s``). :func:`grade` then replays the record through the same watch as the lockstep
+bench (:class:`~mecanum_mav.sim.missionrun.MissionWatch`), the true pose at each look taken
+from the bridge's record (:class:`TruthTrack`: the last frame answered at or before that wall
+time), so the figures (:func:`~mecanum_mav.sim.trackquality.figures`) are those of the lockstep
+bench: cross-track, arrival at each MISSION_ITEM_REACHED, the odometry's drift (the driver's
+LOCAL_POSITION_NED: the companion's dead reckoning, or the firmware's EKF).
+
+Before the companion takes its first heading, the firmware's heading must have settled
+(:func:`wait_heading_settled`): ArduPilot's EKF starts from the compass without the magnetic
+declination (about 12 degrees at SITL's home) and turns to true north once GPS gives it the
+declination, some 15 s after boot; a companion that anchored its odometry to the heading before
+that drives 12 degrees askew all mission long.
+
+:func:`manual_probe` drives the firmware in MANUAL with MANUAL_CONTROL (forward, strafe,
+rotate, each for a while) and measures what the chassis truly did.
+"""
+
+from __future__ import annotations
+
+import bisect
+import dataclasses
+import math
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from mecanum_mav.mecanum.geo import GlobalOrigin
+from mecanum_mav.mecanum.geometry import Pose2d, ned_to_body, wrap_pi
+from mecanum_mav.protocol.dialect import mavlink
+from mecanum_mav.protocol.mission import MissionItem
+from mecanum_mav.protocol.modes import Mode
+from mecanum_mav.sim.groundstation import ScriptedGroundStation, udp_ground_station
+from mecanum_mav.sim.missionrun import (
+    WATCH_PERIOD_S,
+    MissionRun,
+    MissionWatch,
+    Waypoint,
+    fly,
+    waypoint_mission,
+)
+from mecanum_mav.sim.twin import Twin
+from mecanum_mav.sim.twinbridge import TruthSample
+
+__all__ = ["OMNI_PARM", "OMNI_WHEEL_MAP", "ManualStep", "Recording", "SettledTwin",
+           "TruthTrack",
+           "firmware_mission", "fly_companion", "fly_firmware", "grade", "manual_probe",
+           "omni_firmware_params", "read_parm", "wait_heading_settled"]
+
+Vec = tuple[float, float]
+
+OMNI_PARM = Path(__file__).resolve().parents[2] / "params" / "ardupilot_omni.parm"
+"""ArduPilot Rover's omni X frame on this chassis (FRAME_TYPE 2, motors on SERVO1..4)."""
+OMNI_WHEEL_MAP: tuple[tuple[int, float], ...] = ((4, 1.0), (1, 1.0), (3, 1.0), (2, 1.0))
+"""FL, FR, RL, RR: (servo channel, sign) under :data:`OMNI_PARM`: FL is motor4 on SERVO4, FR
+motor1 on SERVO1, RL motor3 on SERVO3, RR motor2 on SERVO2, none reversed."""
+SETTLE_TIMEOUT_S = 90.0
+SETTLED_DEG = 1.0
+"""The firmware's heading is settled once within this of the truth ..."""
+SETTLED_FOR_S = 3.0
+"""... for this long."""
+ARM_TIMEOUT_S = 60.0
+"""The firmware's pre-arm checks (EKF, GPS) may take this long to pass."""
+POSITION_INTERVAL_US = 100_000
+"""LOCAL_POSITION_NED and ATTITUDE from the firmware at 10 Hz (the companion's rate)."""
+HOME_TIMEOUT_S = 10.0
+
+
+# ---------------------------------------------------------------------------- truth
+
+class TruthTrack:
+    """The bridge's truth by wall time.
+
+    Args:
+        samples: :class:`TruthSample` in the order the frames were answered (wall times not
+            decreasing); at least one.
+
+    Raises:
+        ValueError: no sample.
+    """
+
+    def __init__(self, samples: Sequence[TruthSample]) -> None:
+        if not samples:
+            raise ValueError("no truth: the bridge answered no frame")
+        self.samples = list(samples)
+        self._walls = [s.wall_s for s in self.samples]
+
+    @property
+    def end_s(self) -> float:
+        """Wall time of the last frame."""
+        return self._walls[-1]
+
+    def at(self, wall_s: float) -> TruthSample:
+        """The last frame answered at or before ``wall_s`` (the first one before it began)."""
+        k = bisect.bisect_right(self._walls, wall_s) - 1
+        return self.samples[max(k, 0)]
+
+    def pose_at(self, wall_s: float, origin: Vec = (0.0, 0.0)) -> Pose2d:
+        """The true pose at ``wall_s``: north and east metres from ``origin`` (north, east in
+        the bridge's frame), yaw radians clockwise from north."""
+        s = self.at(wall_s)
+        return Pose2d(s.north_m - origin[0], s.east_m - origin[1], s.yaw_rad)
+
+
+# ---------------------------------------------------------------------------- grading
+
+@dataclass
+class Recording:
+    """What the ground station received from AUTO on: ``messages`` and the wall time each
+    arrived (``arrived_s``, not decreasing), from ``start_s`` (AUTO accepted)."""
+
+    start_s: float
+    messages: list[Any]
+    arrived_s: list[float]
+    failure: str | None = None
+    """Why the live flight stopped short (a refused step, no end in time), or None."""
+
+    @classmethod
+    def since(cls, gcs: ScriptedGroundStation, index: int, start_s: float,
+              failure: str | None = None) -> Recording:
+        """The ground station's record from message ``index`` on, those that arrived at or
+        after ``start_s``."""
+        pairs = [(m, t) for m, t in zip(gcs.messages[index:], gcs.arrived_s[index:],
+                                        strict=True) if t >= start_s]
+        return cls(start_s, [m for m, _ in pairs], [t for _, t in pairs], failure)
+
+
+def grade(waypoints: Sequence[Waypoint], record: Recording, truth: TruthTrack,
+          period_s: float = WATCH_PERIOD_S) -> tuple[MissionRun, str | None]:
+    """Replay ``record`` through a :class:`~mecanum_mav.sim.missionrun.MissionWatch` with the
+    truth at each look's wall time: a look at every arrival (with what arrived then) and at
+    least every ``period_s`` between (up to the last message or the last frame, whichever is
+    later). Positions are from where the rover stood when AUTO was accepted (the origin of
+    the driver's local frame and of the mission: the companion's odometry starts where it was
+    started, the firmware's home is set where it was armed; the chassis stood still there).
+    Returns the run and why it did not finish (None: it did; else the record's own failure if
+    it has one, or the watch's)."""
+    watch = MissionWatch(waypoints, record.start_s)
+    home = truth.at(record.start_s)
+    origin = (home.north_m, home.east_m)
+    end_s = max(record.arrived_s[-1] if record.arrived_s else record.start_s, truth.end_s)
+    messages, arrived = record.messages, record.arrived_s
+    now, i = record.start_s, 0
+    try:
+        while True:
+            due = min(now + period_s, arrived[i] if i < len(arrived) else math.inf)
+            if due > end_s:
+                break
+            batch = []
+            while i < len(arrived) and arrived[i] <= due:
+                batch.append(messages[i])
+                i += 1
+            if watch.look(due, truth.pose_at(due, origin), batch):
+                return watch.run, record.failure
+            now = due
+    except RuntimeError as exc:
+        return watch.run, record.failure or str(exc)
+    return watch.run, record.failure or "the mission did not finish in time"
+
+
+# ---------------------------------------------------------------------------- companion
+
+class _LiveTruth:
+    """The twin's truth now, shaped as the lockstep board's state (``.pose``)."""
+
+    def __init__(self, twin: Twin) -> None:
+        self.twin = twin
+
+    def __call__(self) -> _LiveTruth:
+        return self
+
+    @property
+    def pose(self) -> Pose2d:
+        s = self.twin.truth_now()
+        return Pose2d(s.north_m, s.east_m, s.yaw_rad)
+
+
+def _auto_accepted_s(gcs: ScriptedGroundStation, index: int) -> float:
+    """When the COMMAND_ACK of the switch to AUTO arrived (from message ``index`` on); now if
+    none did."""
+    for k in range(len(gcs.messages) - 1, index - 1, -1):
+        msg = gcs.messages[k]
+        if msg.get_type() == "COMMAND_ACK" and msg.command == mavlink.MAV_CMD_DO_SET_MODE:
+            return gcs.arrived_s[k]
+    return time.monotonic()
+
+
+def fly_companion(twin: Twin, points: Sequence[Vec], yaws_deg: Sequence[float | None],
+                  heading_deg: float | None, timeout_s: float
+                  ) -> tuple[MissionRun, str | None]:
+    """Fly a mission with the companion of ``twin`` (module docstring); its run, graded, and
+    why it did not finish (None: it did)."""
+    items, waypoints = waypoint_mission(points, yaws_deg, heading_deg=heading_deg)
+    gcs, port = udp_ground_station(twin.gcs_url)
+    try:
+        index = len(gcs.messages)
+        failure = None
+        try:
+            fly(gcs, _LiveTruth(twin), items, waypoints, timeout_s)  # type: ignore[arg-type]
+        except RuntimeError as exc:
+            failure = str(exc)
+        record = Recording.since(gcs, index, _auto_accepted_s(gcs, index), failure)
+    finally:
+        port.close()
+    return grade(waypoints, record, TruthTrack(twin.truth()))
+
+
+# ---------------------------------------------------------------------------- the firmware
+
+def read_parm(path: Path) -> dict[str, float]:
+    """An ArduPilot parameter file (``NAME VALUE`` per line; ``#`` comments, commas allowed)."""
+    params: dict[str, float] = {}
+    for line in path.read_text().splitlines():
+        fields = line.split("#", 1)[0].replace(",", " ").split()
+        if len(fields) >= 2:
+            params[fields[0]] = float(fields[1])
+    return params
+
+
+def firmware_mission(points: Sequence[Vec], yaws_deg: Sequence[float | None],
+                     heading_deg: float | None, home: GlobalOrigin
+                     ) -> tuple[list[MissionItem], list[Waypoint]]:
+    """The mission for ArduPilot: home, then each point as a NAV_WAYPOINT in the global frame
+    (relative altitude 0) about ``home``; no CONDITION_YAW and no waypoint heading (Rover's
+    AUTO steers toward each waypoint itself). The waypoints as planned keep the headings the
+    companion's mission asks for (``yaws_deg``, ``heading_deg``), so the figures show how far
+    ArduPilot's AUTO strays from them."""
+    local, plain = waypoint_mission(points, None, heading_deg=None)
+    _, planned = waypoint_mission(points, yaws_deg, heading_deg=heading_deg)
+    frame = mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT
+    items = []
+    for item in local:
+        lat, lon = home.to_global(item.x / 1e4, item.y / 1e4)
+        items.append(dataclasses.replace(item, frame=frame, param4=0.0, x=lat, y=lon, z=0.0))
+    waypoints = [dataclasses.replace(p, seq=q.seq) for p, q in zip(planned, plain, strict=True)]
+    return items, waypoints
+
+
+def _ask_interval(gcs: ScriptedGroundStation, msg_id: int, interval_us: int) -> None:
+    gcs.command(mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, msg_id, interval_us)
+
+
+def _home(gcs: ScriptedGroundStation) -> GlobalOrigin:
+    """The firmware's home (HOME_POSITION, asked for).
+
+    Raises:
+        RuntimeError: none within :data:`HOME_TIMEOUT_S`.
+    """
+    deadline = time.monotonic() + HOME_TIMEOUT_S
+    while time.monotonic() < deadline:
+        since = gcs.mark()
+        gcs.command(mavlink.MAV_CMD_REQUEST_MESSAGE, mavlink.MAVLINK_MSG_ID_HOME_POSITION)
+        home = gcs.wait("HOME_POSITION", timeout_s=1.0, since=since)
+        if home is not None:
+            return GlobalOrigin(home.latitude, home.longitude, home.altitude)
+    raise RuntimeError("the firmware has no home (no GPS fix?)")
+
+
+def _firmware_ground_station(twin: Twin) -> tuple[ScriptedGroundStation, Any]:
+    """A ground station on the firmware's own port, its streams asked for, once heard."""
+    gcs, port = udp_ground_station(twin.firmware_url)
+    if gcs.wait("HEARTBEAT", lambda m: m.get_srcSystem() == 1, 10.0) is None:
+        port.close()
+        raise RuntimeError("no heartbeat from the firmware")
+    _ask_interval(gcs, mavlink.MAVLINK_MSG_ID_LOCAL_POSITION_NED, POSITION_INTERVAL_US)
+    _ask_interval(gcs, mavlink.MAVLINK_MSG_ID_ATTITUDE, POSITION_INTERVAL_US)
+    return gcs, port
+
+
+def _until_hold(gcs: ScriptedGroundStation, timeout_s: float) -> str | None:
+    """Listen until the firmware's HEARTBEAT says HOLD; None, or why not."""
+    if gcs.wait("HEARTBEAT", lambda m: m.get_srcSystem() == 1 and m.custom_mode == Mode.HOLD,
+                timeout_s) is None:
+        return "the mission did not finish in time"
+    return None
+
+
+def fly_firmware(twin: Twin, points: Sequence[Vec], yaws_deg: Sequence[float | None],
+                 heading_deg: float | None, timeout_s: float
+                 ) -> tuple[MissionRun, str | None]:
+    """Fly a mission in ArduPilot's own AUTO on ``twin`` (module docstring); its run, graded,
+    and why it did not finish (None: it did)."""
+    gcs, port = _firmware_ground_station(twin)
+    try:
+        items, waypoints = firmware_mission(points, yaws_deg, heading_deg, _home(gcs))
+        index = len(gcs.messages)
+        failure = _firmware_auto(gcs, items, timeout_s)
+        record = Recording.since(gcs, index, _auto_accepted_s(gcs, index), failure)
+    finally:
+        port.close()
+    return grade(waypoints, record, TruthTrack(twin.truth()))
+
+
+def _firmware_auto(gcs: ScriptedGroundStation, items: Sequence[MissionItem],
+                   timeout_s: float) -> str | None:
+    """Upload, arm, AUTO, listen until HOLD: None, or the step that failed."""
+    result = gcs.upload(items).type
+    if result != mavlink.MAV_MISSION_ACCEPTED:
+        return f"mission upload refused (MISSION_ACK {result})"
+    try:
+        gcs.arm(timeout_s=ARM_TIMEOUT_S)
+    except RuntimeError:
+        texts = [m.text for m in gcs.received("STATUSTEXT") if "PreArm" in m.text]
+        return "arming refused" + (f": {texts[-1]}" if texts else "")
+    if gcs.set_mode(Mode.AUTO) != mavlink.MAV_RESULT_ACCEPTED:
+        return "AUTO refused"
+    return _until_hold(gcs, timeout_s)
+
+
+def wait_heading_settled(twin: Twin, timeout_s: float = SETTLE_TIMEOUT_S) -> float:
+    """Wait until the firmware's heading (its ATTITUDE yaw) has been within
+    :data:`SETTLED_DEG` of the truth for :data:`SETTLED_FOR_S`; how long that took (s).
+
+    Raises:
+        RuntimeError: not within ``timeout_s`` (the message gives the last difference).
+    """
+    gcs, port = _firmware_ground_station(twin)
+    try:
+        started = time.monotonic()
+        settled_since: float | None = None
+        error = math.nan
+        while time.monotonic() - started < timeout_s:
+            for msg in gcs.pump(0.1):
+                if msg.get_type() != "ATTITUDE" or msg.get_srcSystem() != 1:
+                    continue
+                now = time.monotonic()
+                error = math.degrees(wrap_pi(msg.yaw - twin.truth_now().yaw_rad))
+                if abs(error) > SETTLED_DEG:
+                    settled_since = None
+                elif settled_since is None:
+                    settled_since = now
+                elif now - settled_since >= SETTLED_FOR_S:
+                    return now - started
+    finally:
+        port.close()
+    raise RuntimeError(f"the firmware's heading did not settle within {timeout_s:g} s "
+                       f"(last {error:+.1f} deg from the truth)")
+
+
+class SettledTwin(Twin):
+    """A :class:`~mecanum_mav.sim.twin.Twin` whose companion starts only once the firmware's
+    heading has settled (:func:`wait_heading_settled`, after setup-fc's reboot), so that the
+    companion's odometry anchors to the true heading. (The twin has no hook for it: this
+    waits inside its setup-fc step.)"""
+
+    settle_s = math.nan
+    """How long the firmware's heading took to settle after setup-fc (s)."""
+
+    def _setup_fc(self, timeout_s: float) -> None:
+        super()._setup_fc(timeout_s)
+        self.settle_s = wait_heading_settled(self)
+
+
+# ---------------------------------------------------------------------------- MANUAL
+
+@dataclass(frozen=True)
+class ManualStep:
+    """One MANUAL_CONTROL held for a while and what the chassis truly did meanwhile.
+
+    ``x``, ``y``, ``z``, ``r``: the fields sent (-1000..1000; z 0 is centre for Rover's
+    throttle). ``forward_m``, ``right_m``: the true displacement in the body frame at the start;
+    ``turn_deg``: the true turn (clockwise)."""
+
+    name: str
+    x: int
+    y: int
+    z: int
+    r: int
+    forward_m: float
+    right_m: float
+    turn_deg: float
+
+    def describe(self) -> str:
+        return (f"{self.name:<8} x {self.x:5d} y {self.y:5d} z {self.z:5d} r {self.r:5d}: "
+                f"forward {self.forward_m * 100:7.1f} cm, right {self.right_m * 100:7.1f} cm, "
+                f"turned {self.turn_deg:7.1f} deg")
+
+
+MANUAL_STEPS: tuple[tuple[str, int, int, int, int], ...] = (
+    ("forward", 500, 0, 500, 0),
+    ("strafe", 0, 500, 0, 0),
+    ("rotate", 0, 0, 0, 500),
+)
+"""(name, x, y, z, r) as a ground station's joystick sends them for half forward, half right
+and half clockwise (x forward, y right, z throttle, r yaw), each axis its own step; Rover reads
+only y (steering) and z (throttle) of MANUAL_CONTROL, so each asks for the motion on the axes a
+joystick would use AND on Rover's: forward with x and z, strafe with y, rotate with r."""
+MANUAL_HOLD_S = 2.0
+MANUAL_SEND_PERIOD_S = 0.05
+
+
+def manual_probe(twin: Twin, steps: Sequence[tuple[str, int, int, int, int]] = MANUAL_STEPS,
+                 hold_s: float = MANUAL_HOLD_S) -> list[ManualStep]:
+    """Arm the firmware in MANUAL and hold each MANUAL_CONTROL of ``steps`` for ``hold_s``
+    (then centre for as long, so the chassis stops); the truth of each.
+
+    Raises:
+        RuntimeError: MANUAL or arming refused.
+    """
+    gcs, port = _firmware_ground_station(twin)
+    try:
+        if gcs.set_mode(Mode.MANUAL) != mavlink.MAV_RESULT_ACCEPTED:
+            raise RuntimeError("MANUAL refused")
+        gcs.arm(timeout_s=ARM_TIMEOUT_S)
+        results = []
+        for name, x, y, z, r in steps:
+            start = twin.truth_now()
+            _hold(gcs, (x, y, z, r), hold_s)
+            moved = twin.truth_now()
+            _hold(gcs, (0, 0, 0, 0), hold_s)
+            forward, right = ned_to_body(moved.north_m - start.north_m,
+                                         moved.east_m - start.east_m, start.yaw_rad)
+            turn = math.degrees(wrap_pi(moved.yaw_rad - start.yaw_rad))
+            results.append(ManualStep(name, x, y, z, r, forward, right, turn))
+        gcs.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 0)
+        return results
+    finally:
+        port.close()
+
+
+def _hold(gcs: ScriptedGroundStation, axes: tuple[int, int, int, int], hold_s: float) -> None:
+    x, y, z, r = axes
+    end = time.monotonic() + hold_s
+    while time.monotonic() < end:
+        gcs.sticks(x, y, r, z)
+        gcs.pump(MANUAL_SEND_PERIOD_S)
+
+
+def omni_firmware_params(speed_mps: float, extra: Mapping[str, float] | None = None
+                         ) -> dict[str, float]:
+    """:data:`OMNI_PARM` with ``WP_SPEED`` at ``speed_mps``, then ``extra``."""
+    return {**read_parm(OMNI_PARM), "WP_SPEED": speed_mps, **(extra or {})}
