@@ -33,19 +33,38 @@ the ESCs they have: the largest command that does not turn a wheel, a little abo
 ``WHL_STRAFE_EFF`` to :data:`MUJOCO_STRAFE_EFF` (the chassis's measured strafe efficiency); every
 other parameter keeps its default unless ``--set`` changes it (a ``--set MOT_DZ`` wins).
 
+``--twin`` runs the missions on the twin instead (:mod:`mecanum_mav.sim.twin`: the real
+ArduPilot Rover firmware, SITL, driving the MuJoCo chassis through its JSON backend, the
+companion unchanged in the loop), in real time over MAVLink (:mod:`mecanum_mav.sim.twinmission`:
+the ground station records what arrives with wall times, the truth is the bridge's, matched by
+wall time), by default at 1.0 m/s on friction 0.8 only. One twin per floor and speed flies the
+missions one after another (the odometry's origin set anew before each: MAV_CMD_DO_SET_HOME),
+its real-time factor and dropped frames printed after them. Beside it (unless ``--no-anchor``)
+ArduPilot's own omni frame (``params/ardupilot_omni.parm``: FRAME_TYPE 2, OMNIX, its four
+motors on our wheels) flies the same missions in its own AUTO on a twin without the companion
+(rows ``ardupilot``; its drift is its EKF's LOCAL_POSITION_NED against the truth), and a ground
+station's MANUAL_CONTROL asks it to drive forward, strafe and rotate (what the chassis truly
+did is printed). ArduPilot's AUTO steers toward each waypoint and drives forward: it has no
+lateral command and no heading of its own at a waypoint, so its heading column says how far it
+turned from the heading the missions ask for.
+
 Usage::
 
     python tools/bench_control.py [--physics kinematic|mujoco] [--friction 0.8,0.4]
         [--speeds 0.5,1.0,1.5] [--missions square,eight,strafe-rotate] [--quick]
         [--plot OUT.png] [--set NAME=VALUE ...]
+    python tools/bench_control.py --twin [--sitl PATH] [--no-anchor] [--friction 0.8]
+        [--speeds 1.0] [--missions ...] [--set NAME=VALUE ...]
 
-``--quick`` runs only the goal speed (1.0 m/s) unless ``--speeds`` is given.
+``--quick`` runs only the goal speed (1.0 m/s) unless ``--speeds`` is given. ``--sitl``
+defaults to ``$MECANUM_SITL``, else ``../shared/ardupilot-sitl/ardurover`` beside the checkout.
 """
 
 from __future__ import annotations
 
 import argparse
 import math
+import os
 import sys
 import time
 from collections.abc import Callable, Sequence
@@ -54,6 +73,7 @@ from pathlib import Path
 from typing import Any
 
 from mecanum_mav.config.params import SPECS, ParamError, Params, parse_assignment
+from mecanum_mav.sim.firmware import sitl_from_env
 from mecanum_mav.sim.lockstep import Lockstep
 from mecanum_mav.sim.missionrun import MissionRun, fly, waypoint_mission
 from mecanum_mav.sim.physics import PHYSICS, PhysicsUnavailableError
@@ -315,6 +335,79 @@ def _where(run: MissionRun) -> str:
     return f" ({gap * 100:.1f} cm from waypoint {k + 1} of {len(run.planned) - 1})"
 
 
+# ---------------------------------------------------------------------------- the twin
+
+TWIN_FLOORS = (0.8,)
+"""The twin's default floor (real time: one floor)."""
+SITL_BESIDE = Path(__file__).resolve().parent.parent.parent / "shared" / "ardupilot-sitl" / \
+    "ardurover"
+"""Where the firmware is when the checkout sits beside ``shared/`` (as on this machine)."""
+
+
+def default_sitl() -> Path:
+    """``$MECANUM_SITL``, else :data:`SITL_BESIDE`."""
+    return sitl_from_env() or SITL_BESIDE
+
+
+def twin_row(name: str, speed_mps: float, friction: float, driver: str,
+             fly_on: Callable[..., tuple[MissionRun, str | None]], twin: Any) -> Row:
+    """Mission ``name`` flown on ``twin`` by ``fly_on`` (the companion's or the firmware's
+    :mod:`~mecanum_mav.sim.twinmission` flight), as a row of chassis ``driver``."""
+    mission = MISSIONS[name]()
+    run, failure = fly_on(twin, mission.points, mission.yaws_deg, mission.heading_deg,
+                          time_allowed_s(((0.0, 0.0), *mission.points), speed_mps))
+    if failure is not None:
+        failure = f"{failure}{_where(run)}"
+    return Row(name, speed_mps, driver, friction, run, figures(run), failure=failure)
+
+
+def run_twin(sitl: Path, missions: Sequence[str], speeds: Sequence[float],
+             floors: Sequence[float], overrides: Sequence[tuple[str, float]] = (), *,
+             anchor: bool = True, on_row: Callable[[Row], None] = lambda row: None,
+             say: Callable[[str], None] = print) -> list[Row]:
+    """Every mission x speed x floor on the twin with the companion, then (``anchor``) with
+    ArduPilot's own omni frame, and its MANUAL probe once; ``say`` gets each twin's figures.
+
+    Raises:
+        PhysicsUnavailableError: no mujoco. FileNotFoundError: no firmware at ``sitl``.
+        TwinError: a twin did not come up.
+    """
+    from mecanum_mav.sim import twinmission as tm
+    from mecanum_mav.sim.twin import Twin, describe
+
+    rows: list[Row] = []
+    probed = not anchor
+    for friction in floors:
+        for speed in speeds:
+            params = bench_params(speed, friction, overrides)
+            twin = tm.SettledTwin(sitl, friction=friction, params=params)
+            with twin:
+                say(f"twin (companion) mu {friction:g} at {speed:g} m/s: the firmware's heading "
+                    f"settled {twin.settle_s:.1f} s after setup-fc")
+                for name in missions:
+                    rows.append(twin_row(name, speed, friction, "twin", tm.fly_companion, twin))
+                    on_row(rows[-1])
+                say(f"  twin (companion): {describe(twin.stats())}")
+            if not anchor:
+                continue
+            with Twin(sitl, friction=friction, params=params, frame="ardupilot-omni",
+                      wheel_map=tm.OMNI_WHEEL_MAP,
+                      firmware_params=tm.omni_firmware_params(speed)) as omni:
+                tm.wait_heading_settled(omni)
+                for name in missions:
+                    rows.append(twin_row(name, speed, friction, "ardupilot", tm.fly_firmware,
+                                         omni))
+                    on_row(rows[-1])
+                if not probed:
+                    probed = True
+                    say("  ArduPilot's MANUAL, a ground station's MANUAL_CONTROL held "
+                        f"{tm.MANUAL_HOLD_S:g} s each (what the chassis truly did):")
+                    for step in tm.manual_probe(omni):
+                        say("    " + step.describe())
+                say(f"  twin (ArduPilot omni): {describe(omni.stats())}")
+    return rows
+
+
 def chassis_and_floors(physics: str, floors: Sequence[float]) -> list[tuple[str, float | None]]:
     """What to run: the kinematic chassis once (it ignores friction); with ``mujoco`` also
     the MuJoCo chassis on each floor."""
@@ -484,11 +577,21 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--plot", type=Path, default=None, help="draw the paths to this PNG")
     p.add_argument("--set", dest="overrides", type=_assignment, action="append", default=[],
                    metavar="NAME=VALUE", help="a parameter for every run (repeatable)")
+    p.add_argument("--twin", action="store_true",
+                   help="on the twin: real ArduPilot firmware (SITL) on the MuJoCo chassis, "
+                   "in real time (default 1.0 m/s, friction 0.8)")
+    p.add_argument("--sitl", type=Path, default=None,
+                   help="the ardurover binary (default $MECANUM_SITL, else "
+                   "../shared/ardupilot-sitl/ardurover)")
+    p.add_argument("--no-anchor", dest="anchor", action="store_false",
+                   help="with --twin: not ArduPilot's own omni frame beside the companion")
     return p
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     args = parser().parse_args(argv)
+    if args.twin:
+        return main_twin(args)
     speeds = args.speeds or ([GOAL_SPEED] if args.quick else list(SPEEDS))
     started = time.monotonic()
     sets = ", ".join(f"{n}={v:g}" for n, v in args.overrides)
@@ -515,6 +618,53 @@ def main(argv: Sequence[str] | None = None) -> int:
         rows = run_all(args.missions, speeds, args.physics, args.friction, args.overrides,
                        on_row=lambda row: print(table_row(row), flush=True))
     except (PhysicsUnavailableError, ParamError) as exc:
+        print(f"bench_control: {exc}", file=sys.stderr)
+        return 1
+    print("\nper waypoint (true, at MISSION_ITEM_REACHED):")
+    for row in rows:
+        print(arrivals_line(row))
+        if row.failure is not None:
+            print(f"  did not finish: {row.failure}")
+    print(f"\ngoals at {GOAL_SPEED:g} m/s (friction {HIGH_FRICTION:g}; below it twice the "
+          "errors):")
+    for line in summary(rows):
+        print(line)
+    if args.plot is not None:
+        try:
+            print(f"wrote {plot(rows, args.plot)}")
+        except RuntimeError as exc:  # no matplotlib
+            print(f"bench_control: no picture: {exc}", file=sys.stderr)
+    print(f"wall time {time.monotonic() - started:.1f} s")
+    return 0
+
+
+def main_twin(args: argparse.Namespace) -> int:
+    """``--twin``: the missions on the twin, ours and (unless ``--no-anchor``) ArduPilot's."""
+    from mecanum_mav.sim.twin import TwinError
+
+    sitl = args.sitl or default_sitl()
+    if not (sitl.is_file() and os.access(sitl, os.X_OK)):
+        print(f"bench_control: no ArduPilot SITL firmware at {sitl} (give --sitl PATH or set "
+              "$MECANUM_SITL)", file=sys.stderr)
+        return 2
+    speeds = args.speeds or [GOAL_SPEED]
+    floors = args.friction if args.friction != list(FLOORS) else list(TWIN_FLOORS)
+    started = time.monotonic()
+    shown = bench_params(GOAL_SPEED, floors[0], args.overrides)
+    print(f"bench_control --twin: {sitl}; missions {', '.join(args.missions)}; speeds "
+          f"{', '.join(f'{s:g}' for s in speeds)} m/s; friction "
+          f"{', '.join(f'{f:g}' for f in floors)}; real time")
+    print("companion with " + ", ".join(f"{n} {shown[n]:g}" for n in (*SHOWN, "ODOM_SRC",
+                                                                         "ODOM_CMD_TAU")
+                                      if n in shown))
+    if args.anchor:
+        print("ardupilot: its own omni frame (params/ardupilot_omni.parm), its own AUTO")
+    print(HEADER, flush=True)
+    try:
+        rows = run_twin(sitl, args.missions, speeds, floors, args.overrides,
+                        anchor=args.anchor, on_row=lambda row: print(table_row(row), flush=True),
+                        say=lambda line: print(line, flush=True))
+    except (PhysicsUnavailableError, ParamError, TwinError, FileNotFoundError) as exc:
         print(f"bench_control: {exc}", file=sys.stderr)
         return 1
     print("\nper waypoint (true, at MISSION_ITEM_REACHED):")

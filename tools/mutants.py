@@ -1025,6 +1025,29 @@ MUTATIONS: tuple[Mutation, ...] = (
       "if False and first and self.config.yaw_from_gyro",
       T + "test_estimator_commanded.py::test_an_attitude_before_the_first_update_sets_the_"
       "starting_heading_itself"),
+    M("twin-truth-by-wall-time", "a twin mission is graded with the truth at each look's wall time",
+      PKG + "sim/twinmission.py", "if watch.look(due, truth.pose_at(due, origin), batch):",
+      "if watch.look(due, truth.pose_at(end_s, origin), batch):",
+      T + "test_twin_mission.py::test_the_arrival_is_graded_with_the_truth_at_the_wall_time_"
+      "the_reached_message_arrived"),
+    M("twin-origin-at-auto", "a twin mission is graded from where the rover stood at AUTO",
+      PKG + "sim/twinmission.py", "origin = (home.north_m, home.east_m)", "origin = (0.0, 0.0)",
+      T + "test_twin_mission.py::test_positions_are_graded_from_where_the_rover_stood_at_auto"),
+    M("twin-periodic-looks", "the replay looks at least every WATCH_PERIOD_S between messages",
+      PKG + "sim/twinmission.py", "due = min(now + period_s,", "due = min(now + math.inf,",
+      T + "test_twin_mission.py::test_the_watch_looks_between_messages_so_the_cross_track_of_"
+      "a_quiet_leg_counts"),
+    M("twin-live-failure-wins", "a twin flight's own failure is the row's reason",
+      PKG + "sim/twinmission.py",
+      'return watch.run, record.failure or "the mission did not finish in time"',
+      'return watch.run, "the mission did not finish in time"',
+      T + "test_twin_mission.py::test_a_flight_without_its_end_says_so_and_the_live_failure_"
+      "wins"),
+    M("omni-wheel-map", "ArduPilot's OMNIX motors land on the wheels our mixer drives alike",
+      PKG + "sim/twinmission.py", "((4, 1.0), (1, 1.0), (3, 1.0), (2, 1.0))",
+      "((1, 1.0), (4, 1.0), (3, 1.0), (2, 1.0))",
+      T + "test_twin_mission.py::test_ardupilots_omni_x_motors_land_on_the_wheels_our_mixer_"
+      "drives_the_same_way"),
 )
 
 # ====================================================================== running

@@ -8,9 +8,10 @@ Two drivers fly the same missions (:func:`~mecanum_mav.sim.missionrun.waypoint_m
   checks on), switches to AUTO and listens until the rover holds
   (:func:`~mecanum_mav.sim.missionrun.fly`);
 - ArduPilot Rover's own omni frame (:func:`fly_firmware`, the anchor): the ground station
-  talks to the firmware itself (:attr:`Twin.firmware_url`), uploads the waypoints in the
-  global frame about the firmware's home (ArduPilot's missions take no local frame), waits for
-  its pre-arm checks (EKF, GPS) to pass, arms, AUTO, and listens until it holds.
+  talks to the firmware itself (:attr:`Twin.firmware_url`), arms (waiting for its pre-arm
+  checks: EKF, GPS; arming sets its home where the rover stands), uploads the waypoints in the
+  global frame about that home (ArduPilot's missions take no local frame), AUTO, listens until
+  it holds, and disarms.
 
 Either way the ground station only records: every message with the wall time it arrived
 (``time.monotonic()``, the clock of :class:`~mecanum_mav.sim.twinbridge.TruthSample`'s
@@ -192,6 +193,20 @@ class _LiveTruth:
         return Pose2d(s.north_m, s.east_m, s.yaw_rad)
 
 
+def _set_home_here(gcs: ScriptedGroundStation) -> None:
+    """MAV_CMD_DO_SET_HOME "here" once the vehicle is heard: the companion's odometry origin,
+    the firmware's home, where the rover stands (the next mission starts from it).
+
+    Raises:
+        RuntimeError: no heartbeat, or the command refused.
+    """
+    if gcs.wait("HEARTBEAT", lambda m: m.get_srcSystem() == 1, 10.0, since=0) is None:
+        raise RuntimeError("no heartbeat from the vehicle")
+    ack = gcs.command(mavlink.MAV_CMD_DO_SET_HOME, 1)
+    if ack is None or ack.result != mavlink.MAV_RESULT_ACCEPTED:
+        raise RuntimeError(f"set home refused ({None if ack is None else ack.result})")
+
+
 def _auto_accepted_s(gcs: ScriptedGroundStation, index: int) -> float:
     """When the COMMAND_ACK of the switch to AUTO arrived (from message ``index`` on); now if
     none did."""
@@ -213,6 +228,7 @@ def fly_companion(twin: Twin, points: Sequence[Vec], yaws_deg: Sequence[float | 
         index = len(gcs.messages)
         failure = None
         try:
+            _set_home_here(gcs)
             fly(gcs, _LiveTruth(twin), items, waypoints, timeout_s)  # type: ignore[arg-type]
         except RuntimeError as exc:
             failure = str(exc)
@@ -258,7 +274,7 @@ def _ask_interval(gcs: ScriptedGroundStation, msg_id: int, interval_us: int) -> 
 
 
 def _home(gcs: ScriptedGroundStation) -> GlobalOrigin:
-    """The firmware's home (HOME_POSITION, asked for).
+    """The firmware's home (HOME_POSITION, asked for; armed: where it was armed).
 
     Raises:
         RuntimeError: none within :data:`HOME_TIMEOUT_S`.
@@ -299,28 +315,41 @@ def fly_firmware(twin: Twin, points: Sequence[Vec], yaws_deg: Sequence[float | N
     and why it did not finish (None: it did)."""
     gcs, port = _firmware_ground_station(twin)
     try:
-        items, waypoints = firmware_mission(points, yaws_deg, heading_deg, _home(gcs))
         index = len(gcs.messages)
-        failure = _firmware_auto(gcs, items, timeout_s)
+        failure = _arm(gcs)  # arming sets ArduPilot's home where the rover stands
+        _, waypoints = firmware_mission(points, yaws_deg, heading_deg, GlobalOrigin(0, 0))
+        if failure is None:
+            items, waypoints = firmware_mission(points, yaws_deg, heading_deg, _home(gcs))
+            failure = _firmware_auto(gcs, items, timeout_s)
         record = Recording.since(gcs, index, _auto_accepted_s(gcs, index), failure)
+        gcs.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 0)  # the next arms where it stops
     finally:
         port.close()
     return grade(waypoints, record, TruthTrack(twin.truth()))
 
 
-def _firmware_auto(gcs: ScriptedGroundStation, items: Sequence[MissionItem],
-                   timeout_s: float) -> str | None:
-    """Upload, arm, AUTO, listen until HOLD: None, or the step that failed."""
-    result = gcs.upload(items).type
-    if result != mavlink.MAV_MISSION_ACCEPTED:
-        return f"mission upload refused (MISSION_ACK {result})"
+def _arm(gcs: ScriptedGroundStation) -> str | None:
+    """Arm the firmware, waiting for its pre-arm checks: None, or why it refused."""
     try:
         gcs.arm(timeout_s=ARM_TIMEOUT_S)
     except RuntimeError:
         texts = [m.text for m in gcs.received("STATUSTEXT") if "PreArm" in m.text]
         return "arming refused" + (f": {texts[-1]}" if texts else "")
-    if gcs.set_mode(Mode.AUTO) != mavlink.MAV_RESULT_ACCEPTED:
-        return "AUTO refused"
+    return None
+
+
+def _firmware_auto(gcs: ScriptedGroundStation, items: Sequence[MissionItem],
+                   timeout_s: float) -> str | None:
+    """Upload, AUTO, listen until HOLD: None, or the step that failed."""
+    result = gcs.upload(items).type
+    if result != mavlink.MAV_MISSION_ACCEPTED:
+        return f"mission upload refused (MISSION_ACK {result})"
+    deadline = time.monotonic() + ARM_TIMEOUT_S
+    while gcs.set_mode(Mode.AUTO) != mavlink.MAV_RESULT_ACCEPTED:
+        # AUTO needs the EKF's position: ArduPilot's EKF3 takes GPS some 30 s after boot
+        if time.monotonic() > deadline:
+            return f"AUTO refused for {ARM_TIMEOUT_S:g} s (no EKF position?)"
+        gcs.pump(0.5)
     return _until_hold(gcs, timeout_s)
 
 
@@ -418,7 +447,9 @@ def manual_probe(twin: Twin, steps: Sequence[tuple[str, int, int, int, int]] = M
     try:
         if gcs.set_mode(Mode.MANUAL) != mavlink.MAV_RESULT_ACCEPTED:
             raise RuntimeError("MANUAL refused")
-        gcs.arm(timeout_s=ARM_TIMEOUT_S)
+        failure = _arm(gcs)
+        if failure is not None:
+            raise RuntimeError(failure)
         results = []
         for name, x, y, z, r in steps:
             start = twin.truth_now()
