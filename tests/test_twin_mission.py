@@ -135,10 +135,19 @@ def test_a_hold_before_the_last_waypoint_is_a_stop():
     assert run.legs == []
 
 
-def test_the_record_starts_at_auto():
-    gcs = SimpleNamespace(messages=["a", "b", "c", "d"], arrived_s=[1.0, 2.0, 3.0, 4.0])
-    rec = tm.Recording.since(gcs, 1, 3.0)  # type: ignore[arg-type]
-    assert (rec.messages, rec.arrived_s) == (["c", "d"], [3.0, 4.0])
+def test_the_record_starts_after_the_ack_that_accepted_auto_not_with_what_came_with_it():
+    stale = msg("HEARTBEAT", custom_mode=Mode.HOLD)  # the last mission's HOLD, same read
+    refused = msg("COMMAND_ACK", command=mavlink.MAV_CMD_DO_SET_MODE,
+                  result=mavlink.MAV_RESULT_FAILED)
+    ack = msg("COMMAND_ACK", command=mavlink.MAV_CMD_DO_SET_MODE,
+              result=mavlink.MAV_RESULT_ACCEPTED)
+    reached = msg("MISSION_ITEM_REACHED", seq=2)
+    gcs = SimpleNamespace(messages=[HOLD, refused, stale, ack, reached],
+                          arrived_s=[1.0, 2.0, 3.0, 3.0, 4.0])
+    after, start_s = tm._after_auto(gcs, 1)  # type: ignore[arg-type]
+    assert (after, start_s) == (4, 3.0)
+    rec = tm.Recording.since(gcs, after, start_s)  # type: ignore[arg-type]
+    assert (rec.messages, rec.arrived_s, rec.start_s) == ([reached], [4.0], 3.0)
 
 
 # ---------------------------------------------------------------------------- ArduPilot's
@@ -152,6 +161,17 @@ def test_ardupilots_mission_is_the_same_waypoints_in_the_global_frame_about_its_
     assert home.to_local(items[2].x, items[2].y) == pytest.approx((3.0, 3.0), abs=0.01)
     assert [(w.seq, w.point, w.yaw_deg) for w in waypoints] == [
         (1, (3.0, 0.0), 0.0), (2, (3.0, 3.0), 90.0)]  # graded against the headings asked
+
+
+def test_the_firmwares_estimate_is_taken_from_where_it_stood_when_the_mission_started():
+    rec = record((2.0, msg("LOCAL_POSITION_NED", x=7.03, y=-4.0)),
+                 (3.0, msg("MISSION_ITEM_REACHED", seq=2)), (4.5, HOLD))
+    run, _ = tm.grade(three_metres_north(), rec, north_at_1_m_s())
+    tm.shift_estimate(run, (5.0, -4.0))  # its EKF origin is 5 m south of this start
+    assert run.final_estimate == pytest.approx((2.03, 0.0))
+    assert run.odometry_path == [pytest.approx((2.03, 0.0))]
+    fig = figures(run)
+    assert fig.drift_pct == pytest.approx(100 * 0.03 / fig.distance_m, rel=0.02)
 
 
 OMNIX_FACTORS = {1: (1.0, -1.0, -1.0), 2: (1.0, -1.0, 1.0), 3: (1.0, 1.0, -1.0),

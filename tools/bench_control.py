@@ -69,6 +69,7 @@ import sys
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -349,13 +350,19 @@ def default_sitl() -> Path:
     return sitl_from_env() or SITL_BESIDE
 
 
+ANCHOR_TIME_FACTOR = 2.0
+"""ArduPilot's AUTO may take this many times :func:`time_allowed_s` (it pivots at corners)."""
+
+
 def twin_row(name: str, speed_mps: float, friction: float, driver: str,
-             fly_on: Callable[..., tuple[MissionRun, str | None]], twin: Any) -> Row:
+             fly_on: Callable[..., tuple[MissionRun, str | None]], twin: Any,
+             time_factor: float = 1.0) -> Row:
     """Mission ``name`` flown on ``twin`` by ``fly_on`` (the companion's or the firmware's
-    :mod:`~mecanum_mav.sim.twinmission` flight), as a row of chassis ``driver``."""
+    :mod:`~mecanum_mav.sim.twinmission` flight) within ``time_factor`` times
+    :func:`time_allowed_s`, as a row of chassis ``driver``."""
     mission = MISSIONS[name]()
-    run, failure = fly_on(twin, mission.points, mission.yaws_deg, mission.heading_deg,
-                          time_allowed_s(((0.0, 0.0), *mission.points), speed_mps))
+    allowed = time_factor * time_allowed_s(((0.0, 0.0), *mission.points), speed_mps)
+    run, failure = fly_on(twin, mission.points, mission.yaws_deg, mission.heading_deg, allowed)
     if failure is not None:
         failure = f"{failure}{_where(run)}"
     return Row(name, speed_mps, driver, friction, run, figures(run), failure=failure)
@@ -373,6 +380,7 @@ def run_twin(sitl: Path, missions: Sequence[str], speeds: Sequence[float],
         TwinError: a twin did not come up.
     """
     from mecanum_mav.sim import twinmission as tm
+    from mecanum_mav.sim.groundstation import udp_ground_station
     from mecanum_mav.sim.twin import Twin, describe
 
     rows: list[Row] = []
@@ -384,9 +392,14 @@ def run_twin(sitl: Path, missions: Sequence[str], speeds: Sequence[float],
             with twin:
                 say(f"twin (companion) mu {friction:g} at {speed:g} m/s: the firmware's heading "
                     f"settled {twin.settle_s:.1f} s after setup-fc")
-                for name in missions:
-                    rows.append(twin_row(name, speed, friction, "twin", tm.fly_companion, twin))
-                    on_row(rows[-1])
+                gcs, port = udp_ground_station(twin.gcs_url)
+                try:
+                    for name in missions:
+                        rows.append(twin_row(name, speed, friction, "twin",
+                                             partial(tm.fly_companion, gcs=gcs), twin))
+                        on_row(rows[-1])
+                finally:
+                    port.close()
                 say(f"  twin (companion): {describe(twin.stats())}")
             if not anchor:
                 continue
@@ -396,7 +409,7 @@ def run_twin(sitl: Path, missions: Sequence[str], speeds: Sequence[float],
                 tm.wait_heading_settled(omni)
                 for name in missions:
                     rows.append(twin_row(name, speed, friction, "ardupilot", tm.fly_firmware,
-                                         omni))
+                                         omni, ANCHOR_TIME_FACTOR))
                     on_row(rows[-1])
                 if not probed:
                     probed = True

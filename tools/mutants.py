@@ -1043,6 +1043,10 @@ MUTATIONS: tuple[Mutation, ...] = (
       'return watch.run, "the mission did not finish in time"',
       T + "test_twin_mission.py::test_a_flight_without_its_end_says_so_and_the_live_failure_"
       "wins"),
+    M("twin-record-after-ack", "a twin mission's record starts after the ACK accepting AUTO",
+      PKG + "sim/twinmission.py", "return k + 1, gcs.arrived_s[k]", "return k, gcs.arrived_s[k]",
+      T + "test_twin_mission.py::test_the_record_starts_after_the_ack_that_accepted_auto_not_"
+      "with_what_came_with_it"),
     M("omni-wheel-map", "ArduPilot's OMNIX motors land on the wheels our mixer drives alike",
       PKG + "sim/twinmission.py", "((4, 1.0), (1, 1.0), (3, 1.0), (2, 1.0))",
       "((1, 1.0), (4, 1.0), (3, 1.0), (2, 1.0))",

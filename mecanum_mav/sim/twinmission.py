@@ -11,7 +11,7 @@ Two drivers fly the same missions (:func:`~mecanum_mav.sim.missionrun.waypoint_m
   talks to the firmware itself (:attr:`Twin.firmware_url`), arms (waiting for its pre-arm
   checks: EKF, GPS; arming sets its home where the rover stands), uploads the waypoints in the
   global frame about that home (ArduPilot's missions take no local frame), AUTO, listens until
-  it holds, and disarms.
+  its "Mission Complete", switches it to HOLD (it would stay in AUTO) and disarms.
 
 Either way the ground station only records: every message with the wall time it arrived
 (``time.monotonic()``, the clock of :class:`~mecanum_mav.sim.twinbridge.TruthSample`'s
@@ -63,7 +63,7 @@ from mecanum_mav.sim.twinbridge import TruthSample
 __all__ = ["OMNI_PARM", "OMNI_WHEEL_MAP", "ManualStep", "Recording", "SettledTwin",
            "TruthTrack",
            "firmware_mission", "fly_companion", "fly_firmware", "grade", "manual_probe",
-           "omni_firmware_params", "read_parm", "wait_heading_settled"]
+           "omni_firmware_params", "read_parm", "shift_estimate", "wait_heading_settled"]
 
 Vec = tuple[float, float]
 
@@ -136,11 +136,9 @@ class Recording:
     @classmethod
     def since(cls, gcs: ScriptedGroundStation, index: int, start_s: float,
               failure: str | None = None) -> Recording:
-        """The ground station's record from message ``index`` on, those that arrived at or
-        after ``start_s``."""
-        pairs = [(m, t) for m, t in zip(gcs.messages[index:], gcs.arrived_s[index:],
-                                        strict=True) if t >= start_s]
-        return cls(start_s, [m for m, _ in pairs], [t for _, t in pairs], failure)
+        """The ground station's record from message ``index`` on, the mission started at
+        ``start_s``."""
+        return cls(start_s, gcs.messages[index:], gcs.arrived_s[index:], failure)
 
 
 def grade(waypoints: Sequence[Waypoint], record: Recording, truth: TruthTrack,
@@ -207,23 +205,29 @@ def _set_home_here(gcs: ScriptedGroundStation) -> None:
         raise RuntimeError(f"set home refused ({None if ack is None else ack.result})")
 
 
-def _auto_accepted_s(gcs: ScriptedGroundStation, index: int) -> float:
-    """When the COMMAND_ACK of the switch to AUTO arrived (from message ``index`` on); now if
-    none did."""
-    for k in range(len(gcs.messages) - 1, index - 1, -1):
+def _after_auto(gcs: ScriptedGroundStation, index: int) -> tuple[int, float]:
+    """The index of the first message after the COMMAND_ACK that accepted AUTO (looking from
+    message ``index`` on) and when that ACK arrived; the end and now if none did. (What came
+    with the ACK, in the same read, came before it: a HEARTBEAT of the mode before.)"""
+    for k in range(index, len(gcs.messages)):
         msg = gcs.messages[k]
-        if msg.get_type() == "COMMAND_ACK" and msg.command == mavlink.MAV_CMD_DO_SET_MODE:
-            return gcs.arrived_s[k]
-    return time.monotonic()
+        if msg.get_type() == "COMMAND_ACK" and msg.command == mavlink.MAV_CMD_DO_SET_MODE \
+                and msg.result == mavlink.MAV_RESULT_ACCEPTED:
+            return k + 1, gcs.arrived_s[k]
+    return len(gcs.messages), time.monotonic()
 
 
 def fly_companion(twin: Twin, points: Sequence[Vec], yaws_deg: Sequence[float | None],
-                  heading_deg: float | None, timeout_s: float
-                  ) -> tuple[MissionRun, str | None]:
+                  heading_deg: float | None, timeout_s: float,
+                  gcs: ScriptedGroundStation | None = None) -> tuple[MissionRun, str | None]:
     """Fly a mission with the companion of ``twin`` (module docstring); its run, graded, and
-    why it did not finish (None: it did)."""
+    why it did not finish (None: it did). ``gcs``: the ground station on :attr:`Twin.gcs_url`
+    to use (one for every mission of a twin: the companion says "Flight controller link up"
+    once), or None for one of its own."""
     items, waypoints = waypoint_mission(points, yaws_deg, heading_deg=heading_deg)
-    gcs, port = udp_ground_station(twin.gcs_url)
+    port = None
+    if gcs is None:
+        gcs, port = udp_ground_station(twin.gcs_url)
     try:
         index = len(gcs.messages)
         failure = None
@@ -232,9 +236,10 @@ def fly_companion(twin: Twin, points: Sequence[Vec], yaws_deg: Sequence[float | 
             fly(gcs, _LiveTruth(twin), items, waypoints, timeout_s)  # type: ignore[arg-type]
         except RuntimeError as exc:
             failure = str(exc)
-        record = Recording.since(gcs, index, _auto_accepted_s(gcs, index), failure)
+        record = Recording.since(gcs, *_after_auto(gcs, index), failure)
     finally:
-        port.close()
+        if port is not None:
+            port.close()
     return grade(waypoints, record, TruthTrack(twin.truth()))
 
 
@@ -300,11 +305,22 @@ def _firmware_ground_station(twin: Twin) -> tuple[ScriptedGroundStation, Any]:
     return gcs, port
 
 
+ARDUPILOT_MISSION_COMPLETE = "Mission Complete"
+"""ArduPilot Rover's STATUSTEXT at a mission's end; it stays in AUTO (MIS_DONE_BEHAVE offers
+no HOLD mode), so the ground station switches it to HOLD then."""
+
+
 def _until_hold(gcs: ScriptedGroundStation, timeout_s: float) -> str | None:
-    """Listen until the firmware's HEARTBEAT says HOLD; None, or why not."""
-    if gcs.wait("HEARTBEAT", lambda m: m.get_srcSystem() == 1 and m.custom_mode == Mode.HOLD,
+    """Listen until the firmware says its mission is complete, switch it to HOLD and listen
+    until its HEARTBEAT says so; None, or why not."""
+    deadline = time.monotonic() + timeout_s
+    if gcs.wait("STATUSTEXT", lambda m: m.text == ARDUPILOT_MISSION_COMPLETE,
                 timeout_s) is None:
         return "the mission did not finish in time"
+    gcs.set_mode(Mode.HOLD)
+    if gcs.wait("HEARTBEAT", lambda m: m.get_srcSystem() == 1 and m.custom_mode == Mode.HOLD,
+                max(deadline - time.monotonic(), 2.0)) is None:
+        return "HOLD refused at the mission's end"
     return None
 
 
@@ -321,11 +337,26 @@ def fly_firmware(twin: Twin, points: Sequence[Vec], yaws_deg: Sequence[float | N
         if failure is None:
             items, waypoints = firmware_mission(points, yaws_deg, heading_deg, _home(gcs))
             failure = _firmware_auto(gcs, items, timeout_s)
-        record = Recording.since(gcs, index, _auto_accepted_s(gcs, index), failure)
+        after, start_s = _after_auto(gcs, index)
+        record = Recording.since(gcs, after, start_s, failure)
+        before = [m for m, t in zip(gcs.messages, gcs.arrived_s, strict=True)
+                  if t < start_s and m.get_type() == "LOCAL_POSITION_NED"]
         gcs.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 0)  # the next arms where it stops
     finally:
         port.close()
-    return grade(waypoints, record, TruthTrack(twin.truth()))
+    run, failure = grade(waypoints, record, TruthTrack(twin.truth()))
+    if before:  # its EKF's origin is where GPS first came, not where this mission started
+        shift_estimate(run, (before[-1].x, before[-1].y))
+    return run, failure
+
+
+def shift_estimate(run: MissionRun, origin: Vec) -> None:
+    """Make ``run``'s estimated positions relative to ``origin`` (the estimate's position when
+    the mission started), in place."""
+    n0, e0 = origin
+    run.odometry_path = [(n - n0, e - e0) for n, e in run.odometry_path]
+    if run.final_estimate is not None:
+        run.final_estimate = (run.final_estimate[0] - n0, run.final_estimate[1] - e0)
 
 
 def _arm(gcs: ScriptedGroundStation) -> str | None:
