@@ -54,7 +54,7 @@ Usage::
         [--speeds 0.5,1.0,1.5] [--missions square,eight,strafe-rotate] [--quick]
         [--plot OUT.png] [--set NAME=VALUE ...]
     python tools/bench_control.py --twin [--sitl PATH] [--no-anchor] [--friction 0.8]
-        [--speeds 1.0] [--missions ...] [--set NAME=VALUE ...]
+        [--speeds 1.0] [--missions ...] [--set NAME=VALUE ...] [--firmware-set NAME=VALUE ...]
 
 ``--quick`` runs only the goal speed (1.0 m/s) unless ``--speeds`` is given. ``--sitl``
 defaults to ``$MECANUM_SITL``, else ``../shared/ardupilot-sitl/ardurover`` beside the checkout.
@@ -338,6 +338,10 @@ def _where(run: MissionRun) -> str:
 
 # ---------------------------------------------------------------------------- the twin
 
+TWIN_ODOM_CMD_TAU = 0.12
+"""``ODOM_CMD_TAU`` on the twin (no WHEEL_DISTANCE from ArduPilot: the odometry takes the
+commanded speeds): the motors' 0.08 s and the firmware's pass-through (measured at 1 m/s,
+friction 0.8: strafe-rotate drift 7.9 % with 0, 2-3 % with 0.12); a ``--set`` wins."""
 TWIN_FLOORS = (0.8,)
 """The twin's default floor (real time: one floor)."""
 SITL_BESIDE = Path(__file__).resolve().parent.parent.parent / "shared" / "ardupilot-sitl" / \
@@ -368,10 +372,18 @@ def twin_row(name: str, speed_mps: float, friction: float, driver: str,
     return Row(name, speed_mps, driver, friction, run, figures(run), failure=failure)
 
 
+def twin_params(speed_mps: float, friction: float,
+                overrides: Sequence[tuple[str, float]] = ()) -> Params:
+    """:func:`bench_params` on the MuJoCo chassis with ``ODOM_CMD_TAU`` at
+    :data:`TWIN_ODOM_CMD_TAU` (unless overridden)."""
+    return bench_params(speed_mps, friction, [("ODOM_CMD_TAU", TWIN_ODOM_CMD_TAU), *overrides])
+
+
 def run_twin(sitl: Path, missions: Sequence[str], speeds: Sequence[float],
              floors: Sequence[float], overrides: Sequence[tuple[str, float]] = (), *,
              anchor: bool = True, on_row: Callable[[Row], None] = lambda row: None,
-             say: Callable[[str], None] = print) -> list[Row]:
+             say: Callable[[str], None] = print,
+             firmware: Sequence[tuple[str, float]] = ()) -> list[Row]:
     """Every mission x speed x floor on the twin with the companion, then (``anchor``) with
     ArduPilot's own omni frame, and its MANUAL probe once; ``say`` gets each twin's figures.
 
@@ -387,11 +399,13 @@ def run_twin(sitl: Path, missions: Sequence[str], speeds: Sequence[float],
     probed = not anchor
     for friction in floors:
         for speed in speeds:
-            params = bench_params(speed, friction, overrides)
-            twin = tm.SettledTwin(sitl, friction=friction, params=params)
+            params = twin_params(speed, friction, overrides)
+            twin = tm.SettledTwin(sitl, friction=friction, params=params,
+                                  firmware_params=dict(firmware))
             with twin:
                 say(f"twin (companion) mu {friction:g} at {speed:g} m/s: the firmware's heading "
-                    f"settled {twin.settle_s:.1f} s after setup-fc")
+                    f"settled {twin.settle_s:.1f} s after setup-fc, "
+                    f"{twin.heading_error_deg:+.2f} deg from the truth")
                 gcs, port = udp_ground_station(twin.gcs_url)
                 try:
                     for name in missions:
@@ -405,8 +419,10 @@ def run_twin(sitl: Path, missions: Sequence[str], speeds: Sequence[float],
                 continue
             with Twin(sitl, friction=friction, params=params, frame="ardupilot-omni",
                       wheel_map=tm.OMNI_WHEEL_MAP,
-                      firmware_params=tm.omni_firmware_params(speed)) as omni:
-                tm.wait_heading_settled(omni)
+                      firmware_params=tm.omni_firmware_params(speed, dict(firmware))) as omni:
+                settle_s, error_deg = tm.wait_heading_settled(omni)
+                say(f"twin (ArduPilot omni) mu {friction:g} at {speed:g} m/s: its heading "
+                    f"settled {settle_s:.1f} s after start, {error_deg:+.2f} deg from the truth")
                 for name in missions:
                     rows.append(twin_row(name, speed, friction, "ardupilot", tm.fly_firmware,
                                          omni, ANCHOR_TIME_FACTOR))
@@ -575,6 +591,14 @@ def _assignment(text: str) -> tuple[str, float]:
     return name, float(value)
 
 
+def _firmware_assignment(text: str) -> tuple[str, float]:
+    name, _, value = text.partition("=")
+    try:
+        return name.strip(), float(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not NAME=VALUE: {text!r}") from None
+
+
 def parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--physics", choices=PHYSICS, default="kinematic",
@@ -596,6 +620,9 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--sitl", type=Path, default=None,
                    help="the ardurover binary (default $MECANUM_SITL, else "
                    "../shared/ardupilot-sitl/ardurover)")
+    p.add_argument("--firmware-set", dest="firmware", type=_firmware_assignment,
+                   action="append", default=[], metavar="NAME=VALUE",
+                   help="with --twin: an ArduPilot parameter for the firmware (repeatable)")
     p.add_argument("--no-anchor", dest="anchor", action="store_false",
                    help="with --twin: not ArduPilot's own omni frame beside the companion")
     return p
@@ -663,20 +690,22 @@ def main_twin(args: argparse.Namespace) -> int:
     speeds = args.speeds or [GOAL_SPEED]
     floors = args.friction if args.friction != list(FLOORS) else list(TWIN_FLOORS)
     started = time.monotonic()
-    shown = bench_params(GOAL_SPEED, floors[0], args.overrides)
+    shown = twin_params(GOAL_SPEED, floors[0], args.overrides)
     print(f"bench_control --twin: {sitl}; missions {', '.join(args.missions)}; speeds "
           f"{', '.join(f'{s:g}' for s in speeds)} m/s; friction "
           f"{', '.join(f'{f:g}' for f in floors)}; real time")
     print("companion with " + ", ".join(f"{n} {shown[n]:g}" for n in (*SHOWN, "ODOM_SRC",
                                                                          "ODOM_CMD_TAU")
                                       if n in shown))
+    if args.firmware:
+        print("firmware with " + ", ".join(f"{n} {v:g}" for n, v in args.firmware))
     if args.anchor:
         print("ardupilot: its own omni frame (params/ardupilot_omni.parm), its own AUTO")
     print(HEADER, flush=True)
     try:
         rows = run_twin(sitl, args.missions, speeds, floors, args.overrides,
                         anchor=args.anchor, on_row=lambda row: print(table_row(row), flush=True),
-                        say=lambda line: print(line, flush=True))
+                        say=lambda line: print(line, flush=True), firmware=args.firmware)
     except (PhysicsUnavailableError, ParamError, TwinError, FileNotFoundError) as exc:
         print(f"bench_control: {exc}", file=sys.stderr)
         return 1

@@ -24,9 +24,9 @@ LOCAL_POSITION_NED: the companion's dead reckoning, or the firmware's EKF).
 
 Before the companion takes its first heading, the firmware's heading must have settled
 (:func:`wait_heading_settled`): ArduPilot's EKF starts from the compass without the magnetic
-declination (about 12 degrees at SITL's home) and turns to true north once GPS gives it the
-declination, some 15 s after boot; a companion that anchored its odometry to the heading before
-that drives 12 degrees askew all mission long.
+declination (about 12 degrees at SITL's home) and turns to true north some 10 s after boot,
+and shifts again by 2-3 degrees when it starts to use GPS, some 30 s after boot; a companion
+that took its heading before drives that much askew all mission long.
 
 :func:`manual_probe` drives the firmware in MANUAL with MANUAL_CONTROL (forward, strafe,
 rotate, each for a while) and measures what the chassis truly did.
@@ -73,10 +73,11 @@ OMNI_WHEEL_MAP: tuple[tuple[int, float], ...] = ((4, 1.0), (1, 1.0), (3, 1.0), (
 """FL, FR, RL, RR: (servo channel, sign) under :data:`OMNI_PARM`: FL is motor4 on SERVO4, FR
 motor1 on SERVO1, RL motor3 on SERVO3, RR motor2 on SERVO2, none reversed."""
 SETTLE_TIMEOUT_S = 90.0
-SETTLED_DEG = 1.0
-"""The firmware's heading is settled once within this of the truth ..."""
+SETTLED_BAND_DEG = 0.3
+"""The firmware's heading is settled once its difference to the truth stays within this
+band (degrees) ..."""
 SETTLED_FOR_S = 3.0
-"""... for this long."""
+"""... for this long (s)."""
 ARM_TIMEOUT_S = 60.0
 """The firmware's pre-arm checks (EKF, GPS) may take this long to pass."""
 POSITION_INTERVAL_US = 100_000
@@ -191,18 +192,21 @@ class _LiveTruth:
         return Pose2d(s.north_m, s.east_m, s.yaw_rad)
 
 
-def _set_home_here(gcs: ScriptedGroundStation) -> None:
-    """MAV_CMD_DO_SET_HOME "here" once the vehicle is heard: the companion's odometry origin,
-    the firmware's home, where the rover stands (the next mission starts from it).
+def _fresh_start(gcs: ScriptedGroundStation) -> None:
+    """Once the companion is heard: MAV_CMD_DO_SET_HOME "here" (its odometry's origin where
+    the rover stands: the next mission starts from it) and DO_SET_MISSION_CURRENT 1 (a new
+    upload keeps the current item, as ArduPilot's resume does: the last mission's would
+    resume the new one at its item; refused while there is no mission, which is as good).
 
     Raises:
-        RuntimeError: no heartbeat, or the command refused.
+        RuntimeError: no heartbeat, or set home refused.
     """
     if gcs.wait("HEARTBEAT", lambda m: m.get_srcSystem() == 1, 10.0, since=0) is None:
         raise RuntimeError("no heartbeat from the vehicle")
     ack = gcs.command(mavlink.MAV_CMD_DO_SET_HOME, 1)
     if ack is None or ack.result != mavlink.MAV_RESULT_ACCEPTED:
         raise RuntimeError(f"set home refused ({None if ack is None else ack.result})")
+    gcs.command(mavlink.MAV_CMD_DO_SET_MISSION_CURRENT, 1)
 
 
 def _after_auto(gcs: ScriptedGroundStation, index: int) -> tuple[int, float]:
@@ -232,7 +236,7 @@ def fly_companion(twin: Twin, points: Sequence[Vec], yaws_deg: Sequence[float | 
         index = len(gcs.messages)
         failure = None
         try:
-            _set_home_here(gcs)
+            _fresh_start(gcs)
             fly(gcs, _LiveTruth(twin), items, waypoints, timeout_s)  # type: ignore[arg-type]
         except RuntimeError as exc:
             failure = str(exc)
@@ -384,34 +388,48 @@ def _firmware_auto(gcs: ScriptedGroundStation, items: Sequence[MissionItem],
     return _until_hold(gcs, timeout_s)
 
 
-def wait_heading_settled(twin: Twin, timeout_s: float = SETTLE_TIMEOUT_S) -> float:
-    """Wait until the firmware's heading (its ATTITUDE yaw) has been within
-    :data:`SETTLED_DEG` of the truth for :data:`SETTLED_FOR_S`; how long that took (s).
+def wait_heading_settled(twin: Twin, timeout_s: float = SETTLE_TIMEOUT_S
+                         ) -> tuple[float, float]:
+    """Wait until the firmware's EKF has an absolute position (EKF_STATUS_REPORT's
+    EKF_POS_HORIZ_ABS: it uses GPS, some 30 s after boot; its heading shifts by a few degrees
+    when it starts to) and then its heading's difference to the truth (ATTITUDE yaw minus the
+    true yaw) has stayed within a band of :data:`SETTLED_BAND_DEG` for :data:`SETTLED_FOR_S`;
+    how long that took (s) and that difference then (degrees: what the companion's heading
+    will be off by).
 
     Raises:
         RuntimeError: not within ``timeout_s`` (the message gives the last difference).
     """
     gcs, port = _firmware_ground_station(twin)
     try:
+        _ask_interval(gcs, mavlink.MAVLINK_MSG_ID_EKF_STATUS_REPORT, 500_000)
         started = time.monotonic()
-        settled_since: float | None = None
+        window: list[tuple[float, float]] = []  # (time, difference) since positioned
         error = math.nan
+        positioned = False
         while time.monotonic() - started < timeout_s:
             for msg in gcs.pump(0.1):
-                if msg.get_type() != "ATTITUDE" or msg.get_srcSystem() != 1:
+                if msg.get_srcSystem() != 1:
+                    continue
+                if msg.get_type() == "EKF_STATUS_REPORT":
+                    positioned = bool(msg.flags & mavlink.EKF_POS_HORIZ_ABS) \
+                        and not msg.flags & mavlink.EKF_CONST_POS_MODE
+                if msg.get_type() != "ATTITUDE":
                     continue
                 now = time.monotonic()
                 error = math.degrees(wrap_pi(msg.yaw - twin.truth_now().yaw_rad))
-                if abs(error) > SETTLED_DEG:
-                    settled_since = None
-                elif settled_since is None:
-                    settled_since = now
-                elif now - settled_since >= SETTLED_FOR_S:
-                    return now - started
+                window = [(t, e) for t, e in window if now - t <= SETTLED_FOR_S] \
+                    if positioned else []
+                window.append((now, error))
+                errors = [e for _, e in window]
+                if positioned and now - window[0][0] >= SETTLED_FOR_S - 0.2 \
+                        and max(errors) - min(errors) <= SETTLED_BAND_DEG:
+                    return now - started, error
     finally:
         port.close()
     raise RuntimeError(f"the firmware's heading did not settle within {timeout_s:g} s "
-                       f"(last {error:+.1f} deg from the truth)")
+                       f"(last {error:+.1f} deg from the truth; EKF position "
+                       f"{'absolute' if positioned else 'none'})")
 
 
 class SettledTwin(Twin):
@@ -422,10 +440,12 @@ class SettledTwin(Twin):
 
     settle_s = math.nan
     """How long the firmware's heading took to settle after setup-fc (s)."""
+    heading_error_deg = math.nan
+    """The firmware's heading minus the truth then (degrees)."""
 
     def _setup_fc(self, timeout_s: float) -> None:
         super()._setup_fc(timeout_s)
-        self.settle_s = wait_heading_settled(self)
+        self.settle_s, self.heading_error_deg = wait_heading_settled(self)
 
 
 # ---------------------------------------------------------------------------- MANUAL
