@@ -215,18 +215,20 @@ def test_the_twin_bench_without_the_firmware_says_where_it_looked_and_exits_2(tm
                     "(mujoco)")
 def test_a_short_mission_on_the_twin_gives_sane_figures_in_real_time():
     assert BINARY is not None
-    params = bench_control.bench_params(1.0, 0.8)
+    params = bench_control.twin_params(1.0, 0.8)
     twin = tm.SettledTwin(BINARY, friction=0.8, params=params)
     with twin:
         run, failure = tm.fly_companion(twin, [(1.5, 0.0), (1.5, 0.5)], [None, None], 0.0,
                                         30.0)
         stats = twin.stats()
     fig = figures(run)
-    print(f"\nshort mission on the twin: {fig}\nheading settled {twin.settle_s:.1f} s; "
-          f"real-time factor {stats.real_time_factor:.3f}, dropped {stats.dropped}")
+    print(f"\nshort mission on the twin: {fig}\nheading settled {twin.settle_s:.1f} s, "
+          f"{twin.heading_error_deg:+.2f} deg off the truth; real-time factor "
+          f"{stats.real_time_factor:.3f}, dropped {stats.dropped}")
     assert failure is None
+    # (ArduPilot's EKF3 heading stays 1-2 deg off the truth: centimetres per metre driven)
     assert len(fig.arrivals_m) == 2 and fig.worst_arrival_m < 0.10
     assert fig.worst_cross_track_m < 0.10 and fig.drift_pct < 5.0
-    assert fig.worst_heading_deg < 3.0
+    assert fig.worst_heading_deg < 4.0
     assert 1.9 < fig.distance_m < 2.3
     assert stats.real_time_factor > 0.9 and stats.dropped == 0
