@@ -628,6 +628,26 @@ def parser() -> argparse.ArgumentParser:
     return p
 
 
+def report(rows: Sequence[Row], picture: Path | None, started: float) -> None:
+    """After the table: every waypoint's arrival, the goals, the picture, the wall time since
+    ``started`` (monotonic s)."""
+    print("\nper waypoint (true, at MISSION_ITEM_REACHED):")
+    for row in rows:
+        print(arrivals_line(row))
+        if row.failure is not None:
+            print(f"  did not finish: {row.failure}")
+    print(f"\ngoals at {GOAL_SPEED:g} m/s (friction {HIGH_FRICTION:g}; below it twice the "
+          "errors):")
+    for line in summary(rows):
+        print(line)
+    if picture is not None:
+        try:
+            print(f"wrote {plot(rows, picture)}")
+        except RuntimeError as exc:  # no matplotlib
+            print(f"bench_control: no picture: {exc}", file=sys.stderr)
+    print(f"wall time {time.monotonic() - started:.1f} s")
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     args = parser().parse_args(argv)
     if args.twin:
@@ -660,21 +680,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except (PhysicsUnavailableError, ParamError) as exc:
         print(f"bench_control: {exc}", file=sys.stderr)
         return 1
-    print("\nper waypoint (true, at MISSION_ITEM_REACHED):")
-    for row in rows:
-        print(arrivals_line(row))
-        if row.failure is not None:
-            print(f"  did not finish: {row.failure}")
-    print(f"\ngoals at {GOAL_SPEED:g} m/s (friction {HIGH_FRICTION:g}; below it twice the "
-          "errors):")
-    for line in summary(rows):
-        print(line)
-    if args.plot is not None:
-        try:
-            print(f"wrote {plot(rows, args.plot)}")
-        except RuntimeError as exc:  # no matplotlib
-            print(f"bench_control: no picture: {exc}", file=sys.stderr)
-    print(f"wall time {time.monotonic() - started:.1f} s")
+    report(rows, args.plot, started)
     return 0
 
 
@@ -709,21 +715,7 @@ def main_twin(args: argparse.Namespace) -> int:
     except (PhysicsUnavailableError, ParamError, TwinError, FileNotFoundError) as exc:
         print(f"bench_control: {exc}", file=sys.stderr)
         return 1
-    print("\nper waypoint (true, at MISSION_ITEM_REACHED):")
-    for row in rows:
-        print(arrivals_line(row))
-        if row.failure is not None:
-            print(f"  did not finish: {row.failure}")
-    print(f"\ngoals at {GOAL_SPEED:g} m/s (friction {HIGH_FRICTION:g}; below it twice the "
-          "errors):")
-    for line in summary(rows):
-        print(line)
-    if args.plot is not None:
-        try:
-            print(f"wrote {plot(rows, args.plot)}")
-        except RuntimeError as exc:  # no matplotlib
-            print(f"bench_control: no picture: {exc}", file=sys.stderr)
-    print(f"wall time {time.monotonic() - started:.1f} s")
+    report(rows, args.plot, started)
     return 0
 
 
