@@ -345,6 +345,8 @@ def fly_firmware(twin: Twin, points: Sequence[Vec], yaws_deg: Sequence[float | N
         record = Recording.since(gcs, after, start_s, failure)
         before = [m for m, t in zip(gcs.messages, gcs.arrived_s, strict=True)
                   if t < start_s and m.get_type() == "LOCAL_POSITION_NED"]
+        if failure is not None:  # stopped short (still in AUTO): the next must enter AUTO anew
+            gcs.set_mode(Mode.HOLD)
         gcs.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 0)  # the next arms where it stops
     finally:
         port.close()
