@@ -242,13 +242,13 @@ def test_sys_status_tells_the_truth_no_fence_or_gps_alarm_and_the_boards_battery
     assert s.current_battery == 30  # 0.3 A standing still (cA)
 
 
-def test_the_flight_controller_is_asked_for_its_battery_once_it_is_heard(harness):
+def test_the_flight_controller_is_asked_for_its_battery_and_attitude_once_it_is_heard(harness):
     asks = [m for m in harness.fc_received if m.get_type() == "COMMAND_LONG"]
-    assert len(asks) == 1
-    ask = asks[0]
-    assert ask.command == CMD.MAV_CMD_SET_MESSAGE_INTERVAL
-    assert (ask.param1, ask.param2) == (mavlink.MAVLINK_MSG_ID_SYS_STATUS, 1_000_000)
-    assert (ask.target_system, ask.target_component) == (1, 1)
+    assert [ask.command for ask in asks] == [CMD.MAV_CMD_SET_MESSAGE_INTERVAL] * 2
+    assert [(ask.param1, ask.param2) for ask in asks] == [
+        (mavlink.MAVLINK_MSG_ID_SYS_STATUS, 1_000_000),
+        (mavlink.MAVLINK_MSG_ID_ATTITUDE, 50_000)]  # the odometry's heading at 20 Hz
+    assert {(ask.target_system, ask.target_component) for ask in asks} == {(1, 1)}
 
 
 def test_without_the_flight_controller_motors_and_ahrs_are_unhealthy_and_the_battery_unknown(

@@ -33,27 +33,48 @@ the ESCs they have: the largest command that does not turn a wheel, a little abo
 ``WHL_STRAFE_EFF`` to :data:`MUJOCO_STRAFE_EFF` (the chassis's measured strafe efficiency); every
 other parameter keeps its default unless ``--set`` changes it (a ``--set MOT_DZ`` wins).
 
+``--twin`` runs the missions on the twin instead (:mod:`mecanum_mav.sim.twin`: the real
+ArduPilot Rover firmware, SITL, driving the MuJoCo chassis through its JSON backend, the
+companion unchanged in the loop), in real time over MAVLink (:mod:`mecanum_mav.sim.twinmission`:
+the ground station records what arrives with wall times, the truth is the bridge's, matched by
+wall time), by default at 1.0 m/s on friction 0.8 only. One twin per floor and speed flies the
+missions one after another (the odometry's origin set anew before each: MAV_CMD_DO_SET_HOME),
+its real-time factor and dropped frames printed after them. Beside it (unless ``--no-anchor``)
+ArduPilot's own omni frame (``params/ardupilot_omni.parm``: FRAME_TYPE 2, OMNIX, its four
+motors on our wheels) flies the same missions in its own AUTO on a twin without the companion
+(rows ``ardupilot``; its drift is its EKF's LOCAL_POSITION_NED against the truth), and a ground
+station's MANUAL_CONTROL asks it to drive forward, strafe and rotate (what the chassis truly
+did is printed). ArduPilot's AUTO steers toward each waypoint and drives forward: it has no
+lateral command and no heading of its own at a waypoint, so its heading column says how far it
+turned from the heading the missions ask for.
+
 Usage::
 
     python tools/bench_control.py [--physics kinematic|mujoco] [--friction 0.8,0.4]
         [--speeds 0.5,1.0,1.5] [--missions square,eight,strafe-rotate] [--quick]
         [--plot OUT.png] [--set NAME=VALUE ...]
+    python tools/bench_control.py --twin [--sitl PATH] [--no-anchor] [--friction 0.8]
+        [--speeds 1.0] [--missions ...] [--set NAME=VALUE ...] [--firmware-set NAME=VALUE ...]
 
-``--quick`` runs only the goal speed (1.0 m/s) unless ``--speeds`` is given.
+``--quick`` runs only the goal speed (1.0 m/s) unless ``--speeds`` is given. ``--sitl``
+defaults to ``$MECANUM_SITL``, else ``../shared/ardupilot-sitl/ardurover`` beside the checkout.
 """
 
 from __future__ import annotations
 
 import argparse
 import math
+import os
 import sys
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 from typing import Any
 
 from mecanum_mav.config.params import SPECS, ParamError, Params, parse_assignment
+from mecanum_mav.sim.firmware import sitl_from_env
 from mecanum_mav.sim.lockstep import Lockstep
 from mecanum_mav.sim.missionrun import MissionRun, fly, waypoint_mission
 from mecanum_mav.sim.physics import PHYSICS, PhysicsUnavailableError
@@ -315,6 +336,107 @@ def _where(run: MissionRun) -> str:
     return f" ({gap * 100:.1f} cm from waypoint {k + 1} of {len(run.planned) - 1})"
 
 
+# ---------------------------------------------------------------------------- the twin
+
+TWIN_ODOM_CMD_TAU = 0.12
+"""``ODOM_CMD_TAU`` on the twin (no WHEEL_DISTANCE from ArduPilot: the odometry takes the
+commanded speeds): the motors' 0.08 s and the firmware's pass-through (measured at 1 m/s,
+friction 0.8: strafe-rotate drift 7.9 % with 0, 2-3 % with 0.12); a ``--set`` wins."""
+TWIN_FLOORS = (0.8,)
+"""The twin's default floor (real time: one floor)."""
+SITL_BESIDE = Path(__file__).resolve().parent.parent.parent / "shared" / "ardupilot-sitl" / \
+    "ardurover"
+"""Where the firmware is when the checkout sits beside ``shared/`` (as on this machine)."""
+
+
+def default_sitl() -> Path:
+    """``$MECANUM_SITL``, else :data:`SITL_BESIDE`."""
+    return sitl_from_env() or SITL_BESIDE
+
+
+ANCHOR_TIME_FACTOR = 2.0
+"""ArduPilot's AUTO may take this many times :func:`time_allowed_s` (it pivots at corners)."""
+
+
+def twin_row(name: str, speed_mps: float, friction: float, driver: str,
+             fly_on: Callable[..., tuple[MissionRun, str | None]], twin: Any,
+             time_factor: float = 1.0) -> Row:
+    """Mission ``name`` flown on ``twin`` by ``fly_on`` (the companion's or the firmware's
+    :mod:`~mecanum_mav.sim.twinmission` flight) within ``time_factor`` times
+    :func:`time_allowed_s`, as a row of chassis ``driver``."""
+    mission = MISSIONS[name]()
+    allowed = time_factor * time_allowed_s(((0.0, 0.0), *mission.points), speed_mps)
+    run, failure = fly_on(twin, mission.points, mission.yaws_deg, mission.heading_deg, allowed)
+    if failure is not None:
+        failure = f"{failure}{_where(run)}"
+    return Row(name, speed_mps, driver, friction, run, figures(run), failure=failure)
+
+
+def twin_params(speed_mps: float, friction: float,
+                overrides: Sequence[tuple[str, float]] = ()) -> Params:
+    """:func:`bench_params` on the MuJoCo chassis with ``ODOM_CMD_TAU`` at
+    :data:`TWIN_ODOM_CMD_TAU` (unless overridden)."""
+    return bench_params(speed_mps, friction, [("ODOM_CMD_TAU", TWIN_ODOM_CMD_TAU), *overrides])
+
+
+def run_twin(sitl: Path, missions: Sequence[str], speeds: Sequence[float],
+             floors: Sequence[float], overrides: Sequence[tuple[str, float]] = (), *,
+             anchor: bool = True, on_row: Callable[[Row], None] = lambda row: None,
+             say: Callable[[str], None] = print,
+             firmware: Sequence[tuple[str, float]] = ()) -> list[Row]:
+    """Every mission x speed x floor on the twin with the companion, then (``anchor``) with
+    ArduPilot's own omni frame, and its MANUAL probe once; ``say`` gets each twin's figures.
+
+    Raises:
+        PhysicsUnavailableError: no mujoco. FileNotFoundError: no firmware at ``sitl``.
+        TwinError: a twin did not come up.
+    """
+    from mecanum_mav.sim import twinmission as tm
+    from mecanum_mav.sim.groundstation import udp_ground_station
+    from mecanum_mav.sim.twin import Twin, describe
+
+    rows: list[Row] = []
+    probed = not anchor
+    for friction in floors:
+        for speed in speeds:
+            params = twin_params(speed, friction, overrides)
+            twin = tm.SettledTwin(sitl, friction=friction, params=params,
+                                  firmware_params=dict(firmware))
+            with twin:
+                say(f"twin (companion) mu {friction:g} at {speed:g} m/s: the firmware's heading "
+                    f"settled {twin.settle_s:.1f} s after setup-fc, "
+                    f"{twin.heading_error_deg:+.2f} deg from the truth")
+                gcs, port = udp_ground_station(twin.gcs_url)
+                try:
+                    for name in missions:
+                        rows.append(twin_row(name, speed, friction, "twin",
+                                             partial(tm.fly_companion, gcs=gcs), twin))
+                        on_row(rows[-1])
+                finally:
+                    port.close()
+                say(f"  twin (companion): {describe(twin.stats())}")
+            if not anchor:
+                continue
+            with Twin(sitl, friction=friction, params=params, frame="ardupilot-omni",
+                      wheel_map=tm.OMNI_WHEEL_MAP,
+                      firmware_params=tm.omni_firmware_params(speed, dict(firmware))) as omni:
+                settle_s, error_deg = tm.wait_heading_settled(omni)
+                say(f"twin (ArduPilot omni) mu {friction:g} at {speed:g} m/s: its heading "
+                    f"settled {settle_s:.1f} s after start, {error_deg:+.2f} deg from the truth")
+                for name in missions:
+                    rows.append(twin_row(name, speed, friction, "ardupilot", tm.fly_firmware,
+                                         omni, ANCHOR_TIME_FACTOR))
+                    on_row(rows[-1])
+                if not probed:
+                    probed = True
+                    say("  ArduPilot's MANUAL, a ground station's MANUAL_CONTROL held "
+                        f"{tm.MANUAL_HOLD_S:g} s each (what the chassis truly did):")
+                    for step in tm.manual_probe(omni):
+                        say("    " + step.describe())
+                say(f"  twin (ArduPilot omni): {describe(omni.stats())}")
+    return rows
+
+
 def chassis_and_floors(physics: str, floors: Sequence[float]) -> list[tuple[str, float | None]]:
     """What to run: the kinematic chassis once (it ignores friction); with ``mujoco`` also
     the MuJoCo chassis on each floor."""
@@ -469,6 +591,14 @@ def _assignment(text: str) -> tuple[str, float]:
     return name, float(value)
 
 
+def _firmware_assignment(text: str) -> tuple[str, float]:
+    name, _, value = text.partition("=")
+    try:
+        return name.strip(), float(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not NAME=VALUE: {text!r}") from None
+
+
 def parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--physics", choices=PHYSICS, default="kinematic",
@@ -484,11 +614,44 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--plot", type=Path, default=None, help="draw the paths to this PNG")
     p.add_argument("--set", dest="overrides", type=_assignment, action="append", default=[],
                    metavar="NAME=VALUE", help="a parameter for every run (repeatable)")
+    p.add_argument("--twin", action="store_true",
+                   help="on the twin: real ArduPilot firmware (SITL) on the MuJoCo chassis, "
+                   "in real time (default 1.0 m/s, friction 0.8)")
+    p.add_argument("--sitl", type=Path, default=None,
+                   help="the ardurover binary (default $MECANUM_SITL, else "
+                   "../shared/ardupilot-sitl/ardurover)")
+    p.add_argument("--firmware-set", dest="firmware", type=_firmware_assignment,
+                   action="append", default=[], metavar="NAME=VALUE",
+                   help="with --twin: an ArduPilot parameter for the firmware (repeatable)")
+    p.add_argument("--no-anchor", dest="anchor", action="store_false",
+                   help="with --twin: not ArduPilot's own omni frame beside the companion")
     return p
+
+
+def report(rows: Sequence[Row], picture: Path | None, started: float) -> None:
+    """After the table: every waypoint's arrival, the goals, the picture, the wall time since
+    ``started`` (monotonic s)."""
+    print("\nper waypoint (true, at MISSION_ITEM_REACHED):")
+    for row in rows:
+        print(arrivals_line(row))
+        if row.failure is not None:
+            print(f"  did not finish: {row.failure}")
+    print(f"\ngoals at {GOAL_SPEED:g} m/s (friction {HIGH_FRICTION:g}; below it twice the "
+          "errors):")
+    for line in summary(rows):
+        print(line)
+    if picture is not None:
+        try:
+            print(f"wrote {plot(rows, picture)}")
+        except RuntimeError as exc:  # no matplotlib
+            print(f"bench_control: no picture: {exc}", file=sys.stderr)
+    print(f"wall time {time.monotonic() - started:.1f} s")
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     args = parser().parse_args(argv)
+    if args.twin:
+        return main_twin(args)
     speeds = args.speeds or ([GOAL_SPEED] if args.quick else list(SPEEDS))
     started = time.monotonic()
     sets = ", ".join(f"{n}={v:g}" for n, v in args.overrides)
@@ -517,21 +680,42 @@ def main(argv: Sequence[str] | None = None) -> int:
     except (PhysicsUnavailableError, ParamError) as exc:
         print(f"bench_control: {exc}", file=sys.stderr)
         return 1
-    print("\nper waypoint (true, at MISSION_ITEM_REACHED):")
-    for row in rows:
-        print(arrivals_line(row))
-        if row.failure is not None:
-            print(f"  did not finish: {row.failure}")
-    print(f"\ngoals at {GOAL_SPEED:g} m/s (friction {HIGH_FRICTION:g}; below it twice the "
-          "errors):")
-    for line in summary(rows):
-        print(line)
-    if args.plot is not None:
-        try:
-            print(f"wrote {plot(rows, args.plot)}")
-        except RuntimeError as exc:  # no matplotlib
-            print(f"bench_control: no picture: {exc}", file=sys.stderr)
-    print(f"wall time {time.monotonic() - started:.1f} s")
+    report(rows, args.plot, started)
+    return 0
+
+
+def main_twin(args: argparse.Namespace) -> int:
+    """``--twin``: the missions on the twin, ours and (unless ``--no-anchor``) ArduPilot's."""
+    from mecanum_mav.sim.twin import TwinError
+
+    sitl = args.sitl or default_sitl()
+    if not (sitl.is_file() and os.access(sitl, os.X_OK)):
+        print(f"bench_control: no ArduPilot SITL firmware at {sitl} (give --sitl PATH or set "
+              "$MECANUM_SITL)", file=sys.stderr)
+        return 2
+    speeds = args.speeds or [GOAL_SPEED]
+    floors = args.friction if args.friction != list(FLOORS) else list(TWIN_FLOORS)
+    started = time.monotonic()
+    shown = twin_params(GOAL_SPEED, floors[0], args.overrides)
+    print(f"bench_control --twin: {sitl}; missions {', '.join(args.missions)}; speeds "
+          f"{', '.join(f'{s:g}' for s in speeds)} m/s; friction "
+          f"{', '.join(f'{f:g}' for f in floors)}; real time")
+    print("companion with " + ", ".join(f"{n} {shown[n]:g}" for n in (*SHOWN, "ODOM_SRC",
+                                                                         "ODOM_CMD_TAU")
+                                      if n in shown))
+    if args.firmware:
+        print("firmware with " + ", ".join(f"{n} {v:g}" for n, v in args.firmware))
+    if args.anchor:
+        print("ardupilot: its own omni frame (params/ardupilot_omni.parm), its own AUTO")
+    print(HEADER, flush=True)
+    try:
+        rows = run_twin(sitl, args.missions, speeds, floors, args.overrides,
+                        anchor=args.anchor, on_row=lambda row: print(table_row(row), flush=True),
+                        say=lambda line: print(line, flush=True), firmware=args.firmware)
+    except (PhysicsUnavailableError, ParamError, TwinError, FileNotFoundError) as exc:
+        print(f"bench_control: {exc}", file=sys.stderr)
+        return 1
+    report(rows, args.plot, started)
     return 0
 
 

@@ -1037,6 +1037,50 @@ MUTATIONS: tuple[Mutation, ...] = (
       """                recording.flush()
             recording.disconnect()""",
       VW + "test_the_live_view_of_a_tlog_being_written_records_what_the_log_view_has"),
+    M("odom-cmd-lag", "commanded wheel speeds pass the ODOM_CMD_TAU lag before they count",
+      PKG + "control/estimator.py", "if tau <= 0.0 or dt_s <= 0.0:",
+      "if True or tau <= 0.0 or dt_s <= 0.0:",
+      T + "test_estimator_commanded.py::test_a_lagged_commanded_step_rolls_as_a_first_order_"
+      "motor_does",
+      T + "test_estimator_commanded.py::test_the_lagged_odometry_follows_the_simulated_"
+      "chassis_wheel_for_wheel"),
+    M("odom-yaw-carried", "the gyro yaw is carried to the update's moment at its rate",
+      PKG + "control/estimator.py", "self._yaw_rate_gyro * max(age, 0.0)",
+      "0.0 * self._yaw_rate_gyro * max(age, 0.0)",
+      T + "test_estimator_commanded.py::test_the_gyro_yaw_is_carried_forward_at_its_rate_to_"
+      "the_update"),
+    M("odom-start-heading", "an ATTITUDE before the first update sets the starting heading",
+      PKG + "control/estimator.py", "if first and self.config.yaw_from_gyro",
+      "if False and first and self.config.yaw_from_gyro",
+      T + "test_estimator_commanded.py::test_an_attitude_before_the_first_update_sets_the_"
+      "starting_heading_itself"),
+    M("twin-truth-by-wall-time", "a twin mission is graded with the truth at each look's wall time",
+      PKG + "sim/twinmission.py", "if watch.look(due, truth.pose_at(due, origin), batch):",
+      "if watch.look(due, truth.pose_at(end_s, origin), batch):",
+      T + "test_twin_mission.py::test_the_arrival_is_graded_with_the_truth_at_the_wall_time_"
+      "the_reached_message_arrived"),
+    M("twin-origin-at-auto", "a twin mission is graded from where the rover stood at AUTO",
+      PKG + "sim/twinmission.py", "origin = (home.north_m, home.east_m)", "origin = (0.0, 0.0)",
+      T + "test_twin_mission.py::test_positions_are_graded_from_where_the_rover_stood_at_auto"),
+    M("twin-periodic-looks", "the replay looks at least every WATCH_PERIOD_S between messages",
+      PKG + "sim/twinmission.py", "due = min(now + period_s,", "due = min(now + math.inf,",
+      T + "test_twin_mission.py::test_the_watch_looks_between_messages_so_the_cross_track_of_"
+      "a_quiet_leg_counts"),
+    M("twin-live-failure-wins", "a twin flight's own failure is the row's reason",
+      PKG + "sim/twinmission.py",
+      'return watch.run, record.failure or "the mission did not finish in time"',
+      'return watch.run, "the mission did not finish in time"',
+      T + "test_twin_mission.py::test_a_flight_without_its_end_says_so_and_the_live_failure_"
+      "wins"),
+    M("twin-record-after-ack", "a twin mission's record starts after the ACK accepting AUTO",
+      PKG + "sim/twinmission.py", "return k + 1, gcs.arrived_s[k]", "return k, gcs.arrived_s[k]",
+      T + "test_twin_mission.py::test_the_record_starts_after_the_ack_that_accepted_auto_not_"
+      "with_what_came_with_it"),
+    M("omni-wheel-map", "ArduPilot's OMNIX motors land on the wheels our mixer drives alike",
+      PKG + "sim/twinmission.py", "((4, 1.0), (1, 1.0), (3, 1.0), (2, 1.0))",
+      "((1, 1.0), (4, 1.0), (3, 1.0), (2, 1.0))",
+      T + "test_twin_mission.py::test_ardupilots_omni_x_motors_land_on_the_wheels_our_mixer_"
+      "drives_the_same_way"),
 )
 
 # ====================================================================== running

@@ -439,6 +439,14 @@ SCHEMA: tuple[ParamSpec, ...] = (
         "it keeps coming and the commanded wheel speeds otherwise; or only one of them.",
     ),
     ParamSpec(
+        "ODOM_CMD_TAU", float, default=0.0, minimum=0.0, maximum=2.0, units="s",
+        description="Lag of the commanded wheel speeds in the odometry (when it uses them: "
+        "ODOM_SRC commanded, or auto without WHEEL_DISTANCE): each passes a first-order lag "
+        "of this time constant before it counts as rolled, as the flight controller, ESCs and "
+        "motors delay it (0 = none). Set it to the time the wheels take to reach 63 % of a "
+        "step in command.",
+    ),
+    ParamSpec(
         "ODOM_YAW_SRC", int, default=0, minimum=0, maximum=1, units="",
         values={0: "auto", 1: "wheels"},
         description="Odometry heading: auto uses the flight controller's ATTITUDE yaw while "

@@ -253,10 +253,13 @@ class OdometryConfig:
     """Half the wheelbase, m (``GEO_HALF_LEN``; used from the next start)."""
     half_width_m: float
     """Half the track width, m (``GEO_HALF_WID``; used from the next start)."""
+    commanded_tau_s: float = 0.0
+    """The lag of commanded wheel speeds before they count as rolled, s (``ODOM_CMD_TAU``)."""
 
     @classmethod
     def from_params(cls, params: Params) -> OdometryConfig:
-        """Read ``ODOM_SRC``, ``ODOM_YAW_SRC``, ``WHL_MAX_SPD`` and ``GEO_HALF_*``."""
+        """Read ``ODOM_SRC``, ``ODOM_YAW_SRC``, ``WHL_MAX_SPD``, ``GEO_HALF_*`` and
+        ``ODOM_CMD_TAU``."""
         return cls(int(params["ODOM_SRC"]), int(params["ODOM_YAW_SRC"]) == 0,
                    float(params["WHL_MAX_SPD"]), float(params["GEO_HALF_LEN"]),
-                   float(params["GEO_HALF_WID"]))
+                   float(params["GEO_HALF_WID"]), float(params["ODOM_CMD_TAU"]))

@@ -7,10 +7,22 @@ Sources (parameter ``ODOM_SRC``):
   :data:`FRESH_S`, the commanded wheel speeds (wheel command x ``WHL_MAX_SPD``) stand in.
 - 1 wheel distances only; 2 commanded wheel speeds only.
 
+The commanded speeds reach the ground late: the flight controller's loop, the ESCs and the
+motors' own lag. ``ODOM_CMD_TAU`` (s, 0 = none) passes each commanded wheel speed through a
+first-order lag, discretized exactly as the simulated chassis's motors
+(``w += (target - w) * (1 - exp(-dt / tau))``, the distance integrating the step's mean speed),
+so the odometry moves when the wheels do. Without it the commanded distance leads the true one
+by ``tau x speed``, and on a rover that turns while it drives that lead is rotated by the
+heading of the moment it was commanded, not of the moment it was driven (a 90 deg/s turn with
+0.08 s of lag: 7 degrees of error in the direction of travel).
+
 Heading (parameter ``ODOM_YAW_SRC``): 0 auto (default) takes the flight controller's
 ``ATTITUDE`` yaw while it is fresh, because a gyro beats wheel-derived yaw on a slipping
-mecanum base; 1 uses the wheels' own turn. Translation always comes from the wheels by least
-squares (:class:`~mecanum_mav.mecanum.kinematics.MecanumKinematics`) and the SE(2) exponential.
+mecanum base; 1 uses the wheels' own turn. The first ATTITUDE, if the odometry has not moved
+yet, sets the starting heading itself (its north is the local frame's north); later ones steer
+the heading from where it is (a gyro that came back after a gap does not turn it). Translation
+always comes from the wheels by least squares
+(:class:`~mecanum_mav.mecanum.kinematics.MecanumKinematics`) and the SE(2) exponential.
 
 Everything is in the local NED frame (x north, y east, yaw clockwise from north) with the
 origin where the companion started or was last reset; velocities are body FRD. Time is passed
@@ -44,6 +56,8 @@ SOURCE_AUTO, SOURCE_WHEEL_DISTANCE, SOURCE_COMMANDED = 0, 1, 2
 """``ODOM_SRC`` values."""
 COMMANDED_UPDATE_S = 0.02
 """Commanded speeds are integrated every tick but fed to the odometry at most this often."""
+SETTLED_MPS = 1e-6
+"""A lagged commanded wheel speed under this (m/s) with its command 0 has settled: it is 0."""
 MAX_WHEEL_DISTANCE_M = 1e7
 """A cumulative wheel distance beyond +- this (m, 10,000 km) is not a measurement."""
 JUMP_SPEED_FACTOR = 2.0
@@ -71,11 +85,13 @@ class WheelOdometryEstimator:
             strafe_efficiency=float(params["WHL_STRAFE_EFF"]))
         self.odometry = MecanumOdometry(kinematics)
         self._virtual = [0.0, 0.0, 0.0, 0.0]  # cumulative metres fed to the odometry
+        self._lagged = [0.0, 0.0, 0.0, 0.0]  # commanded wheel speeds through ODOM_CMD_TAU, m/s
         self._measured: list[float] | None = None  # last WHEEL_DISTANCE
         self._measured_s = -math.inf
         self._attitude_s = -math.inf
         self._yaw: float | None = None
         self._yaw_rate_gyro = 0.0
+        self._first_attitude = True  # none used yet (it may set the starting heading)
         self._last_update_s: float | None = None
         self._moved = False  # commanded distance added since the last odometry update
         self.velocity_body = (0.0, 0.0)
@@ -103,9 +119,12 @@ class WheelOdometryEstimator:
         return self.odometry.reset_counter
 
     def _yaw_if_used(self, now_s: float) -> float | None:
-        if not self.config.yaw_from_gyro or now_s - self._attitude_s > FRESH_S:
+        """The flight controller's yaw carried to ``now_s`` at its own rate (an ATTITUDE is
+        up to a period old: at 20 Hz and 90 deg/s, 4.5 degrees), or None when not in use."""
+        age = now_s - self._attitude_s
+        if not self.config.yaw_from_gyro or age > FRESH_S or self._yaw is None:
             return None
-        return self._yaw
+        return wrap_pi(self._yaw + self._yaw_rate_gyro * max(age, 0.0))
 
     def on_attitude(self, yaw_rad: float, yaw_rate: float, now_s: float) -> str | None:
         """ATTITUDE from the flight controller: yaw (rad, clockwise from north) and rate
@@ -113,6 +132,13 @@ class WheelOdometryEstimator:
         if not (abs(yaw_rad) <= 2 * math.pi and abs(yaw_rate) <= MAX_YAW_RATE):  # NaN too
             return f"ATTITUDE yaw {yaw_rad:g} rad, rate {yaw_rate:g} rad/s"
         self._yaw, self._yaw_rate_gyro, self._attitude_s = yaw_rad, yaw_rate, now_s
+        first, self._first_attitude = self._first_attitude, False
+        if first and self.config.yaw_from_gyro and self.odometry.reset_counter == 0 \
+                and self.odometry.pose == (0.0, 0.0, 0.0):
+            # The first one, not moved yet: start from the flight controller's heading itself,
+            # so the local frame's north is its north (not the heading the rover started at).
+            self.odometry = MecanumOdometry(self.odometry.kinematics, self._virtual,
+                                            Pose2d(0.0, 0.0, wrap_pi(yaw_rad)), yaw_rad)
         return None
 
     def on_wheel_distance(self, distances_m: Sequence[float], now_s: float) -> str | None:
@@ -141,16 +167,18 @@ class WheelOdometryEstimator:
     def on_commanded(self, wheel_commands: Sequence[float], dt_s: float, now_s: float) -> None:
         """Commanded wheels (normalized, FL, FR, RL, RR) held for ``dt_s`` seconds.
 
-        Used when the source is "commanded", or "auto" with no fresh WHEEL_DISTANCE.
+        Used when the source is "commanded", or "auto" with no fresh WHEEL_DISTANCE; each
+        wheel's speed goes through the ``ODOM_CMD_TAU`` lag (module docstring) either way, so
+        it is current when the commanded speeds take over.
         """
+        rolled = self._roll(wheel_commands, dt_s)
         source = self.config.source
         if source == SOURCE_WHEEL_DISTANCE or (
                 source == SOURCE_AUTO and now_s - self._measured_s <= FRESH_S):
             return
-        speed = self.config.wheel_speed_max_mps
         for i in range(4):
-            if wheel_commands[i]:
-                self._virtual[i] += wheel_commands[i] * speed * dt_s
+            if rolled[i]:
+                self._virtual[i] += rolled[i]
                 self._moved = True
         last = self._last_update_s
         if last is not None and now_s - last < COMMANDED_UPDATE_S:
@@ -159,6 +187,24 @@ class WheelOdometryEstimator:
             self._update(now_s)
         else:  # standing still: nothing to integrate
             self.velocity_body, self.yaw_rate, self._last_update_s = (0.0, 0.0), 0.0, now_s
+
+    def _roll(self, wheel_commands: Sequence[float], dt_s: float) -> list[float]:
+        """The metres each wheel rolls in ``dt_s`` s with ``wheel_commands`` held: the commanded
+        speed itself, or through the ``ODOM_CMD_TAU`` lag (its state advanced here)."""
+        speed = self.config.wheel_speed_max_mps
+        targets = [c * speed for c in wheel_commands]
+        tau = self.config.commanded_tau_s
+        if tau <= 0.0 or dt_s <= 0.0:
+            return [t * max(dt_s, 0.0) for t in targets]
+        gain = -math.expm1(-dt_s / tau)  # 1 - exp(-dt/tau), accurate for small dt
+        mean_weight = tau * gain / dt_s  # the step's mean = target + (w0 - target) * this
+        rolled = []
+        for i in range(4):
+            w, t = self._lagged[i], targets[i]
+            rolled.append((t + (w - t) * mean_weight) * dt_s)
+            w += (t - w) * gain
+            self._lagged[i] = w if abs(w) > SETTLED_MPS or t else 0.0
+        return rolled
 
     def _update(self, now_s: float) -> None:
         self._moved = False

@@ -29,10 +29,14 @@ from mecanum_mav.protocol.messages import (
 )
 from mecanum_mav.protocol.statustext import Severity
 
-__all__ = ["FC_SYS_STATUS_INTERVAL_US", "FcLink"]
+__all__ = ["FC_ATTITUDE_INTERVAL_US", "FC_SYS_STATUS_INTERVAL_US", "FcLink"]
 
 FC_SYS_STATUS_INTERVAL_US = 1_000_000
 """The flight controller is asked for SYS_STATUS (its battery) at 1 Hz."""
+FC_ATTITUDE_INTERVAL_US = 50_000
+"""... and for ATTITUDE at 20 Hz: the odometry's heading (ArduPilot's own stream rate on a
+serial port, SRn_EXTRA1, can be a few Hz: measured 2 Hz on SITL's, whose yaw then steered
+the odometry half a second late)."""
 _FC_CHECK_FINE = (FcCheckState.SAFE, FcCheckState.NOT_CHECKED)
 """Verdicts said as a NOTICE; the others as a WARNING."""
 
@@ -86,17 +90,20 @@ class FcLink:
                         else Severity.WARNING, verdict)
 
     def on_heartbeat(self, msg: Received, now_s: float) -> None:
-        """The board's HEARTBEAT: the link is up; the first asks for its battery stream and
-        starts the setup check; with the receiver read, its channels are asked for."""
+        """The board's HEARTBEAT: the link is up; the first asks for its battery and attitude
+        streams and starts the setup check; with the receiver read, its channels are asked for."""
         ctx = self._ctx
         self.vehicle.on_fc_heartbeat(now_s)
         if not self._fc_streams_asked:  # the link came up: the battery and the setup check
             self._fc_streams_asked = True
             ctx.ask_fc_params(self.fc_check.start(ctx.params, now_s))
-            ctx.to_fc.command_long_send(
-                ctx.identity.fc_sysid, ctx.identity.fc_compid,
-                mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, 0, mavlink.MAVLINK_MSG_ID_SYS_STATUS,
-                FC_SYS_STATUS_INTERVAL_US, 0, 0, 0, 0, 0)
+            for msg_id, interval_us in ((mavlink.MAVLINK_MSG_ID_SYS_STATUS,
+                                         FC_SYS_STATUS_INTERVAL_US),
+                                        (mavlink.MAVLINK_MSG_ID_ATTITUDE,
+                                         FC_ATTITUDE_INTERVAL_US)):
+                ctx.to_fc.command_long_send(
+                    ctx.identity.fc_sysid, ctx.identity.fc_compid,
+                    mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, 0, msg_id, interval_us, 0, 0, 0, 0, 0)
         if ctx.receiver_config.enabled and not self.rc_stream_asked:
             self.rc_stream_asked = True  # the receiver's channels, when it is read
             ctx.to_fc.command_long_send(

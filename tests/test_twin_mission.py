@@ -1,0 +1,234 @@
+"""Missions on the twin (mecanum_mav/sim/twinmission.py): the grading of a recorded real-time
+flight against the bridge's truth by wall time, in virtual time (hand-made records and truth),
+ArduPilot's omni frame mapped onto our wheels, and one short mission on the real firmware
+driving the MuJoCo chassis (skipped, with the reason, without SITL or mujoco)."""
+
+from __future__ import annotations
+
+import importlib.util
+import math
+import sys
+from pathlib import Path
+from types import SimpleNamespace
+from typing import Any
+
+import pytest
+from sitl import find_sitl
+
+from mecanum_mav.mecanum.geo import GlobalOrigin
+from mecanum_mav.mecanum.kinematics import MecanumKinematics
+from mecanum_mav.protocol.dialect import mavlink
+from mecanum_mav.protocol.modes import Mode
+from mecanum_mav.sim import twinmission as tm
+from mecanum_mav.sim.missionrun import waypoint_mission
+from mecanum_mav.sim.trackquality import figures
+from mecanum_mav.sim.twinbridge import TruthSample
+
+TOOLS = Path(__file__).resolve().parent.parent / "tools"
+sys.path.insert(0, str(TOOLS))
+
+import bench_control  # noqa: E402
+
+BINARY, WHY_NOT = find_sitl()
+HAS_MUJOCO = importlib.util.find_spec("mujoco") is not None
+WALL0 = 5000.0
+"""The wall time (monotonic s) the hand-made flights start at."""
+
+
+def msg(kind: str, src: int = 1, **fields: Any) -> Any:
+    return SimpleNamespace(get_type=lambda: kind, get_srcSystem=lambda: src, **fields)
+
+
+def sample(wall_s: float, north: float, east: float = 0.0, yaw: float = 0.0) -> TruthSample:
+    return TruthSample(wall_s, wall_s - WALL0, north, east, yaw, 0.0, 0.0)
+
+
+def north_at_1_m_s(start: tuple[float, float] = (0.0, 0.0), seconds: float = 4.0
+                   ) -> tm.TruthTrack:
+    """Truth every ms: standing at ``start`` until WALL0, then north at 1 m/s for
+    ``seconds`` (then standing)."""
+    n0, e0 = start
+    samples = [sample(WALL0 - 1.0, n0, e0)]
+    samples += [sample(WALL0 + k / 1000, n0 + min(k / 1000, seconds), e0)
+                for k in range(int((seconds + 1.0) * 1000))]
+    return tm.TruthTrack(samples)
+
+
+def record(*events: tuple[float, Any], start_s: float = WALL0) -> tm.Recording:
+    """A record of (seconds after ``start_s``, message) events."""
+    return tm.Recording(start_s, [m for _, m in events], [start_s + t for t, _ in events])
+
+
+HOLD = msg("HEARTBEAT", custom_mode=Mode.HOLD)
+
+
+def three_metres_north() -> list[Any]:
+    _, waypoints = waypoint_mission([(3.0, 0.0)], None, heading_deg=0.0)
+    return waypoints
+
+
+# ---------------------------------------------------------------------------- truth by time
+
+def test_the_truth_at_a_wall_time_is_the_last_frame_answered_by_then():
+    truth = tm.TruthTrack([sample(1.0, 0.1), sample(2.0, 0.2), sample(3.0, 0.3)])
+    assert truth.at(2.0).north_m == 0.2
+    assert truth.at(2.999).north_m == 0.2
+    assert truth.at(0.5).north_m == 0.1  # before the first frame: the first
+    assert truth.at(9.0).north_m == 0.3
+    assert truth.pose_at(3.0, origin=(0.1, -1.0)) == pytest.approx((0.2, 1.0, 0.0))
+
+
+def test_a_truth_with_no_frame_is_refused():
+    with pytest.raises(ValueError, match="no frame"):
+        tm.TruthTrack([])
+
+
+# ---------------------------------------------------------------------------- grading
+
+def test_the_arrival_is_graded_with_the_truth_at_the_wall_time_the_reached_message_arrived():
+    # Reached at 2.98 s after AUTO, the rover still rolling north at 1 m/s: 2 cm short.
+    # (The truth then, not at the end, when it stands 1 m past.)
+    rec = record((2.98, msg("MISSION_ITEM_REACHED", seq=2)), (4.5, HOLD))
+    run, failure = tm.grade(three_metres_north(), rec, north_at_1_m_s())
+    assert failure is None
+    assert figures(run).arrivals_m == pytest.approx((0.02,), abs=1e-3)
+
+
+def test_positions_are_graded_from_where_the_rover_stood_at_auto():
+    rec = record((3.0, msg("MISSION_ITEM_REACHED", seq=2)), (4.5, HOLD))
+    run, _ = tm.grade(three_metres_north(), rec, north_at_1_m_s(start=(10.0, -5.0)))
+    assert figures(run).arrivals_m == pytest.approx((0.0,), abs=1e-3)
+    assert run.true_path[0][:2] == pytest.approx((tm.WATCH_PERIOD_S, 0.0))  # the first look
+
+
+def test_the_watch_looks_between_messages_so_the_cross_track_of_a_quiet_leg_counts():
+    # No message for 3 s while the truth swerves 5 cm east and back: the look every
+    # WATCH_PERIOD_S sees it.
+    samples = [sample(WALL0 + k / 1000, k / 1000, 0.05 * math.sin(math.pi * k / 3000))
+               for k in range(4500)]
+    rec = record((3.0, msg("MISSION_ITEM_REACHED", seq=2)), (4.4, HOLD))
+    run, _ = tm.grade(three_metres_north(), rec, tm.TruthTrack(samples))
+    assert figures(run).worst_cross_track_m == pytest.approx(0.05, abs=2e-4)
+    assert len(run.times_s) >= 3.0 / tm.WATCH_PERIOD_S
+
+
+def test_the_odometry_drift_compares_the_last_estimate_with_the_truth_when_it_arrived():
+    rec = record((2.0, msg("LOCAL_POSITION_NED", x=2.03, y=0.0)),
+                 (3.0, msg("MISSION_ITEM_REACHED", seq=2)), (4.5, HOLD))
+    run, _ = tm.grade(three_metres_north(), rec, north_at_1_m_s())
+    assert run.final_estimate == (2.03, 0.0)
+    assert run.final_truth == pytest.approx((2.0, 0.0), abs=1e-3)
+
+
+def test_a_flight_without_its_end_says_so_and_the_live_failure_wins():
+    rec = record((3.0, msg("MISSION_ITEM_REACHED", seq=2)))
+    _, failure = tm.grade(three_metres_north(), rec, north_at_1_m_s())
+    assert failure == "the mission did not finish in time"
+    rec.failure = "arming refused"
+    assert tm.grade(three_metres_north(), rec, north_at_1_m_s())[1] == "arming refused"
+
+
+def test_a_hold_before_the_last_waypoint_is_a_stop():
+    rec = record((1.0, HOLD))
+    run, failure = tm.grade(three_metres_north(), rec, north_at_1_m_s())
+    assert failure == "the rover stopped after 0 legs"
+    assert run.legs == []
+
+
+def test_the_record_starts_after_the_ack_that_accepted_auto_not_with_what_came_with_it():
+    stale = msg("HEARTBEAT", custom_mode=Mode.HOLD)  # the last mission's HOLD, same read
+    refused = msg("COMMAND_ACK", command=mavlink.MAV_CMD_DO_SET_MODE,
+                  result=mavlink.MAV_RESULT_FAILED)
+    ack = msg("COMMAND_ACK", command=mavlink.MAV_CMD_DO_SET_MODE,
+              result=mavlink.MAV_RESULT_ACCEPTED)
+    reached = msg("MISSION_ITEM_REACHED", seq=2)
+    gcs = SimpleNamespace(messages=[HOLD, refused, stale, ack, reached],
+                          arrived_s=[1.0, 2.0, 3.0, 3.0, 4.0])
+    after, start_s = tm._after_auto(gcs, 1)  # type: ignore[arg-type]
+    assert (after, start_s) == (4, 3.0)
+    rec = tm.Recording.since(gcs, after, start_s)  # type: ignore[arg-type]
+    assert (rec.messages, rec.arrived_s, rec.start_s) == ([reached], [4.0], 3.0)
+
+
+# ---------------------------------------------------------------------------- ArduPilot's
+
+def test_ardupilots_mission_is_the_same_waypoints_in_the_global_frame_about_its_home():
+    home = GlobalOrigin.from_degrees(-35.363262, 149.165237)
+    items, waypoints = tm.firmware_mission([(3.0, 0.0), (3.0, 3.0)], [None, 90.0], 0.0, home)
+    assert [i.seq for i in items] == [0, 1, 2]  # home, two waypoints: no CONDITION_YAW
+    assert {i.frame for i in items} == {mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT}
+    assert {i.command for i in items} == {mavlink.MAV_CMD_NAV_WAYPOINT}
+    assert home.to_local(items[2].x, items[2].y) == pytest.approx((3.0, 3.0), abs=0.01)
+    assert [(w.seq, w.point, w.yaw_deg) for w in waypoints] == [
+        (1, (3.0, 0.0), 0.0), (2, (3.0, 3.0), 90.0)]  # graded against the headings asked
+
+
+def test_the_firmwares_estimate_is_taken_from_where_it_stood_when_the_mission_started():
+    rec = record((2.0, msg("LOCAL_POSITION_NED", x=7.03, y=-4.0)),
+                 (3.0, msg("MISSION_ITEM_REACHED", seq=2)), (4.5, HOLD))
+    run, _ = tm.grade(three_metres_north(), rec, north_at_1_m_s())
+    tm.shift_estimate(run, (5.0, -4.0))  # its EKF origin is 5 m south of this start
+    assert run.final_estimate == pytest.approx((2.03, 0.0))
+    assert run.odometry_path == [pytest.approx((2.03, 0.0))]
+    fig = figures(run)
+    assert fig.drift_pct == pytest.approx(100 * 0.03 / fig.distance_m, rel=0.02)
+
+
+OMNIX_FACTORS = {1: (1.0, -1.0, -1.0), 2: (1.0, -1.0, 1.0), 3: (1.0, 1.0, -1.0),
+                 4: (1.0, 1.0, 1.0)}
+"""AP_MotorsUGV::setup_omni, FRAME_TYPE_OMNIX: motor -> (throttle, steering, lateral)."""
+
+
+def test_ardupilots_omni_x_motors_land_on_the_wheels_our_mixer_drives_the_same_way():
+    parm = tm.read_parm(tm.OMNI_PARM)
+    assert (parm["FRAME_CLASS"], parm["FRAME_TYPE"]) == (1, 2)
+    motor_on_servo = {ch: int(parm[f"SERVO{ch}_FUNCTION"]) - 32 for ch in (1, 2, 3, 4)}
+    kinematics = MecanumKinematics.from_half_extents(0.15, 0.15)
+    forward = kinematics.wheel_speeds(1.0, 0.0, 0.0)
+    right = kinematics.wheel_speeds(0.0, 1.0, 0.0)
+    clockwise = kinematics.wheel_speeds(0.0, 0.0, 1.0)
+    for wheel, (channel, sign) in enumerate(tm.OMNI_WHEEL_MAP):
+        throttle, steering, lateral = OMNIX_FACTORS[motor_on_servo[channel]]
+        ours = (forward[wheel], clockwise[wheel], right[wheel])
+        assert [math.copysign(1.0, x) for x in ours] == [sign * throttle, sign * steering,
+                                                        sign * lateral], wheel
+
+
+def test_a_parameter_file_reads_names_and_values_past_comments():
+    parm = tm.read_parm(tm.OMNI_PARM)
+    assert parm["SERVO4_FUNCTION"] == 36 and "#" not in "".join(parm)
+    assert tm.omni_firmware_params(1.5, {"WP_RADIUS": 0.1})["WP_SPEED"] == 1.5
+
+
+# ---------------------------------------------------------------------------- the bench
+
+def test_the_twin_bench_without_the_firmware_says_where_it_looked_and_exits_2(tmp_path, capsys):
+    assert bench_control.main(["--twin", "--sitl", str(tmp_path / "ardurover")]) == 2
+    assert "no ArduPilot SITL firmware at" in capsys.readouterr().err
+
+
+# ---------------------------------------------------------------------------- real firmware
+
+@pytest.mark.sitl
+@pytest.mark.skipif(BINARY is None, reason=WHY_NOT)
+@pytest.mark.skipif(not HAS_MUJOCO, reason="the twin's chassis needs the physics extra "
+                    "(mujoco)")
+def test_a_short_mission_on_the_twin_gives_sane_figures_in_real_time():
+    assert BINARY is not None
+    params = bench_control.twin_params(1.0, 0.8)
+    twin = tm.SettledTwin(BINARY, friction=0.8, params=params)
+    with twin:
+        run, failure = tm.fly_companion(twin, [(1.5, 0.0), (1.5, 0.5)], [None, None], 0.0,
+                                        30.0)
+        stats = twin.stats()
+    fig = figures(run)
+    print(f"\nshort mission on the twin: {fig}\nheading settled {twin.settle_s:.1f} s, "
+          f"{twin.heading_error_deg:+.2f} deg off the truth; real-time factor "
+          f"{stats.real_time_factor:.3f}, dropped {stats.dropped}")
+    assert failure is None
+    # (ArduPilot's EKF3 heading stays 1-2 deg off the truth: centimetres per metre driven)
+    assert len(fig.arrivals_m) == 2 and fig.worst_arrival_m < 0.10
+    assert fig.worst_cross_track_m < 0.10 and fig.drift_pct < 5.0
+    assert fig.worst_heading_deg < 4.0
+    assert 1.9 < fig.distance_m < 2.3
+    assert stats.real_time_factor > 0.9 and stats.dropped == 0
