@@ -292,3 +292,35 @@ def test_translating_while_turning_the_wheels_odometry_stays_within_0_3_percent_
           f" east of the truth, {(estimate.x_m - truth.x_m) * 100:+.2f} cm north")
     assert truth.x_m > 2.5 and abs(truth.yaw_rad) > 2.0  # (it drove and turned)
     assert abs(sideways) < 0.003 * truth.x_m
+
+
+# --------------------------------------------------------------------------- wheel contacts
+
+
+def test_at_rest_the_wheels_normal_forces_sum_to_the_weight_and_are_about_equal():
+    # Kills: a roller's contact force counted for the wrong wheel or not at all (the geom ->
+    # wheel map), the friction component read as the normal one.
+    p = Params()
+    chassis = MujocoChassis.from_params(p)
+    run(chassis, 0.2, STOP)
+    contacts = chassis.wheel_contacts()
+    forces = [c.normal_n for c in contacts]
+    weight = p["SIM_MASS"] * 9.81
+    assert sum(forces) == pytest.approx(weight, rel=0.02)
+    assert forces == pytest.approx([weight / 4] * 4, rel=0.05)
+    assert not any(c.slipping for c in contacts)
+
+
+def test_a_full_command_launch_on_friction_0_4_slips_and_a_steady_cruise_does_not():
+    # Kills: slip read from the roller's centre (its rolling motion, not the contact point's)
+    # or never flagged; and a contact at the threshold flagged while it rolls.
+    chassis = MujocoChassis.from_params(params(SIM_FRICTION=0.4))
+    slipped = set()
+    for _ in range(40):  # the first 0.4 s
+        chassis.step(DT, (1.0, 1.0, 1.0, 1.0))
+        slipped |= {k for k, c in enumerate(chassis.wheel_contacts()) if c.slipping}
+    assert slipped  # the wheels spin up faster than the rover can follow
+    run(chassis, 1.0, (0.5, 0.5, 0.5, 0.5))
+    contacts = chassis.wheel_contacts()
+    assert not any(c.slipping for c in contacts)
+    assert max(c.slip_mps for c in contacts) < mujoco_chassis.SLIP_MPS

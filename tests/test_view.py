@@ -238,3 +238,97 @@ def test_the_live_view_of_a_tlog_being_written_records_what_the_log_view_has(dri
     assert [row["StateChange:state"] for _, row in live["state/mode"]] == \
         [row["StateChange:state"] for _, row in temporal["state/mode"]]
     assert len(live["map/path"]) == len(temporal["map/path"])
+
+
+# --------------------------------------------------------------------------- wheel contacts
+
+
+@pytest.fixture(scope="module")
+def contact_drive(tmp_path_factory):
+    """A drive on the MuJoCo chassis on friction 0.4 (lockstep, its tlog of both links): at
+    rest, a full-stick launch forward for 1.5 s, at rest again; made a view with ``log
+    --rerun``. Returns the tlog's contacts from the flight controller and the recording."""
+    pytest.importorskip("mujoco")
+    from mecanum_mav.sim.lockstep import Lockstep
+
+    folder = tmp_path_factory.mktemp("contacts")
+    tlog = folder / "mujoco.tlog"
+    params = Params()
+    params.update({"SIM_FRICTION": 0.4})
+    with tlog.open("wb") as f:
+        h = Lockstep(params, physics="mujoco", tlog=f)
+        assert h.gcs.wait("STATUSTEXT", lambda m: m.text.startswith("FC setup checked"), 5.0,
+                          since=0)
+        h.run_for(0.5)
+        h.gcs.arm()
+        stop = h.every(0.05, lambda _t: h.gcs.mav.manual_control_send(1, 1000, 0, 500, 0, 0))
+        h.run_for(1.5)
+        stop()
+        h.run_for(1.5)
+    rrd = folder / "mujoco.rrd"
+    assert main(["log", str(tlog), "--rerun", str(rrd)]) == 0
+    sent = [(e.time_s, e.msg) for e in read_tlog(tlog).entries
+            if e.msg.get_type() == "DEBUG_VECT"]
+    temporal, static = read_rrd(rrd)
+    return sent, temporal, static
+
+
+def test_the_view_of_a_mujoco_drive_holds_each_wheels_contact_normal_force(contact_drive):
+    # Kills: the contacts not mapped; a wheel's force filed under another wheel.
+    sent, temporal, _ = contact_drive
+    weight = Params()["SIM_MASS"] * 9.81
+    for name in ("FL", "FR", "RL", "RR"):
+        series = [v for _, v in scalars(temporal, f"contacts/normal/{name}")]
+        board = [m.x for _, m in sent if m.name == f"CONTACT_{name}"]
+        assert len(board) >= 30  # 10 Hz for 3.5 s
+        assert series == pytest.approx(board), name
+        assert series[0] == pytest.approx(weight / 4, rel=0.05)  # at rest: a quarter each
+    first = [scalars(temporal, f"contacts/normal/{w}")[0][1] for w in ("FL", "FR", "RL", "RR")]
+    assert sum(first) == pytest.approx(weight, rel=0.02)
+
+
+def test_the_chassis_close_up_marks_a_wheel_red_while_it_slips(contact_drive):
+    # Kills: the slip flag ignored (every box stays green), or the colours not per wheel.
+    from mecanum_mav.app.rerunview import _GRIP_COLOUR, _SLIP_COLOUR
+
+    sent, temporal, static = contact_drive
+    assert len(static["map/rover/slip"]["Boxes2D:centers"]) == 4
+
+    def packed(rgba) -> int:
+        r, g, b, a = rgba
+        return (r << 24) | (g << 16) | (b << 8) | a
+
+    rows = [row["Boxes2D:colors"] for _, row in temporal["map/rover/slip"]]
+    assert rows[0] == [packed(_GRIP_COLOUR)] * 4
+    slipped = {k for row in rows for k, c in enumerate(row) if c == packed(_SLIP_COLOUR)}
+    on_board = {["CONTACT_FL", "CONTACT_FR", "CONTACT_RL", "CONTACT_RR"].index(m.name)
+                for _, m in sent if m.z == 1.0}
+    assert slipped == on_board and slipped  # the launch on 0.4 slips
+    assert rows[-1] == [packed(_GRIP_COLOUR)] * 4  # at rest again
+
+
+def test_contacts_under_the_flight_controllers_ids_from_the_companion_are_not_mapped():
+    # The companion and its flight controller share 1/1: a CONTACT_FL from the sender of
+    # ODOMETRY (the companion), or from another system, is not a contact; the flight
+    # controller's (its own sequence numbers) is. Kills: the sender not checked.
+    companion = mavlink.MAVLink(io.BytesIO(), srcSystem=1, srcComponent=1)
+    fc = mavlink.MAVLink(io.BytesIO(), srcSystem=1, srcComponent=1)
+    fc.seq = 100
+    other = mavlink.MAVLink(io.BytesIO(), srcSystem=7, srcComponent=1)
+
+    def message(mav, build, *args):
+        msg = getattr(mav, f"{build}_encode")(*args)
+        msg.pack(mav)
+        mav.seq = (mav.seq + 1) % 256
+        return mav.decode(bytearray(msg.get_msgbuf()))
+
+    mapping = ViewMapping()
+    mapping.feed(1.0, message(companion, "odometry", 0, 1, 1, 0.0, 0.0, 0.0,
+                              [1.0, 0.0, 0.0, 0.0], 0.0, 0.0, 0.0, 0.0, 0.0, 0.0,
+                              [math.nan] * 21, [math.nan] * 21))
+    before = mapping.pending()
+    mapping.feed(1.1, message(companion, "debug_vect", b"CONTACT_FL", 0, 5.0, 0.0, 1.0))
+    mapping.feed(1.1, message(other, "debug_vect", b"CONTACT_FL", 0, 5.0, 0.0, 1.0))
+    assert mapping.pending() == before
+    mapping.feed(1.2, message(fc, "debug_vect", b"CONTACT_FL", 0, 9.8, 0.0, 0.0))
+    assert mapping.pending() == before + 2  # the force and the first slip row

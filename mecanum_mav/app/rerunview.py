@@ -36,6 +36,9 @@ The entities (one timeline, ``time``: Unix time, shown as a date):
   the ground; ``track/cross_track``: the estimated position's distance from the current
   mission leg in AUTO, m (the leg from the previous planned position, or from where the rover
   was when the item became current, to the current item).
+- :data:`CONTACT_ENTITIES`: each wheel's floor contact normal force (N) and its box on the
+  chassis close-up, red while it slips: the DEBUG_VECTs ``CONTACT_W`` of the flight controller
+  (FC_SYSID/FC_COMPID, not the companion sharing its ids) on ``sim``'s MuJoCo chassis.
 - ``state/mode`` and ``state/armed``: the vehicle's HEARTBEAT, as state changes (a state
   timeline); ``events``: every STATUSTEXT (long texts joined), failsafes at level ERROR, and
   each mode or arming change, as text events on the timeline.
@@ -75,12 +78,13 @@ from mecanum_mav.mecanum.wheels import WHEEL_KEYS
 from mecanum_mav.protocol.dialect import mavlink
 from mecanum_mav.protocol.mission import MissionItem, item_from_fields
 from mecanum_mav.protocol.modes import Mode
+from mecanum_mav.sim.board import CONTACT_NAMES
 
 if TYPE_CHECKING:
     import rerun as rr
 
-__all__ = ["APPLICATION_ID", "ENTITIES", "TIMELINE", "ViewMapping", "blueprint", "rerun_module",
-           "to_map"]
+__all__ = ["APPLICATION_ID", "CONTACT_ENTITIES", "ENTITIES", "TIMELINE", "ViewMapping",
+           "blueprint", "rerun_module", "to_map"]
 
 APPLICATION_ID = "mecanum-mav"
 """The Rerun application id of every recording."""
@@ -95,6 +99,8 @@ ENTITIES: tuple[str, ...] = (
     "speed/estimated", "speed/true", "track/cross_track", "state/mode", "state/armed",
     "events")
 """Every entity the view has (see the module docstring)."""
+CONTACT_ENTITIES: tuple[str, ...] = (*(f"contacts/normal/{w}" for w in WHEELS), "map/rover/slip")
+_SLIP_COLOUR, _GRIP_COLOUR = (214, 39, 40, 255), (44, 160, 44, 60)
 _NEAR_NULL_ISLAND_DEG = 1.0
 """A simulator without a global origin places the rover within a degree of 0, 0."""
 _PATH_COLOUR = (255, 140, 0)
@@ -143,7 +149,8 @@ def blueprint() -> Any:
         rrb.Horizontal(
             rrb.Vertical(
                 rrb.Spatial2DView(name="map (east right, north up; m)", origin="/map",
-                                  contents=["$origin/**", "- /map/rover/wheels"],
+                                  contents=["$origin/**", "- /map/rover/wheels",
+                                            "- /map/rover/slip"],
                                   time_ranges=[whole_past]),
                 rrb.Spatial2DView(name="chassis and wheel commands (nose up)",
                                   origin="/map/rover"),
@@ -152,6 +159,8 @@ def blueprint() -> Any:
                 rrb.TimeSeriesView(name="sticks (-1..1)", origin="/sticks"),
                 rrb.TimeSeriesView(name="wheel commands (-1..1)", origin="/wheels/command"),
                 rrb.TimeSeriesView(name="wheel PWM (us)", origin="/wheels/pwm"),
+                rrb.TimeSeriesView(name="wheel contact normal force (N)",
+                                   origin="/contacts/normal"),
                 rrb.TimeSeriesView(name="speed (m/s) and cross-track (m)",
                                    contents=["/speed/**", "/track/**"]),
                 rrb.StateTimelineView(name="mode and arming", origin="/state"),
@@ -187,6 +196,9 @@ def _columns(rr: Any, kind: str, values: list[Any]) -> Any:
             quaternion=np.column_stack((zeros, zeros, np.sin(half), np.cos(half))))
     if kind == "state":
         return rr.StateChange.columns(state=values)
+    if kind == "slip":  # four wheels' flags a row: their boxes' colours
+        colours = np.asarray((_GRIP_COLOUR, _SLIP_COLOUR), np.uint8)[np.asarray(values, int)]
+        return rr.Boxes2D.columns(colors=colours.reshape(-1, 4)).partition([4] * n)
     text, level = zip(*values, strict=True)
     return rr.TextLog.columns(text=list(text), level=list(level))
 
@@ -245,7 +257,9 @@ class ViewMapping:
             "MISSION_ITEM_INT": self._mission_item, "MISSION_ITEM": self._mission_item,
             "MISSION_CURRENT": self._mission_current,
             "MISSION_ITEM_REACHED": self._item_reached, "PARAM_VALUE": self._param_value,
+            "DEBUG_VECT": self._contact,
         }
+        self._slipping: list[bool] | None = None  # per wheel, once a contact was seen
 
     # ------------------------------------------------------------------ in
 
@@ -369,6 +383,23 @@ class ViewMapping:
 
     def _global_origin(self, t: float, msg: Any) -> None:
         self.origin = GlobalOrigin(msg.latitude, msg.longitude)
+
+    def _contact(self, t: float, msg: Any) -> None:
+        """DEBUG_VECT ``CONTACT_W`` (x normal N, z 1 slipping) of the flight controller only;
+        a slip row at the first and when a wheel starts or stops slipping."""
+        fc = (int(self.params["FC_SYSID"]), int(self.params["FC_COMPID"]))
+        if msg.name not in CONTACT_NAMES or (msg.get_srcSystem(), msg.get_srcComponent()) != fc \
+                or self._senders.role(self._index - 1) in ("vehicle", "gcs"):
+            return
+        wheel = CONTACT_NAMES.index(msg.name)
+        if math.isfinite(msg.x):
+            self._add(f"contacts/normal/{WHEELS[wheel]}", "scalar", t, msg.x)
+        slipping = list(self._slipping or [False] * 4)
+        slipping[wheel] = msg.z >= 0.5
+        if slipping != self._slipping:
+            self._chassis_dirty = self._chassis_dirty or self._slipping is None
+            self._slipping = slipping
+            self._add("map/rover/slip", "slip", t, tuple(slipping))
 
     def _manual_control(self, t: float, msg: Any) -> None:
         for axis in ("x", "y", "r"):
@@ -532,6 +563,10 @@ class ViewMapping:
         recording.log("map/rover/chassis/wheels", rr.Boxes2D(
             centers=[_body_to_map(*p) for p in wheels], half_sizes=[wheel_size] * 4,
             colors=[_CHASSIS_COLOUR]), static=True)
+        if self._slipping is not None:  # the contacts' boxes (their colours are temporal)
+            recording.log("map/rover/slip", rr.Boxes2D.from_fields(
+                centers=[_body_to_map(*p) for p in wheels], half_sizes=[wheel_size] * 4,
+                radii=[half_wid * 0.05], draw_order=[40.0]), static=True)
         recording.log("map/rover/wheels", rr.Arrows2D.from_fields(
             origins=[_body_to_map(*p) for p in wheels], colors=[_WHEEL_COLOUR],
             radii=[half_wid * 0.06]), static=True)

@@ -27,7 +27,12 @@ SERVO_OUTPUT_RAW 10 Hz (the pulse width on each output) and SYS_STATUS 1 Hz (a b
 ArduPilot's simulators do, it also reports its ground truth in SIM_STATE at 5 Hz: the true
 pose (latitude and longitude about ``ORIGIN_LAT``/``ORIGIN_LON``, or about 0, 0 when no
 origin is set; yaw in radians clockwise from north) and the true velocity (north, east m/s),
-so a tlog shows where the chassis really went (``mecanum-mav log``).
+so a tlog shows where the chassis really went (``mecanum-mav log``). A chassis with wheel
+contacts (the MuJoCo one) has them sent at 10 Hz, one DEBUG_VECT per wheel named
+``CONTACT_FL`` .. ``CONTACT_RR``: x the normal force (N), y the slip speed (m/s), z 1 when
+slipping else 0 (one message keeps a wheel's force and slip of one instant together;
+ArduPilot sends no DEBUG_VECT, so no firmware name clashes, and ground stations show or
+ignore it).
 
 A simulated RC receiver (:attr:`SimBoard.receiver`, pulse widths of channels 1..N that a test
 sets; None = no receiver, :attr:`SimBoard.rssi`) is reported as ArduPilot does in RC_CHANNELS,
@@ -58,14 +63,15 @@ from mecanum_mav.config.params import Params
 from mecanum_mav.control.pwm import PwmMap
 from mecanum_mav.mecanum.geo import GlobalOrigin
 from mecanum_mav.mecanum.geometry import Pose2d, body_to_ned
+from mecanum_mav.mecanum.wheels import WHEEL_KEYS
 from mecanum_mav.protocol.dialect import mavlink
 from mecanum_mav.protocol.fcsetup import safe_settings
 from mecanum_mav.protocol.modes import Mode
 from mecanum_mav.protocol.rcoverride import CHANNELS, LEAVE, RELEASE, field_action
 from mecanum_mav.sim.chassis import ORIGIN_POSE
-from mecanum_mav.sim.physics import DEFAULT_PHYSICS, make_chassis
+from mecanum_mav.sim.physics import DEFAULT_PHYSICS, contacts_of, make_chassis
 
-__all__ = ["ORIGIN", "RcOverrides", "SimBoard", "SimState", "board_parameters"]
+__all__ = ["CONTACT_NAMES", "ORIGIN", "RcOverrides", "SimBoard", "SimState", "board_parameters"]
 
 ORIGIN = ORIGIN_POSE
 """Where the chassis starts unless told otherwise: the local origin, facing north."""
@@ -90,6 +96,10 @@ _ATTITUDE_PERIOD_S = 0.05
 _WHEEL_DISTANCE_PERIOD_S = 0.1
 _SERVO_OUTPUT_PERIOD_S = 0.1
 _SYS_STATUS_PERIOD_S = 1.0
+CONTACTS_PERIOD_S = 0.1
+"""The wheel contacts (DEBUG_VECT, a chassis that has them) are sent this often (seconds)."""
+CONTACT_NAMES = tuple(f"CONTACT_{key.upper()}" for key in WHEEL_KEYS)
+"""The DEBUG_VECT names of the wheels' contacts, FL, FR, RL, RR."""
 SIM_STATE_PERIOD_S = 0.2
 """The simulator's ground truth (SIM_STATE) is sent this often (seconds)."""
 BATTERY_V = 12.6
@@ -222,6 +232,9 @@ class SimBoard:
             (_Every(SIM_STATE_PERIOD_S, now_s), self._sim_state),
             (self._rc_channels, self._rc_channels_msg),
         ]
+        self._contacts = contacts_of(self.chassis)
+        if self._contacts is not None:
+            self._telemetry.append((_Every(CONTACTS_PERIOD_S, now_s), self._wheel_contacts))
 
     # ------------------------------------------------------------------ time
 
@@ -371,6 +384,15 @@ class SimBoard:
                   for ch in range(1, CHANNELS + 1)]
         mav.rc_channels_send((self._boot_us(now_s) // 1000) & 0xFFFFFFFF, len(receiver),
                              *pulses, self.rssi)
+
+    def _wheel_contacts(self, mav: Any, now_s: float) -> None:
+        """DEBUG_VECT per wheel: its contact (see the module docstring)."""
+        if self._contacts is None:
+            return
+        time_usec = self._boot_us(now_s)
+        for name, contact in zip(CONTACT_NAMES, self._contacts(), strict=True):
+            mav.debug_vect_send(name.encode("ascii"), time_usec, contact.normal_n,
+                                contact.slip_mps, 1.0 if contact.slipping else 0.0)
 
     def _sim_state(self, mav: Any, now_s: float) -> None:
         """SIM_STATE: the true pose and velocity (see the module docstring); level, no

@@ -18,6 +18,14 @@ MuJoCo's z-up world (x north, y west) to NED/FRD (see CONVENTIONS.md): pose x no
 yaw clockwise from north; velocities body forward/right; yaw rate clockwise; wheels FL, FR,
 RL, RR, read from the wheel joints as encoders read them (joint angle * radius: the wheel,
 not the ground).
+
+Wheel contacts (:meth:`MujocoChassis.wheel_contacts`, only when asked: nothing is added to a
+step): per wheel, the normal force summed over its rollers touching the floor
+(``mj_contactForce``) and its slip, the contact point's speed over the floor (the roller
+surface's velocity there, along the floor; the largest of the wheel's contacts). A wheel slips
+when that speed exceeds :data:`SLIP_MPS` (chosen over "the friction force at the cone's edge":
+MuJoCo's soft contacts let a sliding contact's friction sit inside the cone, and a speed is
+what a user can judge).
 """
 
 from __future__ import annotations
@@ -34,14 +42,18 @@ from mecanum_mav.mecanum.geometry import Pose2d
 from mecanum_mav.mecanum.wheels import WHEEL_KEYS
 from mecanum_mav.sim.chassis import ORIGIN_POSE, Wheels, _clean_command, step_needed
 from mecanum_mav.sim.mujocomodel import ChassisSpec, mjcf
+from mecanum_mav.sim.physics import WheelContact
 
 if TYPE_CHECKING:
     from mecanum_mav.config.params import Params
 
-__all__ = ["SETTLE_S", "MujocoChassis", "real_time_factor"]
+__all__ = ["SETTLE_S", "SLIP_MPS", "MujocoChassis", "real_time_factor"]
 
 SETTLE_S = 0.3
 """Simulated seconds the chassis settles onto the floor (braked) before its time 0."""
+SLIP_MPS = 0.05
+"""A wheel slips when a contact point of its rollers moves over the floor faster than this
+(m/s): a rolling contact stays well under it, a spinning or sliding wheel far over."""
 
 
 def _wrap(angle: float) -> float:
@@ -68,6 +80,17 @@ class MujocoChassis:
         self._timestep = float(self.model.opt.timestep)
         self._pending = 0.0
         self._time = 0.0
+        # Contact reading, allocated once: each geom's wheel (-1: not a roller), buffers.
+        self._geom_wheel = np.full(self.model.ngeom, -1, dtype=np.int64)
+        for wheel, key in enumerate(WHEEL_KEYS):
+            for k in range(self.model.nbody):
+                if self.model.body(k).name.startswith(f"roller_{key.lower()}"):
+                    self._geom_wheel[self.model.body_geomadr[k]] = wheel
+        self._floor = self.model.geom("floor").id
+        self._force6 = np.zeros(6)
+        self._vel6 = np.zeros(6)
+        self._normal = np.zeros(4)
+        self._slip = np.zeros(4)
         self._settle(pose)
         self._wheel_zero = [float(self.data.qpos[i]) for i in self._wheel_q]
 
@@ -166,6 +189,35 @@ class MujocoChassis:
         """Kinetic energy of the whole robot (body, wheels, rollers), joules, as MuJoCo
         computed it at the start of its last timestep."""
         return float(self.data.energy[1])
+
+    def wheel_contacts(self) -> tuple[WheelContact, WheelContact, WheelContact, WheelContact]:
+        """Each wheel's contact with the floor now, FL, FR, RL, RR: normal force (N) summed
+        over its rollers touching the floor, slip speed (m/s, the fastest of its contact
+        points over the floor) and whether it slips (above :data:`SLIP_MPS`); from MuJoCo's
+        contacts of its last timestep. A wheel off the floor: 0 N, no slip."""
+        model, data = self.model, self.data
+        normal, slip, force, vel = self._normal, self._slip, self._force6, self._vel6
+        normal[:] = 0.0
+        slip[:] = 0.0
+        for i in range(data.ncon):
+            contact = data.contact[i]
+            g1, g2 = int(contact.geom1), int(contact.geom2)
+            roller = g2 if g1 == self._floor else g1
+            wheel = int(self._geom_wheel[roller])
+            if wheel < 0 or self._floor not in (g1, g2):
+                continue
+            mujoco.mj_contactForce(model, data, i, force)
+            normal[wheel] += force[0]
+            mujoco.mj_objectVelocity(model, data, mujoco.mjtObj.mjOBJ_GEOM, roller, vel, 0)
+            # the roller surface at the contact point: v + w x r (world frame, z up)
+            rx, ry, rz = contact.pos - data.geom_xpos[roller]
+            wx, wy, wz = vel[0], vel[1], vel[2]
+            vx = vel[3] + wy * rz - wz * ry
+            vy = vel[4] + wz * rx - wx * rz
+            slip[wheel] = max(slip[wheel], math.hypot(vx, vy))
+        fl, fr, rl, rr = (WheelContact(float(n), float(s), bool(s > SLIP_MPS))
+                          for n, s in zip(normal, slip, strict=True))
+        return (fl, fr, rl, rr)
 
     def push(self, forward_mps: float, right_mps: float, yaw_rate: float) -> None:
         """Set the body's velocity at once (a shove), body FRD and clockwise rad/s; the

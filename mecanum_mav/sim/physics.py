@@ -13,8 +13,8 @@ so the board, its telemetry and every harness work with either.
 from __future__ import annotations
 
 import importlib
-from collections.abc import Sequence
-from typing import TYPE_CHECKING, Any, Protocol
+from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING, Any, NamedTuple, Protocol
 
 from mecanum_mav.mecanum.geometry import Pose2d
 from mecanum_mav.sim.chassis import ORIGIN_POSE, SimChassis
@@ -23,7 +23,8 @@ if TYPE_CHECKING:
     from mecanum_mav.config.params import Params
 
 __all__ = ["DEFAULT_PHYSICS", "MIN_REAL_TIME_FACTOR", "PHYSICS", "Chassis",
-           "PhysicsUnavailableError", "make_chassis", "mujoco_real_time_factor", "require_mujoco"]
+           "PhysicsUnavailableError", "WheelContact", "contacts_of", "make_chassis",
+           "mujoco_real_time_factor", "require_mujoco"]
 
 PHYSICS = ("kinematic", "mujoco")
 """The chassis models, by name (``sim --physics NAME``)."""
@@ -38,10 +39,33 @@ class PhysicsUnavailableError(RuntimeError):
     and how to install it)."""
 
 
+class WheelContact(NamedTuple):
+    """One wheel's contact with the floor: ``normal_n`` the normal force (N) summed over its
+    rollers touching the floor, ``slip_mps`` how fast its contact points move over the floor
+    (m/s), ``slipping`` whether that is a slip (the chassis's threshold)."""
+
+    normal_n: float
+    slip_mps: float
+    slipping: bool
+
+
+Contacts = Callable[[], tuple[WheelContact, WheelContact, WheelContact, WheelContact]]
+"""A chassis's way to read its wheels' contacts now (FL, FR, RL, RR)."""
+
+
+def contacts_of(chassis: Chassis) -> Contacts | None:
+    """The chassis's ``wheel_contacts`` method where it has wheel contacts (the MuJoCo
+    chassis), else None (the kinematic one); ask once, then call it only when needed: the
+    step is not touched."""
+    reader: Contacts | None = getattr(chassis, "wheel_contacts", None)
+    return reader if callable(reader) else None
+
+
 class Chassis(Protocol):
     """What the simulated board uses of a chassis. Frames and units as
     :class:`~mecanum_mav.sim.chassis.SimChassis`: pose local NED (m, yaw rad clockwise from
-    north), velocities body FRD, wheels FL, FR, RL, RR, positive rolls the robot forward."""
+    north), velocities body FRD, wheels FL, FR, RL, RR, positive rolls the robot forward.
+    Optional: ``wheel_contacts()``, read through :func:`contacts_of`."""
 
     @property
     def pose(self) -> Pose2d:
