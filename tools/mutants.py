@@ -1009,6 +1009,24 @@ MUTATIONS: tuple[Mutation, ...] = (
       MJ + "test_translating_while_turning_the_wheels_odometry_stays_within_0_3_percent_"
       "sideways",
       MJ + "test_a_roller_passes_the_floor_in_at_least_one_and_a_half_integration_steps"),
+    # The wheel contacts of the MuJoCo chassis in the view (issue 27).
+    M("contacts-normal-force", "a wheel's contact force is the normal component",
+      PKG + "sim/mujocochassis.py", "normal[wheel] += force[0]", "normal[wheel] += force[1]",
+      MJ + "test_at_rest_the_wheels_normal_forces_sum_to_the_weight_and_are_about_equal"),
+    M("contacts-slip", "a wheel whose contact slides over the floor slips",
+      PKG + "sim/mujocochassis.py", "bool(s > SLIP_MPS)", "False",
+      MJ + "test_a_full_command_launch_on_friction_0_4_slips_and_a_steady_cruise_does_not"),
+    M("contacts-sent", "the board on the MuJoCo chassis sends the wheel contacts",
+      PKG + "sim/board.py",
+      "self._telemetry.append((_Every(CONTACTS_PERIOD_S, now_s), self._wheel_contacts))",
+      "pass",
+      T + "test_board_contacts.py::test_the_board_on_the_mujoco_chassis_sends_each_wheels_"
+      "contact_at_10_hz"),
+    M("contacts-from-fc-only", "contacts under the flight controller's ids from the companion "
+      "are not the flight controller's",
+      PKG + "app/rerunview.py",
+      'or self._senders.role(self._index - 1) in ("vehicle", "gcs"):', "or False:",
+      VW + "test_contacts_under_the_flight_controllers_ids_from_the_companion_are_not_mapped"),
     # The Rerun view (mecanum_mav/app/rerunview.py, app/view.py; issue 27). VW: test_view.py.
     M("view-wheel-channel", "each wheel's PWM and command come from its own channel (MOT_<W>_CH)",
       PKG + "app/rerunview.py",
