@@ -332,3 +332,16 @@ def test_contacts_under_the_flight_controllers_ids_from_the_companion_are_not_ma
     assert mapping.pending() == before
     mapping.feed(1.2, message(fc, "debug_vect", b"CONTACT_FL", 0, 9.8, 0.0, 0.0))
     assert mapping.pending() == before + 2  # the force and the first slip row
+
+
+def test_log_with_a_view_draws_the_png_only_when_asked(drive, tmp_path):
+    """``log --rerun`` (or ``--view``) writes the view and no PNG unless ``--png`` is given
+    (drawing it takes most of a long log's time); ``--png`` too writes both."""
+    tlog = tmp_path / "drive.tlog"
+    tlog.write_bytes(drive[3].read_bytes())
+    rrd = tmp_path / "only.rrd"
+    assert main(["log", str(tlog), "--rerun", str(rrd)]) == 0
+    assert rrd.stat().st_size > 0 and not tlog.with_suffix(".png").exists()
+    png = tmp_path / "asked.png"
+    assert main(["log", str(tlog), "--rerun", str(tmp_path / "both.rrd"), "--png", str(png)]) == 0
+    assert png.stat().st_size > 10_000

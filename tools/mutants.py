@@ -1027,6 +1027,9 @@ MUTATIONS: tuple[Mutation, ...] = (
       PKG + "app/rerunview.py",
       'or self._senders.role(self._index - 1) in ("vehicle", "gcs"):', "or False:",
       VW + "test_contacts_under_the_flight_controllers_ids_from_the_companion_are_not_mapped"),
+    M("log-view-no-png", "log with a view draws the PNG only when --png is given",
+      PKG + "app/logview.py", "    if png is not None or not viewing:", "    if True:",
+      VW + "test_log_with_a_view_draws_the_png_only_when_asked"),
     # The Rerun view (mecanum_mav/app/rerunview.py, app/view.py; issue 27). VW: test_view.py.
     M("view-wheel-channel", "each wheel's PWM and command come from its own channel (MOT_<W>_CH)",
       PKG + "app/rerunview.py",

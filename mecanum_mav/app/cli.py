@@ -451,7 +451,8 @@ def build_parser() -> argparse.ArgumentParser:
                      "else the web viewer on 127.0.0.1, its address printed; Ctrl-C ends)")
     add_web_port(log, "with --view and no display, ")
     log.add_argument("--png", type=Path, metavar="OUT",
-                     help="where to write the figure (default: FILE.png beside the tlog)")
+                     help="where to write the figure (default: FILE.png beside the tlog; "
+                     "with --rerun or --view only when given)")
     log.set_defaults(handler=cmd_log)
 
     view = sub.add_parser(

@@ -265,7 +265,8 @@ def run_log(tlog: Path, png: Path | None, out: TextIO | None = None,
     """The ``log`` command: summary to ``out`` (stdout), problems to ``err`` (stderr), the
     PNG to ``png`` (its default beside the tlog); with ``rerun`` the Rerun view to that
     ``.rrd``, with ``view`` that view opened (:mod:`~mecanum_mav.app.view`; ``params``: the
-    PWM map and chassis size). Returns the exit status."""
+    PWM map and chassis size), and then the PNG only when ``png`` is given (drawing it takes
+    most of a long log's time). Returns the exit status."""
     out = out or sys.stdout
     err = err or sys.stderr
     from mecanum_mav.app.view import gc_paused
@@ -277,17 +278,25 @@ def run_log(tlog: Path, png: Path | None, out: TextIO | None = None,
     if not read.entries:
         print(f"mecanum-mav log: {tlog}: no MAVLink messages read", file=err)
         return 2
-    analysis = analyse(read.entries)
-    print(summary(read, analysis), file=out)
-    target = png or default_png(tlog)
-    try:
-        print(f"wrote {plot_log(analysis, target, tlog.name)}", file=out)
-    except RuntimeError as exc:  # no matplotlib
-        print(f"mecanum-mav log: no PNG: {exc}", file=err)
-    except OSError as exc:
-        print(f"mecanum-mav log: cannot write {target}: {exc}", file=err)
-    if rerun is not None or view:
-        from mecanum_mav.app.view import show_log
+    viewing = rerun is not None or view
 
-        return show_log(read.entries, params or Params(), rerun, view, web_port, out, err)
-    return 0
+    def report() -> None:  # the summary, and the PNG unless a view was asked without one
+        analysis = analyse(read.entries)
+        print(summary(read, analysis), file=out)
+        if png is not None or not viewing:
+            target = png or default_png(tlog)
+            try:
+                print(f"wrote {plot_log(analysis, target, tlog.name)}", file=out)
+            except RuntimeError as exc:  # no matplotlib
+                print(f"mecanum-mav log: no PNG: {exc}", file=err)
+            except OSError as exc:
+                print(f"mecanum-mav log: cannot write {target}: {exc}", file=err)
+
+    if not viewing:
+        report()
+        return 0
+    from mecanum_mav.app.view import show_log
+
+    # (the view first: a long log's summary comes while the viewer is already up)
+    return show_log(read.entries, params or Params(), rerun, view, web_port, out, err,
+                    then=report)

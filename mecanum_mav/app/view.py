@@ -325,10 +325,12 @@ def run_view(connect: str, params: Params, *, save: Path | None = None,
 
 
 def show_log(entries: list[TlogEntry], params: Params, rrd: Path | None, view: bool,
-             web_port: int, out: TextIO, err: TextIO) -> int:
+             web_port: int, out: TextIO, err: TextIO,
+             then: Callable[[], None] | None = None) -> int:
     """``log --rerun OUT.rrd`` and ``log --view``: the drive's view written to ``rrd`` (a
     temporary file for ``view`` alone) and, with ``view``, opened until the viewer closes or
-    Ctrl-C. Returns the exit status (0; 2 without the ``view`` extra or a viewer)."""
+    Ctrl-C; ``then`` is called once the view is written (and served). Returns the exit status
+    (0; 2 without the ``view`` extra or a viewer)."""
     import tempfile
 
     with contextlib.ExitStack() as stack:
@@ -340,6 +342,8 @@ def show_log(entries: list[TlogEntry], params: Params, rrd: Path | None, view: b
             print(f"wrote {rrd} ({rows} rows in {time.perf_counter() - started:.2f} s)",
                   file=out, flush=True)
             if not view:
+                if then is not None:
+                    then()
                 return 0
             viewer = serve_rrd(rrd, web_port, native=has_display())
         except (RuntimeError, OSError) as exc:
@@ -349,6 +353,8 @@ def show_log(entries: list[TlogEntry], params: Params, rrd: Path | None, view: b
         print(f"mecanum-mav log: the view: {viewer.url or 'the native viewer'} (Ctrl-C ends)",
               file=out, flush=True)
         with contextlib.suppress(KeyboardInterrupt):
+            if then is not None:
+                then()
             viewer.process.wait()
     return 0
 
