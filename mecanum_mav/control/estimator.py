@@ -171,15 +171,23 @@ class WheelOdometryEstimator:
         wheel's speed goes through the ``ODOM_CMD_TAU`` lag (module docstring) either way, so
         it is current when the commanded speeds take over.
         """
-        rolled = self._roll(wheel_commands, dt_s)
+        lagged = self.config.commanded_tau_s > 0.0  # (its state advances whatever the source)
+        rolled = self._roll(wheel_commands, dt_s) if lagged else None
         source = self.config.source
         if source == SOURCE_WHEEL_DISTANCE or (
                 source == SOURCE_AUTO and now_s - self._measured_s <= FRESH_S):
             return
-        for i in range(4):
-            if rolled[i]:
-                self._virtual[i] += rolled[i]
-                self._moved = True
+        if rolled is None:  # no lag (the default): the commanded speeds as they are, no list
+            speed = self.config.wheel_speed_max_mps * max(dt_s, 0.0)
+            for i in range(4):
+                if wheel_commands[i]:
+                    self._virtual[i] += wheel_commands[i] * speed
+                    self._moved = True
+        else:
+            for i in range(4):
+                if rolled[i]:
+                    self._virtual[i] += rolled[i]
+                    self._moved = True
         last = self._last_update_s
         if last is not None and now_s - last < COMMANDED_UPDATE_S:
             return
@@ -189,13 +197,13 @@ class WheelOdometryEstimator:
             self.velocity_body, self.yaw_rate, self._last_update_s = (0.0, 0.0), 0.0, now_s
 
     def _roll(self, wheel_commands: Sequence[float], dt_s: float) -> list[float]:
-        """The metres each wheel rolls in ``dt_s`` s with ``wheel_commands`` held: the commanded
-        speed itself, or through the ``ODOM_CMD_TAU`` lag (its state advanced here)."""
+        """The metres each wheel rolls in ``dt_s`` s with ``wheel_commands`` held, through the
+        ``ODOM_CMD_TAU`` lag (positive; its state advanced here)."""
+        if dt_s <= 0.0:
+            return [0.0, 0.0, 0.0, 0.0]
         speed = self.config.wheel_speed_max_mps
         targets = [c * speed for c in wheel_commands]
         tau = self.config.commanded_tau_s
-        if tau <= 0.0 or dt_s <= 0.0:
-            return [t * max(dt_s, 0.0) for t in targets]
         gain = -math.expm1(-dt_s / tau)  # 1 - exp(-dt/tau), accurate for small dt
         mean_weight = tau * gain / dt_s  # the step's mean = target + (w0 - target) * this
         rolled = []
