@@ -10,9 +10,6 @@ from __future__ import annotations
 
 import importlib.util
 import math
-import os
-import signal
-import subprocess
 import sys
 import time
 from collections.abc import Callable, Iterator
@@ -25,7 +22,9 @@ from sitl import find_sitl
 from support import wait_until
 
 from mecanum_mav.app.cli import main
+from mecanum_mav.io.tlog import parse_tlog
 from mecanum_mav.sim.groundstation import ScriptedGroundStation, UdpPort, udp_ground_station
+from mecanum_mav.sim.process import CliProcess
 from mecanum_mav.sim.twin import SETUP_OK, TruthSample, Twin, describe
 
 BINARY, WHY_NOT = find_sitl()
@@ -222,68 +221,58 @@ def test_the_twin_command_without_mujoco_gives_the_install_hint_and_exits_2(monk
     assert "pip install 'mecanum-mav[physics]'" in capsys.readouterr().err
 
 
+def twin_command(tmp_path: Path, *extra: str) -> CliProcess:
+    """``mecanum-mav twin --sitl BINARY --gcs udpout:127.0.0.1:9 *extra`` as its own process
+    (its group killed on the way out), no display (a view serves its web viewer)."""
+    assert BINARY is not None
+    return CliProcess(["twin", "--sitl", str(BINARY), "--gcs", "udpout:127.0.0.1:9", *extra],
+                      tmp_path, log_name="twin.log")
+
+
+def ready(twin: CliProcess) -> str:
+    """The command's output once it says it is ready (or has ended)."""
+    wait_until(lambda: "ready." in twin.log(100_000) or not twin.alive(), READY_S)
+    text = twin.log(100_000)
+    assert "ready." in text, text
+    return text
+
+
 @real_firmware
 def test_the_twin_command_starts_everything_says_where_to_connect_and_ends_it_on_sigterm(
         tmp_path):
-    assert BINARY is not None
-    log = tmp_path / "twin.log"
-    with log.open("wb") as out:
-        proc = subprocess.Popen([sys.executable, "-m", "mecanum_mav", "twin", "--sitl",
-                                 str(BINARY), "--gcs", "udpout:127.0.0.1:9"], stdout=out,
-                                stderr=subprocess.STDOUT, start_new_session=True)
-    try:
-        ready = wait_until(lambda: "ready." in log.read_text() or proc.poll() is not None,
-                           READY_S)
-        text = log.read_text()
-        assert ready and "ready." in text, text
+    with twin_command(tmp_path) as twin:
+        text = ready(twin)
         firmware_pid = int(text.split("firmware pid ", 1)[1].split(",", 1)[0])
         companion_pid = int(text.split("companion pid ", 1)[1].split(")", 1)[0])
         assert "firmware directly: udpin:127.0.0.1:" in text
-        proc.send_signal(signal.SIGTERM)
-        assert proc.wait(timeout=20) == 0, log.read_text()
-        assert "stopped; real-time factor" in log.read_text()
+        twin.terminate()
+        assert twin.wait(20) == 0, twin.log()
+        assert "stopped; real-time factor" in twin.log()
         for pid in (firmware_pid, companion_pid):
             assert not Path(f"/proc/{pid}").exists(), f"{pid} still runs"
-    finally:
-        if proc.poll() is None:
-            os.killpg(proc.pid, signal.SIGKILL)
-            proc.wait(timeout=10)
 
 
 @real_firmware
 def test_the_twin_command_with_view_serves_the_view_of_the_companions_links_and_ends_it(
-        tmp_path):
+        tmp_path, monkeypatch):
     """``twin --view``: a view follows the companion's tlog (its overrides and the firmware's
     SIMSTATE), serves the web viewer here (no display) and, at SIGTERM, ends after saying how
     many messages it showed; the tlog holds the firmware's truth (SIMSTATE)."""
-    assert BINARY is not None
-    log = tmp_path / "twin.log"
-    with log.open("wb") as out:
-        proc = subprocess.Popen([sys.executable, "-m", "mecanum_mav", "twin", "--sitl",
-                                 str(BINARY), "--gcs", "udpout:127.0.0.1:9", "--view",
-                                 "--web-port", "0"], stdout=out, stderr=subprocess.STDOUT,
-                                start_new_session=True,
-                                env={**os.environ, "DISPLAY": "", "WAYLAND_DISPLAY": ""})
-    try:
-        ready = wait_until(lambda: "ready." in log.read_text() or proc.poll() is not None,
-                           READY_S)
-        text = log.read_text()
-        assert ready and "ready." in text and "mecanum-mav view: " in text, text
+    monkeypatch.setenv("DISPLAY", "")
+    monkeypatch.setenv("WAYLAND_DISPLAY", "")
+    with twin_command(tmp_path, "--view", "--web-port", "0") as twin:
+        text = ready(twin)
+        assert "mecanum-mav view: " in text, text
         followed = Path(text.split("mecanum-mav view: ", 1)[1].split(" -> ", 1)[0])
         assert " -> http://127.0.0.1:" in text, text
-        from mecanum_mav.io.tlog import parse_tlog
 
         def truth_recorded() -> bool:
             entries = parse_tlog(followed.read_bytes(), followed.name).entries
             return any(e.msg.get_type() == "SIMSTATE" for e in entries)
 
         assert wait_until(truth_recorded, 10.0), "no SIMSTATE in the companion's tlog"
-        proc.send_signal(signal.SIGTERM)
-        assert proc.wait(timeout=30) == 0, log.read_text()
-        shown = log.read_text().split("mecanum-mav view: ")[-1]
+        twin.terminate()
+        assert twin.wait(30) == 0, twin.log()
+        shown = twin.log(100_000).split("mecanum-mav view: ")[-1]
         assert shown.split(" ", 1)[0].isdigit() and int(shown.split(" ", 1)[0]) > 0, \
-            log.read_text()
-    finally:
-        if proc.poll() is None:
-            os.killpg(proc.pid, signal.SIGKILL)
-            proc.wait(timeout=10)
+            twin.log()

@@ -35,7 +35,7 @@ import contextlib
 import io
 import logging
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from mecanum_mav import __version__
@@ -172,15 +172,22 @@ def cmd_sim(args: argparse.Namespace, params: Params) -> int:
             print(f"mecanum-mav sim: warning: the MuJoCo chassis runs only {factor:.1f}x real "
                   f"time (under {MIN_REAL_TIME_FACTOR:g}x): a busy machine may make it fall "
                   "behind", file=sys.stderr, flush=True)
+    return with_view(args, args.tlog, lambda tlog: serve(
+        params, gcs, "sim", args.params, tlog, args.keys, quiet=args.quiet,
+        physics=args.physics))
+
+
+def with_view(args: argparse.Namespace, tlog: Path | None,
+              run: Callable[[Path | None], int]) -> int:
+    """``run(tlog)``; with ``--view`` a ``view`` process follows that tlog (a temporary one
+    when None) while it runs, and is stopped after (``sim --view``, ``twin --view``)."""
     if not args.view:
-        return serve(params, gcs, "sim", args.params, args.tlog, args.keys, quiet=args.quiet,
-                     physics=args.physics)
+        return run(tlog)
     from mecanum_mav.app.view import follow_in_viewer, stop_view
 
-    args.tlog, viewer = follow_in_viewer(args.tlog, args.params, args.set, args.web_port)
+    tlog, viewer = follow_in_viewer(tlog, args.params, args.set, args.web_port)
     try:
-        return serve(params, gcs, "sim", args.params, args.tlog, args.keys, quiet=args.quiet,
-                     physics=args.physics)
+        return run(tlog)
     finally:
         stop_view(viewer)
 
@@ -194,15 +201,8 @@ def cmd_twin(args: argparse.Namespace, params: Params) -> int:
         print("mecanum-mav twin: give --sitl PATH (ArduPilot's ardurover) or set "
               "$MECANUM_SITL", file=sys.stderr)
         return 2
-    if not args.view:
-        return run_twin(params, sitl, friction=args.friction, gcs=args.gcs)
-    from mecanum_mav.app.view import follow_in_viewer, stop_view
-
-    tlog, viewer = follow_in_viewer(None, args.params, args.set, args.web_port)
-    try:
-        return run_twin(params, sitl, friction=args.friction, gcs=args.gcs, tlog=tlog)
-    finally:
-        stop_view(viewer)
+    return with_view(args, None, lambda tlog: run_twin(params, sitl, friction=args.friction,
+                                                       gcs=args.gcs, tlog=tlog))
 
 
 def cmd_demo(args: argparse.Namespace, params: Params) -> int:

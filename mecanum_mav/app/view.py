@@ -37,6 +37,7 @@ from mecanum_mav.app.rerunview import APPLICATION_ID, ViewMapping, rerun_module
 from mecanum_mav.config.params import Params
 from mecanum_mav.io.tlog import STAMP_LEN, TlogEntry, parse_tlog
 from mecanum_mav.protocol.dialect import mavutil
+from mecanum_mav.sim.process import free_port
 
 __all__ = ["DEFAULT_CONNECT", "DEFAULT_WEB_PORT", "FLUSH_PERIOD_S", "TlogFollower", "Viewer",
            "follow_in_viewer", "gc_paused", "has_display", "open_viewer", "run_view", "serve_rrd",
@@ -74,14 +75,6 @@ def gc_paused() -> Iterator[None]:
 def has_display() -> bool:
     """Whether a native window can open here ($DISPLAY or $WAYLAND_DISPLAY)."""
     return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
-
-
-def free_port() -> int:
-    """A TCP port free on 127.0.0.1 now."""
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        port: int = s.getsockname()[1]
-        return port
 
 
 def viewer_url(web_port: int, grpc_port: int) -> str:
@@ -147,7 +140,7 @@ def serve_rrd(rrd: Path | None, web_port: int, *, native: bool,
     window stays open, the web one is stopped by :meth:`Viewer.close` once all is sent).
     Raises RuntimeError when it does not start."""
     rerun_module()
-    grpc_port = free_port()
+    grpc_port = free_port(socket.SOCK_STREAM)
     quiet = subprocess.DEVNULL
     if native:
         args = _rerun_cli("--port", str(grpc_port), *([str(rrd)] if rrd else []))
@@ -155,7 +148,7 @@ def serve_rrd(rrd: Path | None, web_port: int, *, native: bool,
                                    start_new_session=True)
         url = None
     else:
-        web_port = web_port or free_port()
+        web_port = web_port or free_port(socket.SOCK_STREAM)
         args = _rerun_cli("--serve-web", "--bind", "127.0.0.1", "--port", str(grpc_port),
                           "--web-viewer-port", str(web_port), *([str(rrd)] if rrd else []))
         process = subprocess.Popen(args, stdin=quiet, stdout=quiet, env=_quiet_env(),
