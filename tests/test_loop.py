@@ -3,6 +3,7 @@ steps it: the pass the companion runs, wake for wake."""
 
 from __future__ import annotations
 
+import math
 import selectors
 from typing import Any
 
@@ -98,3 +99,96 @@ def test_a_settled_pass_stops_watching_for_writing_once_nothing_waits():
     h.step()
     assert h.core.settled(h.now_s)
     assert poller.get_key(gcs.wait_fd()).events == selectors.EVENT_READ
+
+
+def _stick(pilot: Any, x: int) -> bytes:
+    return bytes(pilot.manual_control_encode(1, x, 0, 500, 0, 0).pack(pilot))
+
+
+def test_a_stick_right_after_a_stick_in_its_lane_is_the_whole_pass():
+    """Sticks one per wake (1 kHz from a joystick): after a stick the lane answered, with the
+    core settled, the next wake that is a stick alone is answered in the lane and the pass
+    ends there, without looking at the timers again (the core's ``next_due_s`` not asked)."""
+    h = lockstep()
+    h.gcs.arm()
+    h.gcs.sticks(500)
+    h.run_for(0.2)  # driving: the lane is open
+    pilot = mavlink.MAVLink(None, srcSystem=255, srcComponent=190)
+    asked: list[float] = []
+    next_due_s = h.core.next_due_s
+
+    def watched_next_due_s() -> float:
+        asked.append(h.now_s)
+        return next_due_s()
+
+    h.core.next_due_s = watched_next_due_s  # type: ignore[method-assign]
+    answered = h.lane_answers
+    for i in range(50):
+        h.inject(_stick(pilot, 400 + i))
+        h.step()
+    assert h.lane_answers >= answered + 50  # every stick in its lane, in its own step
+    assert len(asked) < 25  # most passes were the stick alone (the board's messages and
+    # the core's own timers take the rest)
+
+
+def test_what_arrives_behind_a_stick_in_a_pass_of_sticks_is_read_in_that_pass():
+    """A pass that is a stick alone ends only when nothing else is waiting: a heartbeat of
+    the ground station behind the stick, or the flight controller's message, is read and
+    handled in the same step."""
+    h = lockstep()
+    h.gcs.arm()
+    h.gcs.sticks(500)
+    h.run_for(0.2)
+    pilot = mavlink.MAVLink(None, srcSystem=255, srcComponent=190)
+    board = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
+    passes_of_sticks = 0
+    for i in range(20):
+        h.inject(_stick(pilot, 400 + i))
+        h.step()  # a stick in its lane: the next pass may be a stick alone
+        passes_of_sticks += h.loop._sticks_until_s > -math.inf
+        answered = h.lane_answers
+        h.inject(_stick(pilot, 300 + i))
+        h.inject(bytes(pilot.heartbeat_encode(6, 8, 0, 0, 4).pack(pilot)))
+        h.step()
+        assert h.lane_answers == answered + 1
+        assert h.core.vehicle.gcs_seen_s == h.now_s  # the heartbeat, read behind it
+        h.inject(_stick(pilot, 200 + i))
+        h.step()
+        h.inject(_stick(pilot, 100 + i))
+        h.inject(bytes(board.heartbeat_encode(10, 3, 0, 0, 4).pack(board)), from_fc=True)
+        h.step()
+        assert h.core.vehicle.fc_seen_s == h.now_s  # the flight controller's, in the same step
+    assert passes_of_sticks >= 10  # (the case this test is about was there)
+
+
+def test_sticks_every_wake_leave_the_telemetry_and_heartbeats_their_rates():
+    """A pass that is a stick alone ends only while the core has nothing else to do: with a
+    stick in every wake for a second, the ground station gets the companion's heartbeats and
+    telemetry as often as with a stick in every tenth."""
+    h = lockstep()
+    h.gcs.arm()
+    h.gcs.sticks(500)
+    h.run_for(0.2)
+    pilot = mavlink.MAVLink(None, srcSystem=255, srcComponent=190)
+    h.fc_link_up = False  # only the sticks wake the loop (for less than FS_FC_TMO)
+
+    def counts(since: int) -> dict[str, int]:
+        kinds = [m.get_type() for m in h.gcs.messages[since:]]
+        return {kind: kinds.count(kind) for kind in ("HEARTBEAT", "LOCAL_POSITION_NED",
+                                                      "ATTITUDE", "SYS_STATUS")}
+
+    since = h.gcs.mark()
+    for i in range(500):  # 1 s, a stick in every tenth wake (50 Hz)
+        if i % 10 == 0:
+            h.inject(_stick(pilot, 400 + i % 100))
+        h.step()
+    calm = counts(since)
+    since, answered = h.gcs.mark(), h.lane_answers
+    for i in range(500):  # 1 s, a stick in every wake
+        h.inject(_stick(pilot, 400 + i % 100))
+        h.step()
+    assert h.lane_answers >= answered + 500
+    busy = counts(since)
+    assert all(calm[kind] >= 1 for kind in calm), calm
+    for kind, n in calm.items():
+        assert abs(busy[kind] - n) <= 1, (kind, busy, calm)

@@ -6,7 +6,9 @@ signing key never takes the lane's unsigned packets."""
 from __future__ import annotations
 
 import contextlib
+import math
 import socket
+import time
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -119,13 +121,13 @@ def test_a_tcp_link_takes_the_lanes_packet_at_once():
 
 
 @contextlib.contextmanager
-def armed_over_serial(baud: int) -> Iterator[tuple[Companion, PtyFlightController,
-                                                   ScriptedGroundStation, list[bytes]]]:
+def armed_over_serial(baud: int, params: Params | None = None) -> Iterator[
+        tuple[Companion, PtyFlightController, ScriptedGroundStation, list[bytes]]]:
     """A companion between a UDP ground station and a flight controller on a pty at
     ``baud``, armed; the list gathers every datagram its loop answered in the lane."""
     fc = PtyFlightController()
     gcs, port = udp_ground_station()
-    companion = Companion(Params(), port.url, f"{fc.path},{baud}")
+    companion = Companion(params or Params(), port.url, f"{fc.path},{baud}")
     answered = lane_answers(companion.gcs)
     companion.start()
     try:
@@ -154,6 +156,37 @@ def test_the_companions_loop_answers_a_pilots_sticks_in_the_lane_over_a_serial_b
         forward = [m for m in fc.messages if m.get_type() == "RC_CHANNELS_OVERRIDE"
                    and channels(m)[:4] == [2000] * 4]
         assert forward
+
+
+def test_after_the_pilots_last_stick_in_its_lane_the_refresh_and_the_input_timeout_still_come():
+    """Sticks one per wake make the loop's passes a stick alone, each waiting for the next
+    (issue 24); that wait must still end when a timer is due. After the last stick, with
+    the ground station and the board silent (nothing else to wake the loop), the override
+    is refreshed at OUT_RATE and goes neutral at FS_INPUT_TMO."""
+    params = Params()
+    params.set("FS_INPUT_TMO", 0.3)
+    with armed_over_serial(921600, params) as (_, fc, gcs, answered):
+        for _ in range(200):  # 1 kHz for 0.2 s
+            gcs.sticks(1000)
+            fc.pump(0.001)
+        assert len(answered) >= 100, len(answered)  # (the passes were sticks alone)
+        fc.beat_period_s = math.inf  # the board falls silent too
+        last = time.monotonic()
+        forward, neutral = [2000] * 4, [1500] * 4
+        seen: list[tuple[float, list[int]]] = []
+
+        def went_neutral() -> bool:
+            before = len(fc.messages)
+            fc.pump(0.01)
+            seen.extend((time.monotonic() - last, channels(m)[:4]) for m in fc.messages[before:]
+                        if m.get_type() == "RC_CHANNELS_OVERRIDE")
+            return any(wheels == neutral for _, wheels in seen)
+
+        assert wait_until(went_neutral, 2.0), seen[-3:]
+        first_neutral = next(t for t, wheels in seen if wheels == neutral)
+        assert 0.3 <= first_neutral < 0.45, first_neutral
+        refreshed = [t for t, wheels in seen if wheels == forward and t > 0.05]
+        assert len(refreshed) >= 3  # OUT_RATE 20 Hz until the timeout
 
 
 def test_sticks_faster_than_a_slow_serial_wire_take_the_general_way_and_the_newest_wins():

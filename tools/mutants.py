@@ -745,9 +745,9 @@ MUTATIONS: tuple[Mutation, ...] = (
     M("loop-lane-unused", "the loop answers the pilot's stick datagram in the stick lane",
       PKG + "runtime/loop.py",
       "packet = (self.core.stick_lane(data, now, self._fc_mav.seq)\n"
-      "                          if self._lane_links and (self._fc_datagrams or "
+      "                  if self._lane_links and (self._fc_datagrams or "
       "self.fc.takes_packet())\n"
-      "                          else None)",
+      "                  else None)",
       "packet = None",
       T + "test_loop.py", T + "test_lane.py", T + "test_stream_lane.py"),
     M("loop-lane-asks-the-link", "the lane answers only when the FC link takes its packet at once",
@@ -764,9 +764,33 @@ MUTATIONS: tuple[Mutation, ...] = (
       T + "test_loop.py"),
     M("loop-lane-first-only", "after the lane's answer the rest waiting is still read",
       PKG + "runtime/loop.py",
-      "                    link.answered(data, address)\n",
-      "                    link.answered(data, address)\n                    return\n",
+      "            self._laned = self._answer_first(link, now)\n",
+      "            if self._answer_first(link, now):\n                self._laned = True\n"
+      "                return\n",
       T + "test_loop.py"),
+    M("loop-stick-pass-unused", "a stick right after a stick in its lane is the whole pass",
+      PKG + "runtime/loop.py", "if self._next_stick(ready):", "if False:",
+      T + "test_loop.py"),
+    M("loop-stick-pass-rest", "a pass of sticks still reads what waits behind the stick",
+      PKG + "runtime/loop.py",
+      "            self._answer(link.parse_datagram(*got), now, from_fc=False)\n"
+      "            return False\n        return self.core.settled",
+      "            return False\n        return self.core.settled",
+      T + "test_loop.py"),
+    M("loop-stick-pass-other-link", "a pass of sticks ends when anything else is ready",
+      PKG + "runtime/loop.py", "if len(ready) != 1 or ready[0][0] is not link:",
+      "if not ready or ready[0][0] is not link:",
+      T + "test_loop.py"),
+    M("loop-stick-pass-bounded", "a pass of sticks waits no longer than the timers allow",
+      PKG + "runtime/loop.py", "self._sticks_until_s = due  #",
+      "self._sticks_until_s = math.inf  #",
+      T + "test_stream_lane.py::test_after_the_pilots_last_stick_in_its_lane_the_refresh_and_"
+      "the_input_timeout_still_come"),
+    M("loop-stick-pass-settled", "a pass of sticks ends when the core has something to do",
+      PKG + "runtime/loop.py",
+      "return self.core.settled(now) and (not self._streams or self._streams_idle())",
+      "return True",
+      T + "test_loop.py", T + "test_companion.py", T + "test_stream_lane.py"),
     M("loop-lane-signed", "the lane never answers on a signed link",
       PKG + "runtime/loop.py",
       "self._lane_links = gcs.unchecked and fc.unchecked",

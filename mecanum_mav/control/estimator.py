@@ -178,11 +178,14 @@ class WheelOdometryEstimator:
                 source == SOURCE_AUTO and now_s - self._measured_s <= FRESH_S):
             return
         if rolled is None:  # no lag (the default): the commanded speeds as they are, no list
-            speed = self.config.wheel_speed_max_mps * max(dt_s, 0.0)
-            for i in range(4):
-                if wheel_commands[i]:
-                    self._virtual[i] += wheel_commands[i] * speed
-                    self._moved = True
+            fl, fr, rl, rr = wheel_commands
+            if fl or fr or rl or rr:
+                speed, virtual = self.config.wheel_speed_max_mps * max(dt_s, 0.0), self._virtual
+                virtual[0] += fl * speed
+                virtual[1] += fr * speed
+                virtual[2] += rl * speed
+                virtual[3] += rr * speed
+                self._moved = True
         else:
             for i in range(4):
                 if rolled[i]:

@@ -77,14 +77,14 @@ def compile_stick_lane(config: InputConfig, pwm: PwmMap, identity: IdentityConfi
     band, weight, circle = config.deadband, config.expo, config.circle
     if not (0.0 <= band < 1.0 and 0.0 <= weight <= 1.0):
         raise ValueError(f"deadband {band!r} or expo {weight!r} out of range")
-    gain = 1.0 / (1.0 - band)
+    gain, keep = 1.0 / (1.0 - band), 1.0 - weight
     algorithm, priority = config.algorithm, int(config.desaturation)
     cartesian = algorithm == "cartesian"
     if not cartesian:
         wheels_from_stick(0.0, 0.0, 0.0, algorithm, priority=priority)  # KeyError: unknown
     pulses_us = pwm.pulses_us
     template = override_fields(pwm.channels, pwm.neutral())
-    slots = [channel - 1 for channel in pwm.channels]
+    slot_fl, slot_fr, slot_rl, slot_rr = (channel - 1 for channel in pwm.channels)
     sqrt = math.sqrt
 
     def lane(datagram: bytes, seq: int) -> LaneAnswer | None:
@@ -122,17 +122,17 @@ def compile_stick_lane(config: InputConfig, pwm: PwmMap, identity: IdentityConfi
             k = z / 1000.0
             sx, sy, sr = sx * k, sy * k, sr * k
         stick = (sx, sy, sr)
-        # Shaping (as shape_stick): per axis deadband and expo, then the circle.
-        shaped = []
-        for v in stick:
-            magnitude = -v if v < 0.0 else v
-            if magnitude <= band:
-                shaped.append(0.0)
-                continue
-            magnitude = (magnitude - band) * gain  # (|axis| <= 1: no limit needed)
-            magnitude = (1.0 - weight) * magnitude + weight * magnitude * magnitude * magnitude
-            shaped.append(-magnitude if v < 0.0 else magnitude)
-        sx, sy, sr = shaped
+        # Shaping (as shape_stick): per axis the rescaled deadband (|axis| <= 1: no limit
+        # needed) and the cubic expo, then the circle. shape_stick works on the magnitude and
+        # restores the sign; both steps are odd functions and IEEE rounding is symmetric, so
+        # on the signed value they give the same bits.
+        sx = 0.0 if -band <= sx <= band else (sx - band if sx > 0.0 else sx + band) * gain
+        sy = 0.0 if -band <= sy <= band else (sy - band if sy > 0.0 else sy + band) * gain
+        sr = 0.0 if -band <= sr <= band else (sr - band if sr > 0.0 else sr + band) * gain
+        if weight:  # (with none, shape_stick's expo step returns its input)
+            sx = keep * sx + weight * sx * sx * sx
+            sy = keep * sy + weight * sy * sy * sy
+            sr = keep * sr + weight * sr * sr * sr
         if circle:
             length_sq = sx * sx + sy * sy
             if length_sq > 1.0:
@@ -147,8 +147,7 @@ def compile_stick_lane(config: InputConfig, pwm: PwmMap, identity: IdentityConfi
             wheels = wheels_from_stick(sx, sy, sr, algorithm, priority=priority)
         pulses = pulses_us(wheels)
         fields = template.copy()
-        for slot, pulse in zip(slots, pulses, strict=True):
-            fields[slot] = pulse
+        fields[slot_fl], fields[slot_fr], fields[slot_rl], fields[slot_rr] = pulses
         payload = override_pack(*fields[:8], target_system, target_component, *fields[8:])
         size = len(payload.rstrip(b"\x00")) or 1
         body = header(magic, size, 0, 0, seq, source_system, source_component,

@@ -113,16 +113,17 @@ class PwmMap:
         object.__setattr__(self, "channels", tuple(x.channel for x in w))
         object.__setattr__(self, "_neutral", (w[0].trim, w[1].trim, w[2].trim, w[3].trim))
         object.__setattr__(self, "spans", tuple((x.trim, x.maximum - x.trim, x.trim - x.minimum,
-                                                 x.reversed) for x in w))
+                                                 -1.0 if x.reversed else 1.0) for x in w))
         band = self.dead_band
         object.__setattr__(self, "_lift_keep",
                            (0.0, 1.0) if self.dead_band_jump else (band, 1.0 - band))
 
     channels: tuple[int, ...] = field(init=False)
     """RC channel numbers (1..18) of FL, FR, RL, RR."""
-    spans: tuple[tuple[int, int, int, bool], ...] = field(init=False, repr=False,
-                                                         compare=False)
-    """Per wheel, FL, FR, RL, RR: trim, maximum - trim, trim - minimum (us), reversed."""
+    spans: tuple[tuple[int, int, int, float], ...] = field(init=False, repr=False,
+                                                          compare=False)
+    """Per wheel, FL, FR, RL, RR: trim, maximum - trim, trim - minimum (us), and the sign a
+    command is multiplied by (-1.0 reversed, else 1.0)."""
     _neutral: tuple[int, int, int, int] = field(init=False, repr=False, compare=False)
     _lift_keep: tuple[float, float] = field(init=False, repr=False, compare=False)
     """The dead band's map past its edge, ``|c| -> lift + keep * |c|`` (:meth:`pulses_us`)."""
@@ -144,19 +145,17 @@ class PwmMap:
         dz)``. 1 stays 1; 0 and commands at most :data:`DEAD_BAND_LIVE` in size stay as they
         are (inside the band: the wheel brakes).
         """
-        isfinite = math.isfinite
         band = self.dead_band
         lift, keep = self._lift_keep
         live = DEAD_BAND_LIVE
         pulses = []
-        for command, (trim, up, down, mirrored) in zip(wheels, self.spans, strict=True):
-            c = float(command)
-            if not isfinite(c):
-                pulses.append(trim)
-                continue
-            if mirrored:
-                c = -c
-            c = -1.0 if c < -1.0 else (1.0 if c > 1.0 else c)
+        for command, (trim, up, down, sign) in zip(wheels, self.spans, strict=True):
+            c = sign * command
+            if not -1.0 <= c <= 1.0:  # (one test on the way every output takes)
+                if not math.isfinite(c):
+                    pulses.append(trim)
+                    continue
+                c = 1.0 if c > 0.0 else -1.0
             if band:
                 if c > live:
                     c = lift + keep * c

@@ -237,6 +237,9 @@ class ControlLoop:
         self._up = {gcs: True, fc: True}
         self._timer: Callable[[float], float] | None = None
         self._timer_due_s = math.inf
+        self._laned = False  # this pass answered a stick in its lane (_drain)
+        self._sticks_until_s = -math.inf
+        """Until when the next pass may be a stick alone (:meth:`_next_stick`); -inf: not."""
         registered = {link: _follow(poller, link, None, link) for link in (gcs, fc)}
         self._streams = {link: (fd, link.wants_write) for link, fd in registered.items()
                          if not link.steady}
@@ -248,14 +251,24 @@ class ControlLoop:
         (clock s) has come: something slow-paced beside the rover (the shell's progress
         line). It runs in the loop between its steps: keep it short (no waiting)."""
         self._timer, self._timer_due_s = action, -math.inf
+        self._sticks_until_s = -math.inf
 
     def run_once(self) -> None:
         """One pass (module docstring): wait, read and answer, tick, housekeeping, links."""
+        if self._sticks_until_s > -math.inf:  # the last pass was a stick, in its lane: wait
+            ready = self.poller.wait(self._sticks_until_s - self.clock())  # for the next one
+            if self._next_stick(ready):
+                return
+            self._sticks_until_s = -math.inf  # (the rest of the pass reads what is ready)
+        else:
+            ready = None
         core, streams, clock = self.core, self._streams, self.clock
         gcs, fc = self.gcs, self.fc
         due = min(core.next_due_s(), gcs.next_reopen_s, fc.next_reopen_s,
                   gcs.next_send_s, fc.next_send_s, self._timer_due_s)
-        ready = self.poller.wait(due - clock())
+        if ready is None:
+            ready = self.poller.wait(due - clock())
+        self._laned = False
         for link, events in ready:
             if link is None:
                 self._woken()
@@ -267,6 +280,8 @@ class ControlLoop:
         if now >= self._timer_due_s and self._timer is not None:
             self._timer_due_s = self._timer(now)
         if core.settled(now) and (not streams or self._streams_idle()):
+            if self._laned:  # a stick in its lane, nothing else to do: until due, the next
+                self._sticks_until_s = due  # pass may be a stick alone (_next_stick)
             return  # nothing arrived and nothing is due
         for link in streams:  # (a datagram link never goes down)
             if not link.up and link.reopen(now):
@@ -312,25 +327,33 @@ class ControlLoop:
             self.fc.flush()
             time.sleep(min(left, 0.005))
 
+    def _next_stick(self, ready: list[tuple[Any, int]]) -> bool:
+        """After a pass that was a stick in its lane and left nothing to do: whether the next
+        wake (``ready``) was the same and nothing more, so that the pass ends here: only the
+        ground station's datagram link ready, its first datagram a stick the lane answered
+        (:meth:`_answer_first`), nothing behind it, the core still settled and the stream
+        links idle. The timers could only have moved later (a message would have unsettled
+        the core): the wait ran until the earliest of them as that pass saw it. Else the
+        rest of the pass takes over, with ``ready`` (what was read here was answered)."""
+        link = self._gcs_datagrams
+        if len(ready) != 1 or ready[0][0] is not link:
+            return False
+        now = self.clock()
+        if not self._answer_first(link, now):
+            return False
+        got = link.receive_datagram()  # (the pass's drain reads the rest)
+        if got is not None:
+            self._answer(link.parse_datagram(*got), now, from_fc=False)
+            return False
+        return self.core.settled(now) and (not self._streams or self._streams_idle())
+
     def _drain(self, link: LoopLink) -> None:
         """Read what waits on ``link`` and answer it: on a datagram link from the ground
-        station the first datagram is answered before the rest is read (a pilot's stick in
-        the core's lane, its override packed in one call and sent before anything else is
-        done; else parsed and handed to the core); the rest goes to the core in order."""
+        station the first datagram is answered before the rest is read
+        (:meth:`_answer_first`); the rest goes to the core in order."""
         now, from_fc = self.clock(), link is self.fc
-        if link is self._gcs_datagrams:  # the first datagram is answered first:
-            got = link.receive_datagram()
-            if got is not None:
-                data, address = got
-                packet = (self.core.stick_lane(data, now, self._fc_mav.seq)
-                          if self._lane_links and (self._fc_datagrams or self.fc.takes_packet())
-                          else None)
-                if packet is not None:  # the pilot's stick, in its lane: sent at once
-                    self.fc.send_packet(packet)
-                    self.core.stick_sent()
-                    link.answered(data, address)
-                else:
-                    self._answer(link.parse_datagram(data, address), now, from_fc=False)
+        if link is self._gcs_datagrams:  # the first datagram is answered first
+            self._laned = self._answer_first(link, now)
         messages = link.read()
         if link.signature_check is not None:
             rejected = link.take_rejections()
@@ -340,6 +363,25 @@ class ControlLoop:
             self._report(link, now)  # it broke, or a tcpin client connected: the core first
         if messages:
             self._answer(messages, now, from_fc=from_fc)
+
+    def _answer_first(self, link: LoopLink, now: float) -> bool:
+        """The first datagram waiting on the ground station's datagram ``link``: a pilot's
+        stick in the core's lane (its override packed in one call and sent before anything
+        else is done; True), else parsed and handed to the core (False, as with none)."""
+        got = link.receive_datagram()
+        if got is None:
+            return False
+        data, address = got
+        packet = (self.core.stick_lane(data, now, self._fc_mav.seq)
+                  if self._lane_links and (self._fc_datagrams or self.fc.takes_packet())
+                  else None)
+        if packet is None:
+            self._answer(link.parse_datagram(data, address), now, from_fc=False)
+            return False
+        self.fc.send_packet(packet)  # the pilot's stick, in its lane: sent at once
+        self.core.stick_sent()
+        link.answered(data, address)
+        return True
 
     def _answer(self, messages: list[Any], now: float, *, from_fc: bool) -> None:
         """Hand ``messages`` to the core and send its answers."""
