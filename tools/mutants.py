@@ -1025,7 +1025,7 @@ MUTATIONS: tuple[Mutation, ...] = (
     M("contacts-from-fc-only", "contacts under the flight controller's ids from the companion "
       "are not the flight controller's",
       PKG + "app/rerunview.py",
-      'or self._senders.role(self._index - 1) in ("vehicle", "gcs"):', "or False:",
+      'or self._senders.role(self._index - 1) in ("vehicle", "gcs")):', "or False):",
       VW + "test_contacts_under_the_flight_controllers_ids_from_the_companion_are_not_mapped"),
     M("log-view-no-png", "log with a view draws the PNG only when --png is given",
       PKG + "app/logview.py", "    if png is not None or not viewing:", "    if True:",
