@@ -23,9 +23,14 @@ from support import wait_until
 
 from mecanum_mav.app.cli import main
 from mecanum_mav.io.tlog import parse_tlog
+from mecanum_mav.mecanum.geo import GlobalOrigin
+from mecanum_mav.mecanum.geometry import body_to_ned
 from mecanum_mav.sim.groundstation import ScriptedGroundStation, UdpPort, udp_ground_station
+from mecanum_mav.sim.physics import WheelContact
 from mecanum_mav.sim.process import CliProcess
+from mecanum_mav.sim.truthsender import CONTACT_NAMES, TRUTH_SOURCE, TruthPublisher
 from mecanum_mav.sim.twin import SETUP_OK, TruthSample, Twin, describe
+from mecanum_mav.sim.twinrecord import TwinRecord
 
 BINARY, WHY_NOT = find_sitl()
 HAS_MUJOCO = importlib.util.find_spec("mujoco") is not None
@@ -276,3 +281,153 @@ def test_the_twin_command_with_view_serves_the_view_of_the_companions_links_and_
         shown = twin.log(100_000).split("mecanum-mav view: ")[-1]
         assert shown.split(" ", 1)[0].isdigit() and int(shown.split(" ", 1)[0]) > 0, \
             twin.log()
+
+
+# --------------------------------------------------------------------------- the truth, fast
+
+
+class TruthListener:
+    """A view's end of the truth: ``udpin`` on a port from the OS (:attr:`url` is where a
+    publisher sends)."""
+
+    def __init__(self, port: int = 0) -> None:
+        self.conn = mavutil.mavlink_connection(f"udpin:127.0.0.1:{port}")
+        self.port = self.conn.port.getsockname()[1]
+        self.url = f"udpout:127.0.0.1:{self.port}"
+
+    def take(self, seconds: float, pump: Callable[[], object] | None = None) -> list:
+        """Every message that comes in the next ``seconds`` (``pump()`` between reads)."""
+        got: list = []
+        deadline = time.monotonic() + seconds
+        while (left := deadline - time.monotonic()) > 0.0:
+            if pump is not None:
+                pump()
+            msg = self.conn.recv_match(blocking=True, timeout=min(left, 0.05))
+            while msg is not None:
+                got.append(msg)
+                msg = self.conn.recv_match(blocking=False)
+        return got
+
+    def close(self) -> None:
+        self.conn.close()
+
+
+def by_type(messages: list, kind: str) -> list:
+    return [m for m in messages if m.get_type() == kind]
+
+
+def moving_record(frames: int, yaw_rate: float = 0.2) -> TwinRecord:
+    """A record of ``frames`` frames at 1200 Hz: driving forward-right at 0.4/0.1 m/s from
+    1.5 m N, 2 m W, heading 0.3 rad and turning clockwise at ``yaw_rate``."""
+    record = TwinRecord.local(capacity=1000)
+    for k in range(frames):
+        t = k / 1200
+        record.add(TruthSample(100.0 + t, t, 1.5 + 0.4 * t, -2.0 + 0.1 * t,
+                               0.3 + yaw_rate * t, 0.4, 0.1))
+    return record
+
+
+@pytest.fixture
+def listener() -> Iterator[TruthListener]:
+    end = TruthListener()
+    yield end
+    end.close()
+
+
+def test_the_truth_publisher_sends_the_records_latest_pose_as_sim_state_from_its_own_sender(
+        listener):
+    # Kills: north and east swapped, the body velocity not rotated to NED, the yaw rate left
+    # 0, the simulator's ids instead of the truth's own, an older row than the latest.
+    record = moving_record(600)
+    publisher = TruthPublisher(record, listener.url, GlobalOrigin(0, 0))
+    try:
+        states = by_type(listener.take(0.3), "SIM_STATE")
+    finally:
+        publisher.close()
+    assert len(states) == 1  # the physics did not move on: the pose is not sent again
+    msg = states[0]
+    assert (msg.get_srcSystem(), msg.get_srcComponent()) == TRUTH_SOURCE != (1, 1)
+    last = record.truth_now()
+    north, east = GlobalOrigin(0, 0).to_local(msg.lat_int, msg.lon_int)
+    assert (north, east) == (pytest.approx(last.north_m, abs=0.012),
+                             pytest.approx(last.east_m, abs=0.012))
+    assert msg.yaw == pytest.approx(last.yaw_rad, abs=1e-6)
+    assert msg.zgyro == pytest.approx(0.2, rel=1e-3)
+    v_north, v_east = body_to_ned(0.4, 0.1, last.yaw_rad)
+    assert (msg.vn, msg.ve) == (pytest.approx(v_north, abs=1e-6), pytest.approx(v_east, abs=1e-6))
+    assert (msg.q1, msg.q4) == (pytest.approx(math.cos(last.yaw_rad / 2)),
+                                pytest.approx(math.sin(last.yaw_rad / 2)))
+
+
+def test_the_truth_publisher_sends_each_new_pose_at_20_hz_while_the_physics_moves_on(listener):
+    # Kills: the pose sent once only, or sent at a wrong rate.
+    record = moving_record(1)
+    publisher = TruthPublisher(record, listener.url, GlobalOrigin(0, 0))
+    frames = [1]
+
+    def step() -> None:  # the bridge's frames, as the wall clock goes
+        while frames[0] < 1200 * (time.monotonic() - started):
+            t = frames[0] / 1200
+            record.add(TruthSample(t, t, 1.5 + t, 0.0, 0.0, 1.0, 0.0))
+            frames[0] += 1
+
+    started = time.monotonic()
+    try:
+        states = by_type(listener.take(1.0, pump=step), "SIM_STATE")
+    finally:
+        publisher.close()
+    assert 15 <= len(states) <= 22, len(states)
+    norths = [GlobalOrigin(0, 0).to_local(m.lat_int, m.lon_int)[0] for m in states]
+    assert norths == sorted(norths) and norths[-1] - norths[0] > 0.5
+
+
+def test_the_truth_publisher_sends_each_contact_reading_once_as_the_boards_debug_vects(listener):
+    # Kills: a reading sent again (every tick) or never, the force, slip and flag in other
+    # fields, wheels out of order.
+    record = moving_record(10)
+    contacts = (WheelContact(10.0, 0.01, False), WheelContact(11.0, 0.02, False),
+                WheelContact(12.0, 0.5, True), WheelContact(13.0, 0.03, False))
+    record.set_contacts(1.25, contacts)
+    publisher = TruthPublisher(record, listener.url, GlobalOrigin(0, 0))
+    try:
+        vectors = by_type(listener.take(0.3), "DEBUG_VECT")
+        record.set_contacts(1.35, contacts)
+        vectors += by_type(listener.take(0.3), "DEBUG_VECT")
+    finally:
+        publisher.close()
+    assert [m.name for m in vectors] == [*CONTACT_NAMES, *CONTACT_NAMES]
+    assert [m.time_usec for m in vectors] == [1_250_000] * 4 + [1_350_000] * 4
+    assert [(m.x, round(m.y, 3), m.z) for m in vectors[:4]] == [
+        (10.0, 0.01, 0.0), (11.0, 0.02, 0.0), (12.0, 0.5, 1.0), (13.0, 0.03, 0.0)]
+    assert {(m.get_srcSystem(), m.get_srcComponent()) for m in vectors} == {TRUTH_SOURCE}
+
+
+def test_the_twin_command_with_a_truth_url_that_is_not_udpout_exits_2(capsys):
+    assert main(["twin", "--sitl", sys.executable, "--truth", "tcp:127.0.0.1:5760"]) == 2
+    assert "udpout:HOST:PORT" in capsys.readouterr().err
+
+
+@pytest.mark.skipif(not HAS_MUJOCO, reason="the twin's chassis needs the physics extra (mujoco)")
+def test_the_bridge_records_the_wheel_contacts_every_tenth_of_a_second_carrying_the_weight():
+    # Kills: the contacts never recorded, or recorded every frame (the lockstep's cost).
+    from mecanum_mav.config.params import Params
+    from mecanum_mav.control.pwm import PwmMap
+    from mecanum_mav.sim.mujocochassis import MujocoChassis
+    from mecanum_mav.sim.sitljson import encode_servo_packet
+    from mecanum_mav.sim.twinbridge import BridgeCore, WheelMap
+
+    params = Params()
+    core = BridgeCore(MujocoChassis.from_params(params),
+                      WheelMap(PwmMap.from_params(params), esc_dead_band=params["SIM_ESC_DZ"]))
+    assert core.record.contacts() is None
+    times = set()
+    for count in range(1, 1201):  # one second at 1200 Hz, wheels at neutral
+        core.answer(encode_servo_packet(1200, count, [1500] * 4))
+        read = core.record.contacts()
+        assert read is not None
+        times.add(read[0])
+    assert len(times) == 10  # 0.0, 0.1, ... 0.9 s of physics
+    _, wheels = core.record.contacts() or (0.0, ())
+    weight = params["SIM_MASS"] * 9.81
+    assert sum(w.normal_n for w in wheels) == pytest.approx(weight, rel=0.03)
+    assert not any(w.slipping for w in wheels)
