@@ -9,25 +9,29 @@ and how far and how long the chassis ran on after the companion was killed at 1 
 from __future__ import annotations
 
 import importlib.util
+import io
 import math
+import socket
 import sys
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import TypeVar
 
+import numpy as np
 import pytest
 from pymavlink import mavutil
 from sitl import find_sitl
 from support import wait_until
 
 from mecanum_mav.app.cli import main
+from mecanum_mav.config.params import Params
 from mecanum_mav.io.tlog import parse_tlog
 from mecanum_mav.mecanum.geo import GlobalOrigin
 from mecanum_mav.mecanum.geometry import body_to_ned
 from mecanum_mav.sim.groundstation import ScriptedGroundStation, UdpPort, udp_ground_station
 from mecanum_mav.sim.physics import WheelContact
-from mecanum_mav.sim.process import CliProcess
+from mecanum_mav.sim.process import CliProcess, free_port
 from mecanum_mav.sim.truthsender import CONTACT_NAMES, TRUTH_SOURCE, TruthPublisher
 from mecanum_mav.sim.twin import SETUP_OK, TruthSample, Twin, describe
 from mecanum_mav.sim.twinrecord import TwinRecord
@@ -59,11 +63,13 @@ def truth_if(twin: Twin, predicate: Callable[[TruthSample], bool]) -> TruthSampl
 
 
 class Rig:
-    """A twin and a scripted ground station on its companion."""
+    """A twin and a scripted ground station on its companion; the twin sends its truth to
+    ``udpout:127.0.0.1:truth_port`` (a test listens there when it needs it)."""
 
-    def __init__(self, twin: Twin, gcs: ScriptedGroundStation) -> None:
+    def __init__(self, twin: Twin, gcs: ScriptedGroundStation, truth_port: int) -> None:
         self.twin = twin
         self.gcs = gcs
+        self.truth_port = truth_port
 
     def drive(self, x: int, until: Callable[[TruthSample], bool],
               timeout_s: float) -> TruthSample | None:
@@ -80,9 +86,11 @@ class Rig:
 def _rig() -> Iterator[Rig]:
     assert BINARY is not None
     gcs, port = udp_ground_station()
+    truth_port = free_port(socket.SOCK_DGRAM)
     try:
-        with Twin(BINARY, gcs_port=_port_number(port)) as twin:
-            rig = Rig(twin, gcs)
+        with Twin(BINARY, gcs_port=_port_number(port),
+                  truth=f"udpout:127.0.0.1:{truth_port}") as twin:
+            rig = Rig(twin, gcs, truth_port)
             try:
                 gcs.arm(timeout_s=READY_S)
             except RuntimeError:
@@ -144,6 +152,58 @@ def test_the_companion_arms_while_the_firmwares_own_prearm_checks_stay_on(rig):
 
 
 @real_firmware
+def test_the_twins_truth_at_rest_has_each_wheels_contact_at_10_hz_carrying_its_weight(rig):
+    # (the chassis stands still here: armed, no stick yet)
+    listener = TruthListener(rig.truth_port)
+    try:
+        vectors = by_type(listener.take(2.0), "DEBUG_VECT")
+    finally:
+        listener.close()
+    names = [m.name for m in vectors]
+    assert all(18 <= names.count(n) <= 22 for n in CONTACT_NAMES), names
+    assert {(m.get_srcSystem(), m.get_srcComponent()) for m in vectors} == {TRUTH_SOURCE}
+    weight = Params()["SIM_MASS"] * 9.81
+    last = vectors[-4:]
+    assert [m.name for m in last] == list(CONTACT_NAMES)
+    print(f"\nat rest: normal forces {[round(m.x, 2) for m in last]} N, sum "
+          f"{sum(m.x for m in last):.2f} N, m*g {weight:.2f} N")
+    assert sum(m.x for m in last) == pytest.approx(weight, rel=0.03), rig.why()
+    # (each wheel on the floor, none slipping; four wheels on a rigid chassis share the
+    # weight unevenly: the twin measured 3.5, 16.2, 16.1, 3.6 N)
+    assert all(m.x > 0.0 and m.z == 0.0 for m in last)
+
+
+@real_firmware
+def test_the_view_of_the_twins_truth_records_its_true_path_and_contact_forces(
+        rig, tmp_path, monkeypatch):
+    """``view --connect udpin:...`` on the port the twin sends its truth to (as the twin
+    prints it): the recording (read back with Rerun's reader) has the true path and each
+    wheel's normal force, summing to the weight at rest."""
+    pytest.importorskip("rerun", reason="the view extra (rerun-sdk) is not installed")
+    from test_view import read_rrd
+
+    from mecanum_mav.app.view import run_view
+
+    monkeypatch.setenv("DISPLAY", "")
+    monkeypatch.setenv("WAYLAND_DISPLAY", "")
+    saved = tmp_path / "truth.rrd"
+    deadline = time.monotonic() + 30.0
+    status = run_view(f"udpin:127.0.0.1:{rig.truth_port}", Params(), save=saved, web_port=0,
+                      out=io.StringIO(), stop_when=lambda mapping: mapping.messages >= 180
+                      or time.monotonic() > deadline)
+    assert status == 0
+    temporal, _ = read_rrd(saved)
+    assert len(temporal["map/truth"]) >= 20, rig.why()  # 3 s at 20 Hz
+    truth = rig.twin.truth_now()
+    east, minus_north = temporal["map/truth"][-1][1]["LineStrips2D:strips"][0][-1]
+    assert (-minus_north, east) == (pytest.approx(truth.north_m, abs=0.02),
+                                    pytest.approx(truth.east_m, abs=0.02))
+    forces = [temporal[f"contacts/normal/{w}"][-1][1]["Scalars:scalars"][0]
+              for w in ("FL", "FR", "RL", "RR")]
+    assert sum(forces) == pytest.approx(Params()["SIM_MASS"] * 9.81, rel=0.03)
+
+
+@real_firmware
 def test_manual_sticks_forward_drive_the_mujoco_chassis_north(rig):
     start = rig.twin.truth_now()
     moved = rig.drive(FULL // 2, lambda s: s.north_m - start.north_m > 0.5, 15.0)
@@ -152,6 +212,41 @@ def test_manual_sticks_forward_drive_the_mujoco_chassis_north(rig):
     assert moved.forward_mps > 0.3
     stopped = rig.drive(0, lambda s: abs(s.forward_mps) < 0.01, 5.0)
     assert stopped is not None, rig.why()
+
+
+@real_firmware
+def test_the_twins_truth_comes_at_20_hz_as_sim_state_matching_the_bridges_record(rig):
+    """While the chassis drives north, the twin's SIM_STATEs (about 0, 0: ORIGIN_LAT/LON
+    unset) come at 20 Hz, each one the pose and velocity of a frame in the bridge's record,
+    and the last one a frame of the last 0.1 s."""
+    listener = TruthListener(rig.truth_port)
+    started = rig.twin.truth_now()
+    try:
+        messages = listener.take(3.0, pump=lambda: (rig.gcs.sticks(FULL // 2, 0, 0),
+                                                     rig.gcs.pump(0.0)))
+        now = rig.twin.truth_now()
+    finally:
+        listener.close()
+        rig.drive(0, lambda s: abs(s.forward_mps) < 0.01, 5.0)
+    states = by_type(messages, "SIM_STATE")
+    rows = rig.twin.truth_array()
+    rows = rows[rows[:, 1] >= started.time_s - 0.2]
+    cos, sin = np.cos(rows[:, 4]), np.sin(rows[:, 4])
+    v_north = cos * rows[:, 5] - sin * rows[:, 6]  # body FRD -> NED
+    v_east = sin * rows[:, 5] + cos * rows[:, 6]
+    print(f"\ntruth: {len(states)} SIM_STATE in 3 s; {describe(rig.twin.stats())}")
+    assert len(states) >= 3.0 * 18, len(states)
+    assert {(m.get_srcSystem(), m.get_srcComponent()) for m in states} == {TRUTH_SOURCE}
+    matched = []
+    for msg in states:
+        north, east = GlobalOrigin(0, 0).to_local(msg.lat_int, msg.lon_int)
+        same = ((np.abs(rows[:, 2] - north) < 0.012) & (np.abs(rows[:, 3] - east) < 0.012)
+                & (np.abs(rows[:, 4] - msg.yaw) < 1e-6) & (np.abs(v_north - msg.vn) < 1e-5)
+                & (np.abs(v_east - msg.ve) < 1e-5))
+        assert same.any(), f"no frame of the record is {msg}"
+        matched.append(float(rows[np.flatnonzero(same)[-1], 1]))
+    assert matched == sorted(matched) and matched[-1] - matched[0] > 2.5
+    assert now.time_s - matched[-1] < 0.1
 
 
 def stop_after(rig: Rig, end: Callable[[], object]) -> tuple[TruthSample, TruthSample, float]:
@@ -261,14 +356,20 @@ def test_the_twin_command_starts_everything_says_where_to_connect_and_ends_it_on
 def test_the_twin_command_with_view_serves_the_view_of_the_companions_links_and_ends_it(
         tmp_path, monkeypatch):
     """``twin --view``: a view follows the companion's tlog (its overrides and the firmware's
-    SIMSTATE), serves the web viewer here (no display) and, at SIGTERM, ends after saying how
-    many messages it showed; the tlog holds the firmware's truth (SIMSTATE)."""
+    SIMSTATE) and the twin's truth on the port it prints, serves the web viewer here (no
+    display) and, at SIGTERM, ends after saying how many messages it showed; the tlog holds
+    the firmware's truth (SIMSTATE)."""
     monkeypatch.setenv("DISPLAY", "")
     monkeypatch.setenv("WAYLAND_DISPLAY", "")
     with twin_command(tmp_path, "--view", "--web-port", "0") as twin:
-        text = ready(twin)
+        ready(twin)
+        said = "the truth (SIM_STATE, wheel contacts) goes to udpout:127.0.0.1:"
+        assert wait_until(lambda: said in twin.log(100_000), 5.0), twin.log()
+        text = twin.log(100_000)
         assert "mecanum-mav view: " in text, text
-        followed = Path(text.split("mecanum-mav view: ", 1)[1].split(" -> ", 1)[0])
+        sources = text.split("mecanum-mav view: ", 1)[1].split(" -> ", 1)[0].split(", ")
+        followed = Path(sources[0])
+        assert sources[1:] == [text.split("mecanum-mav view --connect ", 1)[1].split()[0]]
         assert " -> http://127.0.0.1:" in text, text
 
         def truth_recorded() -> bool:
