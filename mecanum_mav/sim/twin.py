@@ -23,7 +23,9 @@ everything is ready, :meth:`Twin.close` ends everything on every way out):
    firmware drives the wheels itself; ``firmware_params`` and ``wheel_map`` say how).
 
 The truth (:class:`~mecanum_mav.sim.twinrecord.TruthSample`) is the chassis' state at each
-frame the bridge answered.
+frame the bridge answered; with ``truth=URL`` a thread of this process sends it, and the
+wheels' contacts, to a view (:class:`~mecanum_mav.sim.truthsender.TruthPublisher`: the
+bridge's process, which paces the lockstep, sends nothing more).
 """
 
 from __future__ import annotations
