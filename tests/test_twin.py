@@ -9,23 +9,32 @@ and how far and how long the chassis ran on after the companion was killed at 1 
 from __future__ import annotations
 
 import importlib.util
+import io
 import math
+import socket
 import sys
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import TypeVar
 
+import numpy as np
 import pytest
 from pymavlink import mavutil
 from sitl import find_sitl
 from support import wait_until
 
 from mecanum_mav.app.cli import main
+from mecanum_mav.config.params import Params
 from mecanum_mav.io.tlog import parse_tlog
+from mecanum_mav.mecanum.geo import GlobalOrigin
+from mecanum_mav.mecanum.geometry import body_to_ned
 from mecanum_mav.sim.groundstation import ScriptedGroundStation, UdpPort, udp_ground_station
-from mecanum_mav.sim.process import CliProcess
+from mecanum_mav.sim.physics import WheelContact
+from mecanum_mav.sim.process import CliProcess, free_port
+from mecanum_mav.sim.truthsender import CONTACT_NAMES, TRUTH_SOURCE, TruthPublisher
 from mecanum_mav.sim.twin import SETUP_OK, TruthSample, Twin, describe
+from mecanum_mav.sim.twinrecord import TwinRecord
 
 BINARY, WHY_NOT = find_sitl()
 HAS_MUJOCO = importlib.util.find_spec("mujoco") is not None
@@ -54,11 +63,13 @@ def truth_if(twin: Twin, predicate: Callable[[TruthSample], bool]) -> TruthSampl
 
 
 class Rig:
-    """A twin and a scripted ground station on its companion."""
+    """A twin and a scripted ground station on its companion; the twin sends its truth to
+    ``udpout:127.0.0.1:truth_port`` (a test listens there when it needs it)."""
 
-    def __init__(self, twin: Twin, gcs: ScriptedGroundStation) -> None:
+    def __init__(self, twin: Twin, gcs: ScriptedGroundStation, truth_port: int) -> None:
         self.twin = twin
         self.gcs = gcs
+        self.truth_port = truth_port
 
     def drive(self, x: int, until: Callable[[TruthSample], bool],
               timeout_s: float) -> TruthSample | None:
@@ -75,9 +86,11 @@ class Rig:
 def _rig() -> Iterator[Rig]:
     assert BINARY is not None
     gcs, port = udp_ground_station()
+    truth_port = free_port(socket.SOCK_DGRAM)
     try:
-        with Twin(BINARY, gcs_port=_port_number(port)) as twin:
-            rig = Rig(twin, gcs)
+        with Twin(BINARY, gcs_port=_port_number(port),
+                  truth=f"udpout:127.0.0.1:{truth_port}") as twin:
+            rig = Rig(twin, gcs, truth_port)
             try:
                 gcs.arm(timeout_s=READY_S)
             except RuntimeError:
@@ -139,6 +152,58 @@ def test_the_companion_arms_while_the_firmwares_own_prearm_checks_stay_on(rig):
 
 
 @real_firmware
+def test_the_twins_truth_at_rest_has_each_wheels_contact_at_10_hz_carrying_its_weight(rig):
+    # (the chassis stands still here: armed, no stick yet)
+    listener = TruthListener(rig.truth_port)
+    try:
+        vectors = by_type(listener.take(2.0), "DEBUG_VECT")
+    finally:
+        listener.close()
+    names = [m.name for m in vectors]
+    assert all(18 <= names.count(n) <= 22 for n in CONTACT_NAMES), names
+    assert {(m.get_srcSystem(), m.get_srcComponent()) for m in vectors} == {TRUTH_SOURCE}
+    weight = Params()["SIM_MASS"] * 9.81
+    last = vectors[-4:]
+    assert [m.name for m in last] == list(CONTACT_NAMES)
+    print(f"\nat rest: normal forces {[round(m.x, 2) for m in last]} N, sum "
+          f"{sum(m.x for m in last):.2f} N, m*g {weight:.2f} N")
+    assert sum(m.x for m in last) == pytest.approx(weight, rel=0.03), rig.why()
+    # (each wheel on the floor, none slipping; four wheels on a rigid chassis share the
+    # weight unevenly: the twin measured 3.5, 16.2, 16.1, 3.6 N)
+    assert all(m.x > 0.0 and m.z == 0.0 for m in last)
+
+
+@real_firmware
+def test_the_view_of_the_twins_truth_records_its_true_path_and_contact_forces(
+        rig, tmp_path, monkeypatch):
+    """``view --connect udpin:...`` on the port the twin sends its truth to (as the twin
+    prints it): the recording (read back with Rerun's reader) has the true path and each
+    wheel's normal force, summing to the weight at rest."""
+    pytest.importorskip("rerun", reason="the view extra (rerun-sdk) is not installed")
+    from test_view import read_rrd
+
+    from mecanum_mav.app.view import run_view
+
+    monkeypatch.setenv("DISPLAY", "")
+    monkeypatch.setenv("WAYLAND_DISPLAY", "")
+    saved = tmp_path / "truth.rrd"
+    deadline = time.monotonic() + 30.0
+    status = run_view(f"udpin:127.0.0.1:{rig.truth_port}", Params(), save=saved, web_port=0,
+                      out=io.StringIO(), stop_when=lambda mapping: mapping.messages >= 180
+                      or time.monotonic() > deadline)
+    assert status == 0
+    temporal, _ = read_rrd(saved)
+    assert len(temporal["map/truth"]) >= 20, rig.why()  # 3 s at 20 Hz
+    truth = rig.twin.truth_now()
+    east, minus_north = temporal["map/truth"][-1][1]["LineStrips2D:strips"][0][-1]
+    assert (-minus_north, east) == (pytest.approx(truth.north_m, abs=0.02),
+                                    pytest.approx(truth.east_m, abs=0.02))
+    forces = [temporal[f"contacts/normal/{w}"][-1][1]["Scalars:scalars"][0]
+              for w in ("FL", "FR", "RL", "RR")]
+    assert sum(forces) == pytest.approx(Params()["SIM_MASS"] * 9.81, rel=0.03)
+
+
+@real_firmware
 def test_manual_sticks_forward_drive_the_mujoco_chassis_north(rig):
     start = rig.twin.truth_now()
     moved = rig.drive(FULL // 2, lambda s: s.north_m - start.north_m > 0.5, 15.0)
@@ -147,6 +212,41 @@ def test_manual_sticks_forward_drive_the_mujoco_chassis_north(rig):
     assert moved.forward_mps > 0.3
     stopped = rig.drive(0, lambda s: abs(s.forward_mps) < 0.01, 5.0)
     assert stopped is not None, rig.why()
+
+
+@real_firmware
+def test_the_twins_truth_comes_at_20_hz_as_sim_state_matching_the_bridges_record(rig):
+    """While the chassis drives north, the twin's SIM_STATEs (about 0, 0: ORIGIN_LAT/LON
+    unset) come at 20 Hz, each one the pose and velocity of a frame in the bridge's record,
+    and the last one a frame of the last 0.1 s."""
+    listener = TruthListener(rig.truth_port)
+    started = rig.twin.truth_now()
+    try:
+        messages = listener.take(3.0, pump=lambda: (rig.gcs.sticks(FULL // 2, 0, 0),
+                                                     rig.gcs.pump(0.0)))
+        now = rig.twin.truth_now()
+    finally:
+        listener.close()
+        rig.drive(0, lambda s: abs(s.forward_mps) < 0.01, 5.0)
+    states = by_type(messages, "SIM_STATE")
+    rows = rig.twin.truth_array()
+    rows = rows[rows[:, 1] >= started.time_s - 0.2]
+    cos, sin = np.cos(rows[:, 4]), np.sin(rows[:, 4])
+    v_north = cos * rows[:, 5] - sin * rows[:, 6]  # body FRD -> NED
+    v_east = sin * rows[:, 5] + cos * rows[:, 6]
+    print(f"\ntruth: {len(states)} SIM_STATE in 3 s; {describe(rig.twin.stats())}")
+    assert len(states) >= 3.0 * 18, len(states)
+    assert {(m.get_srcSystem(), m.get_srcComponent()) for m in states} == {TRUTH_SOURCE}
+    matched = []
+    for msg in states:
+        north, east = GlobalOrigin(0, 0).to_local(msg.lat_int, msg.lon_int)
+        same = ((np.abs(rows[:, 2] - north) < 0.012) & (np.abs(rows[:, 3] - east) < 0.012)
+                & (np.abs(rows[:, 4] - msg.yaw) < 1e-6) & (np.abs(v_north - msg.vn) < 1e-5)
+                & (np.abs(v_east - msg.ve) < 1e-5))
+        assert same.any(), f"no frame of the record is {msg}"
+        matched.append(float(rows[np.flatnonzero(same)[-1], 1]))
+    assert matched == sorted(matched) and matched[-1] - matched[0] > 2.5
+    assert now.time_s - matched[-1] < 0.1
 
 
 def stop_after(rig: Rig, end: Callable[[], object]) -> tuple[TruthSample, TruthSample, float]:
@@ -256,14 +356,20 @@ def test_the_twin_command_starts_everything_says_where_to_connect_and_ends_it_on
 def test_the_twin_command_with_view_serves_the_view_of_the_companions_links_and_ends_it(
         tmp_path, monkeypatch):
     """``twin --view``: a view follows the companion's tlog (its overrides and the firmware's
-    SIMSTATE), serves the web viewer here (no display) and, at SIGTERM, ends after saying how
-    many messages it showed; the tlog holds the firmware's truth (SIMSTATE)."""
+    SIMSTATE) and the twin's truth on the port it prints, serves the web viewer here (no
+    display) and, at SIGTERM, ends after saying how many messages it showed; the tlog holds
+    the firmware's truth (SIMSTATE)."""
     monkeypatch.setenv("DISPLAY", "")
     monkeypatch.setenv("WAYLAND_DISPLAY", "")
     with twin_command(tmp_path, "--view", "--web-port", "0") as twin:
-        text = ready(twin)
+        ready(twin)
+        said = "the truth (SIM_STATE, wheel contacts) goes to udpout:127.0.0.1:"
+        assert wait_until(lambda: said in twin.log(100_000), 5.0), twin.log()
+        text = twin.log(100_000)
         assert "mecanum-mav view: " in text, text
-        followed = Path(text.split("mecanum-mav view: ", 1)[1].split(" -> ", 1)[0])
+        sources = text.split("mecanum-mav view: ", 1)[1].split(" -> ", 1)[0].split(", ")
+        followed = Path(sources[0])
+        assert sources[1:] == [text.split("mecanum-mav view --connect ", 1)[1].split()[0]]
         assert " -> http://127.0.0.1:" in text, text
 
         def truth_recorded() -> bool:
@@ -276,3 +382,153 @@ def test_the_twin_command_with_view_serves_the_view_of_the_companions_links_and_
         shown = twin.log(100_000).split("mecanum-mav view: ")[-1]
         assert shown.split(" ", 1)[0].isdigit() and int(shown.split(" ", 1)[0]) > 0, \
             twin.log()
+
+
+# --------------------------------------------------------------------------- the truth, fast
+
+
+class TruthListener:
+    """A view's end of the truth: ``udpin`` on a port from the OS (:attr:`url` is where a
+    publisher sends)."""
+
+    def __init__(self, port: int = 0) -> None:
+        self.conn = mavutil.mavlink_connection(f"udpin:127.0.0.1:{port}")
+        self.port = self.conn.port.getsockname()[1]
+        self.url = f"udpout:127.0.0.1:{self.port}"
+
+    def take(self, seconds: float, pump: Callable[[], object] | None = None) -> list:
+        """Every message that comes in the next ``seconds`` (``pump()`` between reads)."""
+        got: list = []
+        deadline = time.monotonic() + seconds
+        while (left := deadline - time.monotonic()) > 0.0:
+            if pump is not None:
+                pump()
+            msg = self.conn.recv_match(blocking=True, timeout=min(left, 0.05))
+            while msg is not None:
+                got.append(msg)
+                msg = self.conn.recv_match(blocking=False)
+        return got
+
+    def close(self) -> None:
+        self.conn.close()
+
+
+def by_type(messages: list, kind: str) -> list:
+    return [m for m in messages if m.get_type() == kind]
+
+
+def moving_record(frames: int, yaw_rate: float = 0.2) -> TwinRecord:
+    """A record of ``frames`` frames at 1200 Hz: driving forward-right at 0.4/0.1 m/s from
+    1.5 m N, 2 m W, heading 0.3 rad and turning clockwise at ``yaw_rate``."""
+    record = TwinRecord.local(capacity=1000)
+    for k in range(frames):
+        t = k / 1200
+        record.add(TruthSample(100.0 + t, t, 1.5 + 0.4 * t, -2.0 + 0.1 * t,
+                               0.3 + yaw_rate * t, 0.4, 0.1))
+    return record
+
+
+@pytest.fixture
+def listener() -> Iterator[TruthListener]:
+    end = TruthListener()
+    yield end
+    end.close()
+
+
+def test_the_truth_publisher_sends_the_records_latest_pose_as_sim_state_from_its_own_sender(
+        listener):
+    # Kills: north and east swapped, the body velocity not rotated to NED, the yaw rate left
+    # 0, the simulator's ids instead of the truth's own, an older row than the latest.
+    record = moving_record(600)
+    publisher = TruthPublisher(record, listener.url, GlobalOrigin(0, 0))
+    try:
+        states = by_type(listener.take(0.3), "SIM_STATE")
+    finally:
+        publisher.close()
+    assert len(states) == 1  # the physics did not move on: the pose is not sent again
+    msg = states[0]
+    assert (msg.get_srcSystem(), msg.get_srcComponent()) == TRUTH_SOURCE != (1, 1)
+    last = record.truth_now()
+    north, east = GlobalOrigin(0, 0).to_local(msg.lat_int, msg.lon_int)
+    assert (north, east) == (pytest.approx(last.north_m, abs=0.012),
+                             pytest.approx(last.east_m, abs=0.012))
+    assert msg.yaw == pytest.approx(last.yaw_rad, abs=1e-6)
+    assert msg.zgyro == pytest.approx(0.2, rel=1e-3)
+    v_north, v_east = body_to_ned(0.4, 0.1, last.yaw_rad)
+    assert (msg.vn, msg.ve) == (pytest.approx(v_north, abs=1e-6), pytest.approx(v_east, abs=1e-6))
+    assert (msg.q1, msg.q4) == (pytest.approx(math.cos(last.yaw_rad / 2)),
+                                pytest.approx(math.sin(last.yaw_rad / 2)))
+
+
+def test_the_truth_publisher_sends_each_new_pose_at_20_hz_while_the_physics_moves_on(listener):
+    # Kills: the pose sent once only, or sent at a wrong rate.
+    record = moving_record(1)
+    publisher = TruthPublisher(record, listener.url, GlobalOrigin(0, 0))
+    frames = [1]
+
+    def step() -> None:  # the bridge's frames, as the wall clock goes
+        while frames[0] < 1200 * (time.monotonic() - started):
+            t = frames[0] / 1200
+            record.add(TruthSample(t, t, 1.5 + t, 0.0, 0.0, 1.0, 0.0))
+            frames[0] += 1
+
+    started = time.monotonic()
+    try:
+        states = by_type(listener.take(1.0, pump=step), "SIM_STATE")
+    finally:
+        publisher.close()
+    assert 15 <= len(states) <= 22, len(states)
+    norths = [GlobalOrigin(0, 0).to_local(m.lat_int, m.lon_int)[0] for m in states]
+    assert norths == sorted(norths) and norths[-1] - norths[0] > 0.5
+
+
+def test_the_truth_publisher_sends_each_contact_reading_once_as_the_boards_debug_vects(listener):
+    # Kills: a reading sent again (every tick) or never, the force, slip and flag in other
+    # fields, wheels out of order.
+    record = moving_record(10)
+    contacts = (WheelContact(10.0, 0.01, False), WheelContact(11.0, 0.02, False),
+                WheelContact(12.0, 0.5, True), WheelContact(13.0, 0.03, False))
+    record.set_contacts(1.25, contacts)
+    publisher = TruthPublisher(record, listener.url, GlobalOrigin(0, 0))
+    try:
+        vectors = by_type(listener.take(0.3), "DEBUG_VECT")
+        record.set_contacts(1.35, contacts)
+        vectors += by_type(listener.take(0.3), "DEBUG_VECT")
+    finally:
+        publisher.close()
+    assert [m.name for m in vectors] == [*CONTACT_NAMES, *CONTACT_NAMES]
+    assert [m.time_usec for m in vectors] == [1_250_000] * 4 + [1_350_000] * 4
+    assert [(m.x, round(m.y, 3), m.z) for m in vectors[:4]] == [
+        (10.0, 0.01, 0.0), (11.0, 0.02, 0.0), (12.0, 0.5, 1.0), (13.0, 0.03, 0.0)]
+    assert {(m.get_srcSystem(), m.get_srcComponent()) for m in vectors} == {TRUTH_SOURCE}
+
+
+def test_the_twin_command_with_a_truth_url_that_is_not_udpout_exits_2(capsys):
+    assert main(["twin", "--sitl", sys.executable, "--truth", "tcp:127.0.0.1:5760"]) == 2
+    assert "udpout:HOST:PORT" in capsys.readouterr().err
+
+
+@pytest.mark.skipif(not HAS_MUJOCO, reason="the twin's chassis needs the physics extra (mujoco)")
+def test_the_bridge_records_the_wheel_contacts_every_tenth_of_a_second_carrying_the_weight():
+    # Kills: the contacts never recorded, or recorded every frame (the lockstep's cost).
+    from mecanum_mav.config.params import Params
+    from mecanum_mav.control.pwm import PwmMap
+    from mecanum_mav.sim.mujocochassis import MujocoChassis
+    from mecanum_mav.sim.sitljson import encode_servo_packet
+    from mecanum_mav.sim.twinbridge import BridgeCore, WheelMap
+
+    params = Params()
+    core = BridgeCore(MujocoChassis.from_params(params),
+                      WheelMap(PwmMap.from_params(params), esc_dead_band=params["SIM_ESC_DZ"]))
+    assert core.record.contacts() is None
+    times = set()
+    for count in range(1, 1201):  # one second at 1200 Hz, wheels at neutral
+        core.answer(encode_servo_packet(1200, count, [1500] * 4))
+        read = core.record.contacts()
+        assert read is not None
+        times.add(read[0])
+    assert len(times) == 10  # 0.0, 0.1, ... 0.9 s of physics
+    _, wheels = core.record.contacts() or (0.0, ())
+    weight = params["SIM_MASS"] * 9.81
+    assert sum(w.normal_n for w in wheels) == pytest.approx(weight, rel=0.03)
+    assert not any(w.slipping for w in wheels)

@@ -345,3 +345,123 @@ def test_log_with_a_view_draws_the_png_only_when_asked(drive, tmp_path):
     png = tmp_path / "asked.png"
     assert main(["log", str(tlog), "--rerun", str(tmp_path / "both.rrd"), "--png", str(png)]) == 0
     assert png.stat().st_size > 10_000
+
+
+# --------------------------------------------------------------------------- the twin's truth
+
+
+def _sent(mav) -> list:
+    """The messages ``mav`` (a MAVLink on a BytesIO) has written so far, decoded."""
+    data = mav.file.getvalue()
+    mav.file.seek(0)
+    mav.file.truncate()
+    return mavlink.MAVLink(None).parse_buffer(data) or []
+
+
+def _flushed(mapping: ViewMapping, path: Path) -> dict:
+    recording = rr.RecordingStream("test")
+    recording.save(str(path))
+    mapping.flush(recording)
+    recording.flush()
+    recording.disconnect()
+    return read_rrd(path)[0]
+
+
+def test_once_the_twins_truth_came_the_true_path_and_contacts_are_its_alone(tmp_path):
+    # The firmware's SIMSTATE (about its own home, far from 0, 0) then the twin's truth
+    # (TRUTH_SOURCE, about 0, 0): the true path starts again at the twin's first, about its
+    # origin; later SIMSTATEs and the firmware's contacts are not drawn. Kills: every
+    # sender's truth drawn; the origin guessed from the firmware's kept.
+    from mecanum_mav.mecanum.geo import GlobalOrigin
+    from mecanum_mav.sim.physics import WheelContact
+    from mecanum_mav.sim.truthsender import TRUTH_SOURCE, send_contacts, send_sim_state
+
+    firmware = mavlink.MAVLink(io.BytesIO(), srcSystem=1, srcComponent=1)
+    twin = mavlink.MAVLink(io.BytesIO(), srcSystem=TRUTH_SOURCE[0], srcComponent=TRUTH_SOURCE[1])
+    contacts = [WheelContact(10.0 + k, 0.0, False) for k in range(4)]
+    mapping = ViewMapping()
+    fed = []
+    for mav, send in (
+            (firmware, lambda: firmware.simstate_send(0, 0, 0, 0, 0, 0, 0, 0, 0, -353632621,
+                                                      1491652374)),
+            (twin, lambda: send_sim_state(twin, GlobalOrigin(0, 0), 1.0, 2.0, 0, 0, 0, 0)),
+            (firmware, lambda: firmware.simstate_send(0, 0, 0, 0, 0, 0, 0, 0, 0, -353632000,
+                                                      1491652374)),
+            (twin, lambda: send_sim_state(twin, GlobalOrigin(0, 0), 1.5, 2.0, 0, 0, 0, 0)),
+            (twin, lambda: send_contacts(twin, 0, contacts)),
+            (firmware, lambda: send_contacts(firmware, 0, [WheelContact(99.0, 0, True)] * 4))):
+        send()
+        fed += _sent(mav)
+    mapping.feed_all((1.0 + k, msg) for k, msg in enumerate(fed))
+    temporal = _flushed(mapping, tmp_path / "truth.rrd")
+    strips = [row["LineStrips2D:strips"] for _, row in temporal["map/truth"]]
+    assert len(strips) == 1
+    assert np.asarray(strips[0][0]) == pytest.approx(
+        np.array([to_map(1.0, 2.0), to_map(1.5, 2.0)]), abs=0.02)
+    forces = [scalars(temporal, f"contacts/normal/{w}") for w in ("FL", "FR", "RL", "RR")]
+    assert [[v for _, v in series] for series in forces] == [[10.0], [11.0], [12.0], [13.0]]
+
+
+def test_several_sources_are_merged_in_time_order(tmp_path):
+    # 'view --connect A --connect B': each round's messages of every source, by time.
+    # Kills: the sources' batches chained instead of merged.
+    from mecanum_mav.app.view import merged
+
+    base = 1_800_000_000_000_000
+    paths = []
+    for name, times in (("a", (0, 2, 4)), ("b", (1, 3, 5))):
+        path = tmp_path / f"{name}.tlog"
+        path.write_bytes(b"".join(
+            tlog_record(base + t * 100_000, _message("heartbeat", 10, 3, 0, 0, 0, 3)
+                        .get_msgbuf()) for t in times))
+        paths.append(str(path))
+    batches = merged(paths)
+    try:
+        first = next(batches)
+    finally:
+        batches.close()
+    assert [round(t - base / 1e6, 1) for t, _ in first] == [0.0, 0.1, 0.2, 0.3, 0.4, 0.5]
+
+
+def test_the_live_view_of_a_tlog_and_a_twins_truth_records_both(drive, tmp_path):
+    # 'view --connect FILE.tlog --connect udpin:...' with the twin's truth publisher sending
+    # to the second: the recording holds the tlog's estimated path and the twin's true path
+    # and contact forces. Kills: a second --connect ignored, the twin's truth not drawn.
+    import time
+
+    from mecanum_mav.app.view import run_view
+    from mecanum_mav.mecanum.geo import GlobalOrigin
+    from mecanum_mav.sim.physics import WheelContact
+    from mecanum_mav.sim.process import free_port
+    from mecanum_mav.sim.truthsender import TruthPublisher
+    from mecanum_mav.sim.twinrecord import TruthSample, TwinRecord
+
+    _, temporal, _, tlog = drive
+    entries = len(read_tlog(tlog).entries)
+    record = TwinRecord.local(capacity=100)
+    port = free_port(__import__("socket").SOCK_DGRAM)
+    publisher = TruthPublisher(record, f"udpout:127.0.0.1:{port}", GlobalOrigin(0, 0))
+    saved = tmp_path / "both.rrd"
+    started = time.time()
+    deadline = time.monotonic() + 20.0
+
+    def stop(mapping) -> bool:  # the twin's physics moves on as the view runs
+        t = time.monotonic()
+        record.add(TruthSample(t, t, 5.0 + 0.01 * record.count, -3.0, 0.0, 0.5, 0.0))
+        record.set_contacts(t, [WheelContact(20.0, 0.0, False)] * 4)
+        return mapping.messages >= entries + 40 or time.monotonic() > deadline
+
+    try:
+        status = run_view([str(tlog), f"udpin:127.0.0.1:{port}"], Params(), save=saved,
+                          web_port=0, out=io.StringIO(), stop_when=stop)
+    finally:
+        publisher.close()
+    assert status == 0
+    live, _ = read_rrd(saved)
+    assert len(live["map/path"]) == len(temporal["map/path"])
+    twin_rows = [row["LineStrips2D:strips"][0] for t, row in live["map/truth"]
+                 if t / 1e9 >= started]
+    assert len(twin_rows) >= 5
+    assert all(east == pytest.approx(-3.0, abs=0.02) and -north >= 5.0 - 0.02
+               for east, north in (p for strip in twin_rows for p in strip))
+    assert [v for _, v in scalars(live, "contacts/normal/RR")][-1] == 20.0

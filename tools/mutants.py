@@ -104,6 +104,7 @@ MJ = T + "test_mujoco_chassis.py::"
 PC = T + "test_shaping_pwm.py::"
 PL = T + "test_plant_calibration.py::"
 VW = T + "test_view.py::"
+TW = T + "test_twin.py::"
 
 MUTATIONS: tuple[Mutation, ...] = (
     # ---------------------------------------------------------------- neutral on every way out
@@ -1049,7 +1050,7 @@ MUTATIONS: tuple[Mutation, ...] = (
     M("contacts-from-fc-only", "contacts under the flight controller's ids from the companion "
       "are not the flight controller's",
       PKG + "app/rerunview.py",
-      'or self._senders.role(self._index - 1) in ("vehicle", "gcs"):', "or False:",
+      'or self._senders.role(self._index - 1) in ("vehicle", "gcs")):', "or False):",
       VW + "test_contacts_under_the_flight_controllers_ids_from_the_companion_are_not_mapped"),
     M("log-view-no-png", "log with a view draws the PNG only when --png is given",
       PKG + "app/logview.py", "    if png is not None or not viewing:", "    if True:",
@@ -1121,6 +1122,55 @@ MUTATIONS: tuple[Mutation, ...] = (
       PKG + "sim/twinmission.py", "return k + 1, gcs.arrived_s[k]", "return k, gcs.arrived_s[k]",
       T + "test_twin_mission.py::test_the_record_starts_after_the_ack_that_accepted_auto_not_"
       "with_what_came_with_it"),
+    # The twin's truth in the view (sim/truthsender.py, issue 27 item 3). TW: test_twin.py.
+    M("truth-newest-pose", "the twin's truth is the record's newest pose, north and east",
+      PKG + "sim/truthsender.py",
+      "send_sim_state(self.mav, self._origin, north, east, yaw, forward, right,",
+      "send_sim_state(self.mav, self._origin, east, north, yaw, forward, right,",
+      TW + "test_the_truth_publisher_sends_the_records_latest_pose_as_sim_state_from_its_own_"
+      "sender"),
+    M("truth-only-when-moved", "the twin's pose is sent again only when the physics moved on",
+      PKG + "sim/truthsender.py", "if len(rows) and count != self._count:", "if len(rows):",
+      TW + "test_the_truth_publisher_sends_the_records_latest_pose_as_sim_state_from_its_own_"
+      "sender"),
+    M("truth-rate", "the twin's pose goes out at 20 Hz",
+      PKG + "sim/truthsender.py", "self._period_s = 1.0 / rate_hz",
+      "self._period_s = 0.5 / rate_hz",
+      TW + "test_the_truth_publisher_sends_each_new_pose_at_20_hz_while_the_physics_moves_on"),
+    M("truth-contacts-once", "each contact reading of the bridge is sent once",
+      PKG + "sim/truthsender.py", "if read is not None and read[0] != self._contacts_s:",
+      "if read is not None:",
+      TW + "test_the_truth_publisher_sends_each_contact_reading_once_as_the_boards_debug_vects"),
+    M("bridge-contacts-period", "the bridge reads the contacts every 0.1 s of physics, not "
+      "every frame", PKG + "sim/twinbridge.py",
+      "self._contacts_due_s = self.chassis.time_s + CONTACTS_PERIOD_S",
+      "self._contacts_due_s = self.chassis.time_s",
+      TW + "test_the_bridge_records_the_wheel_contacts_every_tenth_of_a_second_carrying_the_"
+      "weight"),
+    M("view-twin-truth-only", "once the twin's truth came, only it is drawn as truth",
+      PKG + "app/rerunview.py", "return twin or not self._twin_truth", "return True",
+      VW + "test_once_the_twins_truth_came_the_true_path_and_contacts_are_its_alone"),
+    M("view-twin-origin", "an origin guessed from another's truth gives way to the twin's",
+      PKG + "app/rerunview.py",
+      "self.origin = None if self._origin_derived else self.origin",
+      "self.origin = self.origin",
+      VW + "test_once_the_twins_truth_came_the_true_path_and_contacts_are_its_alone"),
+    M("view-merge-in-time", "several sources are merged in time order",
+      PKG + "app/view.py",
+      "yield list(heapq.merge(*(next(s) for s in sources), key=lambda e: e[0]))",
+      "yield [e for s in sources for e in next(s)]",
+      VW + "test_several_sources_are_merged_in_time_order"),
+    M("view-every-connect", "view follows every --connect",
+      PKG + "app/view.py", "batches = merged(connects)", "batches = merged(connects[:1])",
+      VW + "test_the_live_view_of_a_tlog_and_a_twins_truth_records_both"),
+    M("twin-view-follows-truth", "twin --view's view follows the truth the twin sends",
+      PKG + "app/cli.py", 'also=[f"udpin:{host}:{port}"])', "also=[])",
+      TW + "test_the_twin_command_with_view_serves_the_view_of_the_companions_links_and_ends_"
+      "it"),
+    M("twin-truth-on", "a twin with a truth URL publishes its truth there",
+      PKG + "sim/twin.py", "        if self.truth_url is not None:\n",
+      "        if False:\n",
+      TW + "test_the_twins_truth_at_rest_has_each_wheels_contact_at_10_hz_carrying_its_weight"),
     M("omni-wheel-map", "ArduPilot's OMNIX motors land on the wheels our mixer drives alike",
       PKG + "sim/twinmission.py", "((4, 1.0), (1, 1.0), (3, 1.0), (2, 1.0))",
       "((1, 1.0), (4, 1.0), (3, 1.0), (2, 1.0))",

@@ -178,14 +178,15 @@ def cmd_sim(args: argparse.Namespace, params: Params) -> int:
 
 
 def with_view(args: argparse.Namespace, tlog: Path | None,
-              run: Callable[[Path | None], int]) -> int:
+              run: Callable[[Path | None], int], also: Sequence[str] = ()) -> int:
     """``run(tlog)``; with ``--view`` a ``view`` process follows that tlog (a temporary one
-    when None) while it runs, and is stopped after (``sim --view``, ``twin --view``)."""
+    when None) and the URLs ``also`` while it runs, and is stopped after (``sim --view``,
+    ``twin --view``)."""
     if not args.view:
         return run(tlog)
     from mecanum_mav.app.view import follow_in_viewer, stop_view
 
-    tlog, viewer = follow_in_viewer(tlog, args.params, args.set, args.web_port)
+    tlog, viewer = follow_in_viewer(tlog, args.params, args.set, args.web_port, also)
     try:
         return run(tlog)
     finally:
@@ -193,16 +194,27 @@ def with_view(args: argparse.Namespace, tlog: Path | None,
 
 
 def cmd_twin(args: argparse.Namespace, params: Params) -> int:
+    import socket
+
     from mecanum_mav.app.twin import run_twin
     from mecanum_mav.sim.firmware import sitl_from_env
+    from mecanum_mav.sim.process import free_port
+    from mecanum_mav.sim.truthsender import udp_address
 
     sitl = args.sitl or sitl_from_env()
     if sitl is None:
         print("mecanum-mav twin: give --sitl PATH (ArduPilot's ardurover) or set "
               "$MECANUM_SITL", file=sys.stderr)
         return 2
-    return with_view(args, None, lambda tlog: run_twin(params, sitl, friction=args.friction,
-                                                       gcs=args.gcs, tlog=tlog))
+    truth = args.truth or f"udpout:127.0.0.1:{free_port(socket.SOCK_DGRAM)}"
+    try:
+        host, port = udp_address(truth)
+    except ValueError as exc:
+        print(f"mecanum-mav twin: {exc}", file=sys.stderr)
+        return 2
+    return with_view(args, None, lambda tlog: run_twin(
+        params, sitl, friction=args.friction, gcs=args.gcs, tlog=tlog, truth=truth),
+        also=[f"udpin:{host}:{port}"])
 
 
 def cmd_demo(args: argparse.Namespace, params: Params) -> int:
@@ -239,7 +251,8 @@ def cmd_log(args: argparse.Namespace, params: Params) -> int:
 def cmd_view(args: argparse.Namespace, params: Params) -> int:
     from mecanum_mav.app.view import run_view
 
-    return run_view(args.connect, params, save=args.save, web_port=args.web_port)
+    return run_view(args.connect or [DEFAULT_CONNECT], params, save=args.save,
+                    web_port=args.web_port)
 
 
 def cmd_setup_fc(args: argparse.Namespace, params: Params) -> int:
@@ -354,8 +367,13 @@ def build_parser() -> argparse.ArgumentParser:
                       help=f"the companion's ground-station link (default {DEFAULT_GCS_URL})")
     twin.add_argument("--view", action="store_true",
                       help="watch it in Rerun's viewer: 'view' follows the companion's tlog "
-                      "(both links: its overrides, and the firmware's SIMSTATE, the true pose "
-                      "as the firmware has it, 1 Hz); needs pip install 'mecanum-mav[view]'")
+                      "(both links: its overrides, the firmware's outputs) and the chassis's "
+                      "truth (--truth: its true path and wheel contacts); needs pip install "
+                      "'mecanum-mav[view]'")
+    twin.add_argument("--truth", metavar="udpout:HOST:PORT",
+                      help="where the chassis's truth goes (SIM_STATE 20 Hz, wheel contacts "
+                      "10 Hz, as system 1 component 25; default: a free port on 127.0.0.1, "
+                      "printed; --view shows it; 'view --connect udpin:HOST:PORT' too)")
     add_web_port(twin, "with --view and no display, ")
     twin.set_defaults(handler=cmd_twin)
 
@@ -465,8 +483,10 @@ def build_parser() -> argparse.ArgumentParser:
         "served on 127.0.0.1 and its address printed. Ctrl-C ends. Needs pip install "
         "'mecanum-mav[view]'. --params/--set give the PWM map and chassis size (PARAM_VALUE "
         "on the stream updates them).")
-    view.add_argument("--connect", default=DEFAULT_CONNECT, metavar="URL",
-                      help=f"a pymavlink URL or a tlog being written (followed). Default "
+    view.add_argument("--connect", action="append", metavar="URL",
+                      help=f"a pymavlink URL or a tlog being written (followed); again for "
+                      f"more sources, merged in time order (e.g. a running twin's printed "
+                      f"truth URL beside the ground station's stream). Default "
                       f"{DEFAULT_CONNECT}: an extra output of MAVProxy (mavproxy.py "
                       f"--master=udpin:127.0.0.1:14550 --out=udpout:127.0.0.1:14551), beside "
                       f"the ground station. Without a ground station on 14550: "

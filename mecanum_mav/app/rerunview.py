@@ -16,8 +16,9 @@ The entities (one timeline, ``time``: Unix time, shown as a date):
   MISSION_COUNT's MISSION_ITEM_INT / MISSION_ITEM seen, uploads and downloads alike; items
   with a position from seq 1 on), ``map/path`` the estimated path (the vehicle's ODOMETRY,
   else LOCAL_POSITION_NED), ``map/truth`` the true path (SIM_STATE or ArduPilot's SIMSTATE,
-  where the stream has them: a tlog of ``sim`` or the simulator's own), each a segment per
-  sample; ``map/rover`` the estimated pose (a transform: yaw from ODOMETRY, else ATTITUDE),
+  where the stream has them: a tlog of ``sim`` or the simulator's own; once the twin's truth
+  came, :data:`~mecanum_mav.sim.truthsender.TRUTH_SOURCE`'s only), each a segment per sample;
+  ``map/rover`` the estimated pose (a transform: yaw from ODOMETRY, else ATTITUDE),
   under it ``map/rover/chassis`` the chassis to scale (``GEO_HALF_LEN`` by ``GEO_HALF_WID``,
   from the parameters given or PARAM_VALUE on the stream) and ``map/rover/wheels`` each wheel's
   command as an arrow from its wheel (forward = the wheel drives the rover forward; full
@@ -38,7 +39,8 @@ The entities (one timeline, ``time``: Unix time, shown as a date):
   was when the item became current, to the current item).
 - :data:`CONTACT_ENTITIES`: each wheel's floor contact normal force (N) and its box on the
   chassis close-up, red while it slips: the DEBUG_VECTs ``CONTACT_W`` of the flight controller
-  (FC_SYSID/FC_COMPID, not the companion sharing its ids) on ``sim``'s MuJoCo chassis.
+  (FC_SYSID/FC_COMPID, not the companion sharing its ids) on ``sim``'s MuJoCo chassis, or of
+  the twin's truth.
 - ``state/mode`` and ``state/armed``: the vehicle's HEARTBEAT, as state changes (a state
   timeline); ``events``: every STATUSTEXT (long texts joined), failsafes at level ERROR, and
   each mode or arming change, as text events on the timeline.
@@ -70,6 +72,7 @@ from mecanum_mav.app.logsenders import (
 )
 from mecanum_mav.app.logstatus import StatusChunks, is_failsafe
 from mecanum_mav.app.logview import NO_OVERRIDE
+from mecanum_mav.app.rerunlayout import APPLICATION_ID, TIMELINE, blueprint, rerun_module
 from mecanum_mav.config.params import ParamError, Params
 from mecanum_mav.control.pathfollow import Leg
 from mecanum_mav.control.pwm import PwmMap
@@ -78,7 +81,7 @@ from mecanum_mav.mecanum.wheels import WHEEL_KEYS
 from mecanum_mav.protocol.dialect import mavlink
 from mecanum_mav.protocol.mission import MissionItem, item_from_fields
 from mecanum_mav.protocol.modes import Mode
-from mecanum_mav.sim.board import CONTACT_NAMES
+from mecanum_mav.sim.truthsender import CONTACT_NAMES, TRUTH_SOURCE
 
 if TYPE_CHECKING:
     import rerun as rr
@@ -86,10 +89,6 @@ if TYPE_CHECKING:
 __all__ = ["APPLICATION_ID", "CONTACT_ENTITIES", "ENTITIES", "TIMELINE", "ViewMapping",
            "blueprint", "rerun_module", "to_map"]
 
-APPLICATION_ID = "mecanum-mav"
-"""The Rerun application id of every recording."""
-TIMELINE = "time"
-"""The one timeline: Unix time (a tlog record's stamp, or the receive time live)."""
 WHEELS = tuple(key.upper() for key in WHEEL_KEYS)
 """Wheel names in the entity paths, in wheel order: FL, FR, RL, RR."""
 ENTITIES: tuple[str, ...] = (
@@ -114,16 +113,6 @@ _LEAVE = (0, 65534, 65535)
 """RC_CHANNELS_OVERRIDE values that leave a channel alone or release it (not a pulse)."""
 
 
-def rerun_module() -> Any:
-    """``rerun``, imported now; RuntimeError with the install hint when the ``view`` extra is
-    missing."""
-    try:
-        import rerun
-    except ImportError as exc:
-        raise RuntimeError("the view needs rerun-sdk: pip install 'mecanum-mav[view]'") from exc
-    return rerun
-
-
 def to_map(north_m: float, east_m: float) -> tuple[float, float]:
     """A local NED position (north m, east m) as the map draws it: (east, -north), so north
     is up in Rerun's 2D view (whose y points down)."""
@@ -133,41 +122,6 @@ def to_map(north_m: float, east_m: float) -> tuple[float, float]:
 def _body_to_map(forward_m: float, right_m: float) -> tuple[float, float]:
     """A body-frame point (forward m, right m) in the rover's own map frame (nose up)."""
     return right_m, -forward_m
-
-
-def blueprint() -> Any:
-    """The view's layout: the map (whole past: the paths build up to the time cursor) and the
-    chassis close up on the left; sticks, wheel commands, PWM, speed and cross-track, the
-    mode and arming states and the events on the right."""
-    rerun_module()
-    import rerun.blueprint as rrb
-
-    whole_past = rrb.VisibleTimeRange(
-        TIMELINE, start=rrb.TimeRangeBoundary.infinite(),
-        end=rrb.TimeRangeBoundary.cursor_relative())
-    return rrb.Blueprint(
-        rrb.Horizontal(
-            rrb.Vertical(
-                rrb.Spatial2DView(name="map (east right, north up; m)", origin="/map",
-                                  contents=["$origin/**", "- /map/rover/wheels",
-                                            "- /map/rover/slip"],
-                                  time_ranges=[whole_past]),
-                rrb.Spatial2DView(name="chassis and wheel commands (nose up)",
-                                  origin="/map/rover"),
-                row_shares=[3, 1]),
-            rrb.Vertical(
-                rrb.TimeSeriesView(name="sticks (-1..1)", origin="/sticks"),
-                rrb.TimeSeriesView(name="wheel commands (-1..1)", origin="/wheels/command"),
-                rrb.TimeSeriesView(name="wheel PWM (us)", origin="/wheels/pwm"),
-                rrb.TimeSeriesView(name="wheel contact normal force (N)",
-                                   origin="/contacts/normal"),
-                rrb.TimeSeriesView(name="speed (m/s) and cross-track (m)",
-                                   contents=["/speed/**", "/track/**"]),
-                rrb.StateTimelineView(name="mode and arming", origin="/state"),
-                rrb.TextLogView(name="events", origin="/events"),
-            ),
-            column_shares=[1, 1]),
-        collapse_panels=True)
 
 
 @dataclass
@@ -231,6 +185,7 @@ class ViewMapping:
         self._yaw = 0.0
         self._position: tuple[float, float] | None = None  # estimated (north, east)
         self._true_position: tuple[float, float] | None = None
+        self._twin_truth = self._origin_derived = False  # TRUTH_SOURCE seen; origin guessed
         self._mission_count: int | None = None
         self._items: dict[int, MissionItem] = {}
         self.plan: list[tuple[int, float, float]] = []
@@ -361,11 +316,24 @@ class ViewMapping:
             if self._leg is not None:
                 self._add("track/cross_track", "scalar", t, self._leg.distance_m((north, east)))
 
+    def _truth_from(self, msg: Any) -> bool:
+        """Whether ``msg`` (SIM_STATE, SIMSTATE, a contact) is truth to draw: once the twin's
+        (:data:`TRUTH_SOURCE`) came, its only (the true path, and an origin guessed from
+        another's, start again)."""
+        twin = (msg.get_srcSystem(), msg.get_srcComponent()) == TRUTH_SOURCE
+        if twin and not self._twin_truth:
+            self._twin_truth, self._true_position = True, None
+            self.origin = None if self._origin_derived else self.origin
+        return twin or not self._twin_truth
+
     def _sim_state(self, t: float, msg: Any) -> None:
+        if not self._truth_from(msg):
+            return
         lat_e7, lon_e7 = sim_latlon(msg)
         if self.origin is None:
             near = max(abs(lat_e7), abs(lon_e7)) < _NEAR_NULL_ISLAND_DEG * 1e7
             self.origin = GlobalOrigin(0, 0) if near else self._origin_under(lat_e7, lon_e7)
+            self._origin_derived = True
         north, east = self.origin.to_local(lat_e7, lon_e7)
         here = to_map(north, east)
         if self._true_position is not None:
@@ -385,11 +353,14 @@ class ViewMapping:
         self.origin = GlobalOrigin(msg.latitude, msg.longitude)
 
     def _contact(self, t: float, msg: Any) -> None:
-        """DEBUG_VECT ``CONTACT_W`` (x normal N, z 1 slipping) of the flight controller only;
-        a slip row at the first and when a wheel starts or stops slipping."""
+        """DEBUG_VECT ``CONTACT_W`` (x normal N, z 1 slipping) of the flight controller or the
+        twin's truth only; a slip row at the first and when a wheel starts or stops slipping."""
         fc = (int(self.params["FC_SYSID"]), int(self.params["FC_COMPID"]))
-        if msg.name not in CONTACT_NAMES or (msg.get_srcSystem(), msg.get_srcComponent()) != fc \
-                or self._senders.role(self._index - 1) in ("vehicle", "gcs"):
+        source = (msg.get_srcSystem(), msg.get_srcComponent())
+        if msg.name not in CONTACT_NAMES or not self._truth_from(msg):
+            return
+        if source != TRUTH_SOURCE and (
+                source != fc or self._senders.role(self._index - 1) in ("vehicle", "gcs")):
             return
         wheel = CONTACT_NAMES.index(msg.name)
         if math.isfinite(msg.x):

@@ -2,10 +2,11 @@
 with the companion in the loop, in one command (:class:`mecanum_mav.sim.twin.Twin`).
 
 It prints where a ground station connects (to the companion, and to the firmware directly),
-the real-time factor and the true pose every few seconds, and ends everything on Ctrl-C or
-SIGTERM (the first one; start-up is abandoned cleanly too). Exit status: 0 when stopped so,
-1 when the twin did not come up or a part of it died, 2 for a missing firmware or physics
-extra or a bad setting.
+where the chassis's truth is sent (SIM_STATE and the wheels' contacts, for ``mecanum-mav view
+--connect``), the real-time factor and the true pose every few seconds, and ends everything
+on Ctrl-C or SIGTERM (the first one; start-up is abandoned cleanly too). Exit status: 0 when
+stopped so, 1 when the twin did not come up or a part of it died, 2 for a missing firmware or
+physics extra or a bad setting.
 """
 
 from __future__ import annotations
@@ -29,10 +30,11 @@ REPORT_PERIOD_S = 5.0
 
 def run_twin(params: Params, sitl: Path, *, friction: float, gcs: str,
              report_period_s: float = REPORT_PERIOD_S, out: TextIO | None = None,
-             tlog: Path | None = None) -> int:
+             tlog: Path | None = None, truth: str | None = None) -> int:
     """Run the twin until SIGINT/SIGTERM or until a part of it dies; the exit status. The
     figures go to ``out`` (default: standard output), problems to standard error; the
-    companion records both of its links to ``tlog`` (``twin --view`` follows it)."""
+    companion records both of its links to ``tlog`` and the truth is sent to ``truth``
+    (``udpout:HOST:PORT``; ``twin --view`` follows both)."""
     out = out if out is not None else sys.stdout
     say = f"mecanum-mav twin: firmware {sitl}, MuJoCo chassis on friction {friction:g}"
     print(f"{say}; starting (setup-fc --apply --reboot, then the companion) ...", file=out,
@@ -40,7 +42,8 @@ def run_twin(params: Params, sitl: Path, *, friction: float, gcs: str,
     stop = threading.Event()
     with terminate_in_order() as termination:
         try:
-            twin = Twin(sitl, friction=friction, params=params, gcs=gcs, tlog=tlog)
+            twin = Twin(sitl, friction=friction, params=params, gcs=gcs, tlog=tlog,
+                        truth=truth)
             with twin:
                 termination.running(stop.set)
                 print(f"mecanum-mav twin: ready. Ground station -> companion: the companion "
@@ -48,6 +51,10 @@ def run_twin(params: Params, sitl: Path, *, friction: float, gcs: str,
                       f"firmware directly: {twin.firmware_url} (firmware pid "
                       f"{twin.firmware_pid}, companion pid {twin.companion_pid})", file=out,
                       flush=True)
+                if twin.truth_publisher is not None:
+                    print(f"mecanum-mav twin: the truth (SIM_STATE, wheel contacts) goes to "
+                          f"{truth}: mecanum-mav view --connect "
+                          f"{twin.truth_publisher.view_url}", file=out, flush=True)
                 return _watch(twin, stop, report_period_s, out)
         except PhysicsUnavailableError as exc:
             print(f"mecanum-mav twin: {exc}", file=sys.stderr)

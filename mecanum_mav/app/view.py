@@ -8,8 +8,10 @@ mapping, for a live stream and a finished tlog alike). This module connects it:
   ground-station link itself, ``udpin:127.0.0.1:14550`` when no ground station holds that
   port) or a tlog being written (followed as it grows: ``sim --view`` does that), timed by
   their arrival (a tlog's by its records' stamps), flushed to the viewer every
-  :data:`FLUSH_PERIOD_S`. The view only listens: it sends nothing (no heartbeat that could
-  keep a failsafe from noticing a lost ground station).
+  :data:`FLUSH_PERIOD_S`; from several at once (``--connect`` again: ``twin --view`` follows
+  the companion's tlog and the chassis's truth), each poll's messages merged in time order.
+  The view only listens: it sends nothing (no heartbeat that could keep a failsafe from
+  noticing a lost ground station).
 - a finished tlog (:func:`write_rrd`): every message, sent in columns, to an ``.rrd`` file
   that Rerun's viewer opens (``rerun FILE.rrd``, or ``log --view``).
 - the viewer (:func:`open_viewer`): the native one where a display exists (``$DISPLAY`` or
@@ -20,13 +22,14 @@ mapping, for a live stream and a finished tlog alike). This module connects it:
 from __future__ import annotations
 
 import contextlib
+import heapq
 import os
 import socket
 import subprocess
 import sys
 import time
 import urllib.parse
-from collections.abc import Callable, Generator, Iterator
+from collections.abc import Callable, Generator, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TextIO
@@ -40,8 +43,8 @@ from mecanum_mav.protocol.dialect import mavutil
 from mecanum_mav.sim.process import free_port
 
 __all__ = ["DEFAULT_CONNECT", "DEFAULT_WEB_PORT", "FLUSH_PERIOD_S", "TlogFollower", "Viewer",
-           "follow_in_viewer", "gc_paused", "has_display", "open_viewer", "run_view", "serve_rrd",
-           "show_log", "stop_view", "viewer_url", "write_rrd"]
+           "follow_in_viewer", "gc_paused", "has_display", "merged", "open_viewer", "run_view",
+           "serve_rrd", "show_log", "stop_view", "viewer_url", "write_rrd"]
 
 DEFAULT_CONNECT = "udpin:127.0.0.1:14551"
 """Where ``view`` listens by default: MAVProxy's extra output (``--out=udpout:127.0.0.1:14551``
@@ -220,9 +223,10 @@ class TlogFollower:
         self._file.close()
 
 
-def _messages(connect: str) -> Generator[list[tuple[float, Any]], None, None]:
+def _messages(connect: str, wait_s: float = _WAIT_S
+              ) -> Generator[list[tuple[float, Any]], None, None]:
     """Batches of (time Unix s, message) from ``connect`` (a pymavlink URL, or the path of a
-    tlog to follow), forever; an empty batch when nothing came for a moment."""
+    tlog to follow), forever; an empty batch when nothing came for ``wait_s``."""
     path = Path(connect)
     if path.is_file():
         follower = TlogFollower(path)
@@ -230,14 +234,14 @@ def _messages(connect: str) -> Generator[list[tuple[float, Any]], None, None]:
             while True:
                 batch = follower.poll()
                 if not batch:
-                    time.sleep(_WAIT_S)
+                    time.sleep(wait_s)
                 yield batch
         finally:
             follower.close()
     conn = mavutil.mavlink_connection(connect, source_system=255, source_component=191)
     try:
         while True:
-            msg = conn.recv_match(blocking=True, timeout=_WAIT_S)
+            msg = conn.recv_match(blocking=True, timeout=wait_s)
             batch = []
             while msg is not None:
                 if msg.get_type() != "BAD_DATA":
@@ -246,6 +250,21 @@ def _messages(connect: str) -> Generator[list[tuple[float, Any]], None, None]:
             yield batch
     finally:
         conn.close()
+
+
+def merged(connects: Sequence[str]) -> Generator[list[tuple[float, Any]], None, None]:
+    """:func:`_messages` of each of ``connects`` in turn (each waiting its share of
+    :data:`_WAIT_S`), a batch of each round's messages in time order, forever."""
+    if len(connects) == 1:
+        yield from _messages(connects[0])
+        return
+    sources = [_messages(c, _WAIT_S / len(connects)) for c in connects]
+    try:
+        while True:
+            yield list(heapq.merge(*(next(s) for s in sources), key=lambda e: e[0]))
+    finally:
+        for source in sources:
+            source.close()
 
 
 def _interrupt(signum: int, frame: Any) -> None:
@@ -263,13 +282,15 @@ def _sigterm_interrupts(stack: contextlib.ExitStack) -> None:
         stack.callback(signal.signal, signal.SIGTERM, previous)
 
 
-def run_view(connect: str, params: Params, *, save: Path | None = None,
+def run_view(connect: str | Sequence[str], params: Params, *, save: Path | None = None,
              web_port: int = DEFAULT_WEB_PORT, out: TextIO | None = None,
              stop_when: Callable[[ViewMapping], bool] | None = None) -> int:
-    """The ``view`` command: the live view of ``connect`` until Ctrl-C (or ``stop_when`` the
-    mapping says so).
-    Returns the exit status (0; 2 when the link or the viewer cannot be opened)."""
+    """The ``view`` command: the live view of ``connect`` (one source, or several merged)
+    until Ctrl-C (or ``stop_when`` the mapping says so).
+    Returns the exit status (0; 2 when a link or the viewer cannot be opened)."""
     out = out or sys.stdout
+    connects = [connect] if isinstance(connect, str) else list(connect)
+    connect = ", ".join(connects)
     try:
         rr = rerun_module()
     except RuntimeError as exc:
@@ -290,7 +311,7 @@ def run_view(connect: str, params: Params, *, save: Path | None = None,
         print(f"mecanum-mav view: {connect} -> {where}"
               + (f"; recording to {save}" if save else ""), file=out, flush=True)
         try:
-            batches = _messages(connect)
+            batches = merged(connects)
             stack.callback(batches.close)
             next_flush = time.monotonic()
             for batch in batches:
@@ -353,18 +374,20 @@ def show_log(entries: list[TlogEntry], params: Params, rrd: Path | None, view: b
 
 
 def follow_in_viewer(tlog: Path | None, params_path: Path | None, assignments: list[str],
-                     web_port: int) -> tuple[Path, subprocess.Popen[bytes]]:
+                     web_port: int, also: Sequence[str] = ()
+                     ) -> tuple[Path, subprocess.Popen[bytes]]:
     """``sim --view``: ``mecanum-mav view`` in its own process (the companion's loop is not
     slowed), following ``tlog`` (created now; a temporary file when None), which the companion
     records both of its links to: the simulator's SIM_STATE (the true path and speed) and the
-    companion's every override reach the view. Returns the tlog and the process."""
+    companion's every override reach the view; and the URLs ``also`` (``twin --view``: the
+    chassis's truth). Returns the tlog and the process."""
     import tempfile
 
     if tlog is None:
         tlog = Path(tempfile.gettempdir()) / f"mecanum-mav-sim-{os.getpid()}.tlog"
     tlog.touch()
     args = [sys.executable, "-m", "mecanum_mav", "view", "--connect", str(tlog),
-            "--web-port", str(web_port)]
+            *(a for url in also for a in ("--connect", url)), "--web-port", str(web_port)]
     if params_path is not None and params_path.exists():
         args += ["--params", str(params_path)]
     for assignment in assignments:

@@ -62,14 +62,14 @@ from typing import Any
 from mecanum_mav.config.params import Params
 from mecanum_mav.control.pwm import PwmMap
 from mecanum_mav.mecanum.geo import GlobalOrigin
-from mecanum_mav.mecanum.geometry import Pose2d, body_to_ned
-from mecanum_mav.mecanum.wheels import WHEEL_KEYS
+from mecanum_mav.mecanum.geometry import Pose2d
 from mecanum_mav.protocol.dialect import mavlink
 from mecanum_mav.protocol.fcsetup import safe_settings
 from mecanum_mav.protocol.modes import Mode
 from mecanum_mav.protocol.rcoverride import CHANNELS, LEAVE, RELEASE, field_action
 from mecanum_mav.sim.chassis import ORIGIN_POSE
 from mecanum_mav.sim.physics import DEFAULT_PHYSICS, contacts_of, make_chassis
+from mecanum_mav.sim.truthsender import CONTACT_NAMES, send_contacts, send_sim_state
 
 __all__ = ["CONTACT_NAMES", "ORIGIN", "RcOverrides", "SimBoard", "SimState", "board_parameters"]
 
@@ -98,8 +98,6 @@ _SERVO_OUTPUT_PERIOD_S = 0.1
 _SYS_STATUS_PERIOD_S = 1.0
 CONTACTS_PERIOD_S = 0.1
 """The wheel contacts (DEBUG_VECT, a chassis that has them) are sent this often (seconds)."""
-CONTACT_NAMES = tuple(f"CONTACT_{key.upper()}" for key in WHEEL_KEYS)
-"""The DEBUG_VECT names of the wheels' contacts, FL, FR, RL, RR."""
 SIM_STATE_PERIOD_S = 0.2
 """The simulator's ground truth (SIM_STATE) is sent this often (seconds)."""
 BATTERY_V = 12.6
@@ -387,21 +385,12 @@ class SimBoard:
 
     def _wheel_contacts(self, mav: Any, now_s: float) -> None:
         """DEBUG_VECT per wheel: its contact (see the module docstring)."""
-        if self._contacts is None:
-            return
-        time_usec = self._boot_us(now_s)
-        for name, contact in zip(CONTACT_NAMES, self._contacts(), strict=True):
-            mav.debug_vect_send(name.encode("ascii"), time_usec, contact.normal_n,
-                                contact.slip_mps, 1.0 if contact.slipping else 0.0)
+        if self._contacts is not None:
+            send_contacts(mav, self._boot_us(now_s), self._contacts())
 
     def _sim_state(self, mav: Any, now_s: float) -> None:
         """SIM_STATE: the true pose and velocity (see the module docstring); level, no
         accelerations, altitude 0."""
         pose = self.chassis.pose
-        yaw = pose.yaw_rad
-        lat_e7, lon_e7 = self._origin.to_global(pose.x_m, pose.y_m)
-        v_north, v_east = body_to_ned(*self.chassis.velocity_body, yaw)
-        mav.sim_state_send(math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2), 0.0, 0.0, yaw,
-                           0.0, 0.0, 0.0, 0.0, 0.0, self.chassis.yaw_rate,
-                           lat_e7 / 1e7, lon_e7 / 1e7, 0.0, 0.0, 0.0, v_north, v_east, 0.0,
-                           lat_e7, lon_e7)
+        send_sim_state(mav, self._origin, pose.x_m, pose.y_m, pose.yaw_rad,
+                       *self.chassis.velocity_body, self.chassis.yaw_rate)

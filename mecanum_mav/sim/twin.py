@@ -23,7 +23,9 @@ everything is ready, :meth:`Twin.close` ends everything on every way out):
    firmware drives the wheels itself; ``firmware_params`` and ``wheel_map`` say how).
 
 The truth (:class:`~mecanum_mav.sim.twinrecord.TruthSample`) is the chassis' state at each
-frame the bridge answered.
+frame the bridge answered; with ``truth=URL`` a thread of this process sends it, and the
+wheels' contacts, to a view (:class:`~mecanum_mav.sim.truthsender.TruthPublisher`: the
+bridge's process, which paces the lockstep, sends nothing more).
 """
 
 from __future__ import annotations
@@ -41,8 +43,10 @@ from pathlib import Path
 import numpy as np
 
 from mecanum_mav.config.params import Params
+from mecanum_mav.mecanum.geo import GlobalOrigin
 from mecanum_mav.sim.firmware import Firmware, Started
 from mecanum_mav.sim.process import CompanionProcess, free_port
+from mecanum_mav.sim.truthsender import TruthPublisher
 from mecanum_mav.sim.twinbridge import DEFAULT_WHEEL_MAP, BridgeProcess
 from mecanum_mav.sim.twinrecord import BridgeStats, TruthSample, TwinRecord
 
@@ -87,8 +91,11 @@ class Twin(Started):
         workdir: where the companion's log goes (default: a temporary directory, removed on
             close).
         tlog: the companion records both of its links there (``run --tlog``): the firmware's
-            SIMSTATE and SIM_STATE on its link are the chassis's truth as the firmware has it
-            (what ``twin --view`` shows as the true path).
+            SIMSTATE and SIM_STATE on its link are the chassis's truth as the firmware has it.
+        truth: ``udpout:HOST:PORT``: the chassis's truth (SIM_STATE 20 Hz, the wheels'
+            contacts 10 Hz) is sent there from a thread of this process
+            (:class:`~mecanum_mav.sim.truthsender.TruthPublisher`; what ``twin --view`` shows
+            as the true path); None: not sent.
     """
 
     def __init__(self, sitl: Path, *, friction: float = 0.8, params: Params | None = None,
@@ -97,7 +104,7 @@ class Twin(Started):
                  firmware_params: Mapping[str, float] | None = None,
                  companion: bool = True, gcs_port: int | None = None,
                  gcs: str | None = None, workdir: Path | None = None,
-                 tlog: Path | None = None) -> None:
+                 tlog: Path | None = None, truth: str | None = None) -> None:
         if frame not in FRAMES:
             raise ValueError(f"unknown frame {frame!r}: one of {', '.join(FRAMES)}")
         self.sitl = Path(sitl)
@@ -125,6 +132,8 @@ class Twin(Started):
         self.setup_output = ""
         """What ``setup-fc --apply --reboot`` printed (with a companion)."""
         self.tlog = tlog
+        self.truth_url = truth
+        self.truth_publisher: TruthPublisher | None = None
         self._own_workdir = workdir is None
         self.workdir = Path(workdir) if workdir is not None else Path(
             tempfile.mkdtemp(prefix="mecanum-twin-"))
@@ -144,6 +153,10 @@ class Twin(Started):
             TwinError: something did not come up within ``timeout_s``.
         """
         self.bridge = BridgeProcess(self.params.as_dict(), self.wheel_map)
+        if self.truth_url is not None:
+            origin = GlobalOrigin.from_degrees(float(self.params["ORIGIN_LAT"]),
+                                               float(self.params["ORIGIN_LON"]))
+            self.truth_publisher = TruthPublisher(self.bridge.record, self.truth_url, origin)
         self.firmware = Firmware(self.sitl, self.bridge.port, params=self.firmware_params)
         self.firmware_url = self.firmware.gcs_url
         self.firmware.start()
@@ -246,6 +259,8 @@ class Twin(Started):
             self.companion.kill()
         if self.firmware is not None:
             self.firmware.close()
+        if self.truth_publisher is not None:
+            self.truth_publisher.close()
         if self.bridge is not None:
             self.bridge.close()
         if self._own_workdir:

@@ -21,7 +21,9 @@ The firmware paces the pair: it sends a servo packet per frame and waits for the
 What it tells the firmware (:class:`ChassisSensors`), all in NED/FRD: physics time, the gyro
 (body rates from MuJoCo), the specific force in body FRD (the mean acceleration over the
 frame minus gravity, rotated into the body: ``(0, 0, -g)`` at rest), position NED from the
-start, roll/pitch/yaw, velocity NED. Every frame it records the truth (:class:`TruthSample`).
+start, roll/pitch/yaw, velocity NED. Every frame it records the truth (:class:`TruthSample`),
+and every :data:`~mecanum_mav.sim.twinrecord.CONTACTS_PERIOD_S` of physics the wheels'
+contacts with the floor (a chassis that has them).
 
 :class:`BridgeProcess` serves the core in a process of its own (what the twin uses),
 :class:`TwinBridge` in a thread; the counters and the truth go to a
@@ -52,11 +54,12 @@ import numpy as np
 
 from mecanum_mav.control.pwm import PwmMap, WheelOutput
 from mecanum_mav.sim.firmware import kill_group
-from mecanum_mav.sim.physics import PhysicsUnavailableError, require_mujoco
+from mecanum_mav.sim.physics import PhysicsUnavailableError, contacts_of, require_mujoco
 from mecanum_mav.sim.sitljson import PhysicsState, ServoPacket, decode_servo_packet, encode_state
 from mecanum_mav.sim.twinrecord import (
     BUSY_S,
     COMMANDS,
+    CONTACTS_PERIOD_S,
     DROPPED,
     FIRST_WALL,
     FRAME_RATE,
@@ -71,6 +74,7 @@ from mecanum_mav.sim.twinrecord import (
     BridgeStats,
     TruthSample,
     TwinRecord,
+    blank,
     sample_row,
 )
 
@@ -230,6 +234,8 @@ class BridgeCore:
         self._last_count: int | None = None
         self._epoch_s = 0.0
         self._answer = b""
+        self._contacts = contacts_of(chassis)
+        self._contacts_due_s = 0.0
         self.record.add(self._sample(clock()))
 
     def answer(self, data: bytes) -> bytes | None:
@@ -247,6 +253,9 @@ class BridgeCore:
         self._answer = encode_state(self._sensors.read(self._epoch_s))
         now = self._clock()
         self.record.add(self._sample(now))
+        if self._contacts is not None and self.chassis.time_s >= self._contacts_due_s:
+            self.record.set_contacts(self.chassis.time_s, self._contacts())
+            self._contacts_due_s = self.chassis.time_s + CONTACTS_PERIOD_S
         if math.isnan(a[FIRST_WALL]):
             a[FIRST_WALL] = now
         else:
@@ -397,7 +406,7 @@ class BridgeProcess:
         record_path = self._dir / "record.f64"
         array = np.lib.format.open_memmap(record_path, mode="w+", dtype=np.float64,
                                           shape=(TwinRecord.size(capacity),))
-        array[FIRST_WALL:LAST_WALL + 1] = math.nan
+        blank(array)
         array.flush()
         self.record: TwinRecord = TwinRecord(array)
         setup = self._dir / "bridge.json"

@@ -1,9 +1,12 @@
 """The twin's record: the bridge's counters (:class:`BridgeStats`) and the truth
 (:class:`TruthSample`, one per frame) in one float64 array, written by the bridge and read by
-whoever holds the twin, in another process if need be (the array may be a file both map).
+whoever holds the twin, in another process if need be (the array may be a file both map),
+and the wheels' contacts with the floor, read every :data:`CONTACTS_PERIOD_S` of physics.
 
-Layout: the counters at the indices below (:data:`HEADER` of them), then ``capacity`` rows
-of :data:`ROW` floats, a ring of the last frames' truth.
+Layout: the counters at the indices below, the contacts (:data:`CONTACTS`: physics time of
+the reading, NaN before any, then normal force N, slip m/s and slipping 0/1 per wheel FL, FR,
+RL, RR), :data:`HEADER` floats in all, then ``capacity`` rows of :data:`ROW` floats, a ring
+of the last frames' truth.
 """
 
 from __future__ import annotations
@@ -13,9 +16,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["BUSY_S", "COMMANDS", "COUNT", "DROPPED", "FIRST_WALL", "FRAMES", "FRAME_RATE",
-           "HEADER", "LAST_WALL", "MALFORMED", "PHYSICS_S", "PULSES", "REPEATED", "RESTARTS",
-           "ROW", "TRUTH_CAPACITY", "BridgeStats", "TruthSample", "TwinRecord", "sample_row"]
+from mecanum_mav.sim.physics import WheelContact
+
+__all__ = ["BUSY_S", "COMMANDS", "CONTACTS", "CONTACTS_PERIOD_S", "COUNT", "DROPPED",
+           "FIRST_WALL", "FRAMES", "FRAME_RATE", "HEADER", "LAST_WALL", "MALFORMED", "PHYSICS_S",
+           "PULSES", "REPEATED", "RESTARTS", "ROW", "TRUTH_CAPACITY", "BridgeStats",
+           "TruthSample", "TwinRecord", "blank", "sample_row"]
 
 TRUTH_CAPACITY = 720_000
 """Frames of truth a twin keeps (the last 10 minutes at the firmware's 1200 Hz; 40 MB)."""
@@ -24,9 +30,12 @@ TRUTH_CAPACITY = 720_000
 # the first and the last frame answered, NaN before any; COUNT: frames of truth recorded):
 (FRAMES, REPEATED, DROPPED, RESTARTS, MALFORMED, PHYSICS_S, FIRST_WALL, LAST_WALL,
  BUSY_S, FRAME_RATE) = range(10)
-COMMANDS, PULSES, COUNT = 10, 14, 18
-HEADER = 19
+COMMANDS, PULSES, COUNT, CONTACTS = 10, 14, 18, 19
+HEADER = CONTACTS + 13
 ROW = 7
+CONTACTS_PERIOD_S = 0.1
+"""The bridge reads the wheels' contacts this often (physics seconds; a publisher sends
+them at 10 Hz, as the simulated board does)."""
 
 
 @dataclass(frozen=True)
@@ -119,9 +128,7 @@ class TwinRecord:
     @classmethod
     def local(cls, capacity: int = TRUTH_CAPACITY) -> TwinRecord:
         """A record in this process's memory."""
-        record = cls(np.zeros(cls.size(capacity)))
-        record.array[FIRST_WALL:LAST_WALL + 1] = math.nan
-        return record
+        return cls(blank(np.zeros(cls.size(capacity))))
 
     def add(self, sample: TruthSample) -> None:
         """Record one frame's truth (the oldest goes once the ring is full)."""
@@ -136,6 +143,34 @@ class TwinRecord:
             return np.array(self._rows[:count])
         cut = count % self.capacity
         return np.concatenate((self._rows[cut:], self._rows[:cut]))
+
+    @property
+    def count(self) -> int:
+        """Frames of truth recorded so far (the ring keeps the last :attr:`capacity`)."""
+        return int(self.array[COUNT])
+
+    def latest(self, frames: int) -> np.ndarray:
+        """The last ``frames`` rows of :meth:`truth_array` (fewer if fewer were recorded),
+        oldest first, without copying the rest of the ring (a copy)."""
+        count = int(self.array[COUNT])
+        rows = np.arange(max(count - min(frames, self.capacity), 0), count) % self.capacity
+        return self._rows[rows]
+
+    def set_contacts(self, time_s: float,
+                     contacts: tuple[WheelContact, WheelContact, WheelContact,
+                                     WheelContact]) -> None:
+        """Record the wheels' contacts read at physics time ``time_s``."""
+        self.array[CONTACTS + 1:HEADER] = [v for c in contacts for v in c]
+        self.array[CONTACTS] = time_s  # (last: a reader that sees the time sees the values)
+
+    def contacts(self) -> tuple[float, tuple[WheelContact, ...]] | None:
+        """The physics time of the last contacts read and the contacts FL, FR, RL, RR; None
+        before any."""
+        a = self.array[CONTACTS:HEADER].tolist()
+        if math.isnan(a[0]):
+            return None
+        return a[0], tuple(WheelContact(n, s, bool(f)) for n, s, f in
+                           zip(a[1::3], a[2::3], a[3::3], strict=True))
 
     def truth(self) -> list[TruthSample]:
         """The truth so far, oldest first (a copy)."""
@@ -162,6 +197,13 @@ class TwinRecord:
                            int(a[RESTARTS]), int(a[MALFORMED]), a[PHYSICS_S], wall,
                            a[BUSY_S], int(a[FRAME_RATE]), (c[0], c[1], c[2], c[3]),
                            (p[0], p[1], p[2], p[3]))
+
+
+def blank(array: np.ndarray) -> np.ndarray:
+    """``array`` (zeros) made an empty record: no frame answered, no contacts read yet."""
+    array[FIRST_WALL:LAST_WALL + 1] = math.nan
+    array[CONTACTS] = math.nan
+    return array
 
 
 def sample_row(sample: TruthSample) -> tuple[float, ...]:
