@@ -83,6 +83,11 @@ def compile_stick_lane(config: InputConfig, pwm: PwmMap, identity: IdentityConfi
     if not cartesian:
         wheels_from_stick(0.0, 0.0, 0.0, algorithm, priority=priority)  # KeyError: unknown
     pulses_us = pwm.pulses_us
+    # Without a dead band the PWM step is inline (as pulses_us: sign, limit, each side of
+    # trim to its own end; the mix is finite, so no trim for a non-finite command).
+    inline_pwm = not pwm.dead_band
+    (trim_fl, up_fl, down_fl, sign_fl), (trim_fr, up_fr, down_fr, sign_fr), (
+        trim_rl, up_rl, down_rl, sign_rl), (trim_rr, up_rr, down_rr, sign_rr) = pwm.spans
     template = override_fields(pwm.channels, pwm.neutral())
     slot_fl, slot_fr, slot_rl, slot_rr = (channel - 1 for channel in pwm.channels)
     sqrt = math.sqrt
@@ -145,7 +150,19 @@ def compile_stick_lane(config: InputConfig, pwm: PwmMap, identity: IdentityConfi
             wheels = mix_pairs(sx + sy, sx - sy, sr, priority)
         else:
             wheels = wheels_from_stick(sx, sy, sr, algorithm, priority=priority)
-        pulses = pulses_us(wheels)
+        if inline_pwm:
+            fl, fr, rl, rr = wheels
+            fl, fr, rl, rr = sign_fl * fl, sign_fr * fr, sign_rl * rl, sign_rr * rr
+            if not (-1.0 <= fl <= 1.0 and -1.0 <= fr <= 1.0 and -1.0 <= rl <= 1.0
+                    and -1.0 <= rr <= 1.0):  # (the mix's rounding, at most an ulp)
+                fl, fr, rl, rr = (1.0 if c > 1.0 else (-1.0 if c < -1.0 else c)
+                                  for c in (fl, fr, rl, rr))
+            pulses = (round(trim_fl + fl * (up_fl if fl >= 0.0 else down_fl)),
+                      round(trim_fr + fr * (up_fr if fr >= 0.0 else down_fr)),
+                      round(trim_rl + rl * (up_rl if rl >= 0.0 else down_rl)),
+                      round(trim_rr + rr * (up_rr if rr >= 0.0 else down_rr)))
+        else:
+            pulses = pulses_us(wheels)
         fields = template.copy()
         fields[slot_fl], fields[slot_fr], fields[slot_rl], fields[slot_rr] = pulses
         payload = override_pack(*fields[:8], target_system, target_component, *fields[8:])
