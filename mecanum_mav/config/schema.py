@@ -453,6 +453,14 @@ SCHEMA: tuple[ParamSpec, ...] = (
         "fresh (a gyro beats wheel-derived yaw on a slipping mecanum base), wheels uses the "
         "wheels' own turn.",
     ),
+    ParamSpec(
+        "ODOM_YAW_BIAS", int, default=1, minimum=0, maximum=1, units="",
+        values={0: "off", 1: "estimate"},
+        description="Flight controller heading bias: estimate compares its own position "
+        "track (LOCAL_POSITION_NED, GPS-fused) with the odometry's over straight stretches of "
+        "at least 0.5 m and takes the constant offset (up to 10 deg) off the ATTITUDE yaw the "
+        "odometry and the heading controller use; nothing without a position from it.",
+    ),
 
     # ---- TLM: Telemetry to the ground station
     ParamSpec(
@@ -532,6 +540,18 @@ SCHEMA: tuple[ParamSpec, ...] = (
         "fraction of full command; a smaller command leaves the motor unpowered, its windings "
         "shorted (the usual brake neutral: the wheel is braked to a stop, within "
         "SIM_MOT_TORQUE).",
+    ),
+    ParamSpec(
+        "SIM_YAW_BIAS", float, default=0.0, minimum=-30.0, maximum=30.0, units="deg",
+        reboot_required=True,
+        description="Simulator: added to the yaw the board reports in ATTITUDE (clockwise), "
+        "as a compass or an EKF heading a few degrees off (0 = the true yaw).",
+    ),
+    ParamSpec(
+        "SIM_POS_RATE", float, default=0.0, minimum=0.0, maximum=50.0, units="Hz",
+        reboot_required=True,
+        description="Simulator: rate of the board's own LOCAL_POSITION_NED (the true "
+        "position, as a GPS-fused EKF's; 0 = none, a board without GPS).",
     ),
 )
 """Every parameter, in file, table and MAVLink index order."""

@@ -20,7 +20,15 @@ Heading (parameter ``ODOM_YAW_SRC``): 0 auto (default) takes the flight controll
 ``ATTITUDE`` yaw while it is fresh, because a gyro beats wheel-derived yaw on a slipping
 mecanum base; 1 uses the wheels' own turn. The first ATTITUDE, if the odometry has not moved
 yet, sets the starting heading itself (its north is the local frame's north); later ones steer
-the heading from where it is (a gyro that came back after a gap does not turn it). Translation
+the heading from where it is (a gyro that came back after a gap does not turn it).
+
+Heading bias (parameter ``ODOM_YAW_BIAS``, on by default): while the flight controller's yaw
+is in use and it sends its own position (LOCAL_POSITION_NED, GPS-fused), its yaw's constant
+offset from the true heading is estimated from the two tracks
+(:mod:`mecanum_mav.control.headingbias`) and taken off the yaw the odometry, and so the heading
+controller, uses; each change of the correction also turns the track driven since the origin
+(the last reset) about the origin by as much, as if it had been driven with the corrected
+heading all along. No position from the flight controller: no correction. Translation
 always comes from the wheels by least squares
 (:class:`~mecanum_mav.mecanum.kinematics.MecanumKinematics`) and the SE(2) exponential.
 
@@ -44,6 +52,7 @@ from collections.abc import Sequence
 
 from mecanum_mav.config.params import Params
 from mecanum_mav.config.views import OdometryConfig
+from mecanum_mav.control.headingbias import HeadingBias
 from mecanum_mav.mecanum.geometry import Pose2d, ned_to_body, wrap_pi
 from mecanum_mav.mecanum.kinematics import MecanumKinematics
 from mecanum_mav.mecanum.odometry import MecanumOdometry
@@ -98,10 +107,19 @@ class WheelOdometryEstimator:
         """Body velocity (forward, right) in m/s, from the last update."""
         self.yaw_rate = 0.0
         """Yaw rate in rad/s, clockwise positive."""
+        self.heading_bias = HeadingBias()
+        """The flight controller's yaw bias, from its position track (``ODOM_YAW_BIAS``)."""
+        self.yaw_correction = 0.0
+        """The bias taken off the flight controller's yaw now (rad, clockwise)."""
+        self._origin = (0.0, 0.0)  # where the track since the last reset began (m, NED)
 
     def reconfigure(self, params: Params) -> None:
-        """Take the odometry sources and the wheel speed from ``params``."""
+        """Take the odometry sources and the wheel speed from ``params`` (``ODOM_YAW_BIAS``
+        turned off takes the correction off at once)."""
         self.config = OdometryConfig.from_params(params)
+        if not self.config.yaw_bias:
+            self._correct(0.0)
+            self.heading_bias.restart()
 
     @property
     def pose(self) -> Pose2d:
@@ -131,6 +149,7 @@ class WheelOdometryEstimator:
         (rad/s); the reason it was not used, or None."""
         if not (abs(yaw_rad) <= 2 * math.pi and abs(yaw_rate) <= MAX_YAW_RATE):  # NaN too
             return f"ATTITUDE yaw {yaw_rad:g} rad, rate {yaw_rate:g} rad/s"
+        yaw_rad -= self.yaw_correction  # (the bias estimated, 0 without one)
         self._yaw, self._yaw_rate_gyro, self._attitude_s = yaw_rad, yaw_rate, now_s
         first, self._first_attitude = self._first_attitude, False
         if first and self.config.yaw_from_gyro and self.odometry.reset_counter == 0 \
@@ -140,6 +159,32 @@ class WheelOdometryEstimator:
             self.odometry = MecanumOdometry(self.odometry.kinematics, self._virtual,
                                             Pose2d(0.0, 0.0, wrap_pi(yaw_rad)), yaw_rad)
         return None
+
+    def on_position(self, north_m: float, east_m: float, now_s: float) -> str | None:
+        """The flight controller's own position (LOCAL_POSITION_NED, m; its origin does not
+        matter): a sample for the heading bias while its yaw is in use (module docstring).
+        Returns what to say once (the bias settled, or too large to correct), else None."""
+        if not (self.config.yaw_bias and abs(north_m) <= MAX_WHEEL_DISTANCE_M
+                and abs(east_m) <= MAX_WHEEL_DISTANCE_M) or self._yaw_if_used(now_s) is None:
+            return None  # (NaN too)
+        pose = self.odometry.pose
+        update = self.heading_bias.on_position(north_m, east_m, pose.x_m, pose.y_m,
+                                               self.yaw_correction, now_s)
+        self._correct(update.bias_rad)
+        return update.notice
+
+    def _correct(self, bias_rad: float) -> None:
+        """Take ``bias_rad`` off the flight controller's yaw from now on, and turn the track
+        since the origin by the change (module docstring)."""
+        change = bias_rad - self.yaw_correction
+        if change == 0.0:
+            return
+        self.yaw_correction = bias_rad
+        if self._yaw is not None:
+            self._yaw -= change
+        self.odometry.rotate(-change, self._origin)
+        pose = self.odometry.pose
+        self.heading_bias.follow(pose.x_m, pose.y_m)
 
     def on_wheel_distance(self, distances_m: Sequence[float], now_s: float) -> str | None:
         """WHEEL_DISTANCE: cumulative metres FL, FR, RL, RR from the flight controller; the
@@ -234,5 +279,7 @@ class WheelOdometryEstimator:
     def reset(self, pose: Pose2d | None = None, now_s: float = 0.0) -> None:
         """Move the origin: the pose becomes ``pose`` (default the origin, heading kept)."""
         heading = self.odometry.pose.yaw_rad
-        self.odometry.reset(pose or Pose2d(0.0, 0.0, heading), self._virtual,
-                            self._yaw_if_used(now_s))
+        pose = pose or Pose2d(0.0, 0.0, heading)
+        self.odometry.reset(pose, self._virtual, self._yaw_if_used(now_s))
+        self._origin = (self.odometry.pose.x_m, self.odometry.pose.y_m)
+        self.heading_bias.restart()

@@ -1,7 +1,8 @@
 """What the flight controller tells the companion: its HEARTBEAT (the link is up; then the
 battery stream, the receiver's channels and the setup check are asked for), SYS_STATUS (its
 battery), RC_CHANNELS (the receiver, when ``RCIN_ENABLE``), PARAM_VALUE (answers for the setup
-check, :mod:`mecanum_mav.control.fccheck`), WHEEL_DISTANCE and ATTITUDE (the estimator's).
+check, :mod:`mecanum_mav.control.fccheck`), WHEEL_DISTANCE, ATTITUDE and LOCAL_POSITION_NED
+(the estimator's: its position is the heading bias's reference).
 
 The core routes only messages from the flight controller's own system id here. Each handler
 takes one message and its arrival time (s); what goes back to the board is queued in the
@@ -22,6 +23,7 @@ from mecanum_mav.protocol.health import BATTERY_FRESH_S, UNKNOWN_BATTERY, Batter
 from mecanum_mav.protocol.messages import (
     AttitudeMsg,
     FcParamValueMsg,
+    FcPositionMsg,
     FcSysStatusMsg,
     RcChannelsMsg,
     Received,
@@ -29,7 +31,8 @@ from mecanum_mav.protocol.messages import (
 )
 from mecanum_mav.protocol.statustext import Severity
 
-__all__ = ["FC_ATTITUDE_INTERVAL_US", "FC_SYS_STATUS_INTERVAL_US", "FcLink"]
+__all__ = ["FC_ATTITUDE_INTERVAL_US", "FC_POSITION_INTERVAL_US", "FC_SYS_STATUS_INTERVAL_US",
+           "FcLink"]
 
 FC_SYS_STATUS_INTERVAL_US = 1_000_000
 """The flight controller is asked for SYS_STATUS (its battery) at 1 Hz."""
@@ -37,6 +40,9 @@ FC_ATTITUDE_INTERVAL_US = 50_000
 """... and for ATTITUDE at 20 Hz: the odometry's heading (ArduPilot's own stream rate on a
 serial port, SRn_EXTRA1, can be a few Hz: measured 2 Hz on SITL's, whose yaw then steered
 the odometry half a second late)."""
+FC_POSITION_INTERVAL_US = 100_000
+"""... and for LOCAL_POSITION_NED at 10 Hz: the track the heading bias is measured against
+(:mod:`mecanum_mav.control.headingbias`; a board without a position sends none)."""
 _FC_CHECK_FINE = (FcCheckState.SAFE, FcCheckState.NOT_CHECKED)
 """Verdicts said as a NOTICE; the others as a WARNING."""
 
@@ -66,7 +72,8 @@ class FcLink:
     def routes(self) -> dict[str, Handler]:
         """The flight controller's messages handled here, by type."""
         return {"HEARTBEAT": self.on_heartbeat, "ATTITUDE": self.on_attitude,
-                "WHEEL_DISTANCE": self.on_wheel_distance, "SYS_STATUS": self.on_sys_status,
+                "WHEEL_DISTANCE": self.on_wheel_distance, "LOCAL_POSITION_NED": self.on_position,
+                "SYS_STATUS": self.on_sys_status,
                 "PARAM_VALUE": self.on_param_value, "RC_CHANNELS": self.on_rc_channels}
 
     def battery(self, now_s: float) -> tuple[Battery, bool]:
@@ -100,7 +107,9 @@ class FcLink:
             for msg_id, interval_us in ((mavlink.MAVLINK_MSG_ID_SYS_STATUS,
                                          FC_SYS_STATUS_INTERVAL_US),
                                         (mavlink.MAVLINK_MSG_ID_ATTITUDE,
-                                         FC_ATTITUDE_INTERVAL_US)):
+                                         FC_ATTITUDE_INTERVAL_US),
+                                        (mavlink.MAVLINK_MSG_ID_LOCAL_POSITION_NED,
+                                         FC_POSITION_INTERVAL_US)):
                 ctx.to_fc.command_long_send(
                     ctx.identity.fc_sysid, ctx.identity.fc_compid,
                     mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, 0, msg_id, interval_us, 0, 0, 0, 0, 0)
@@ -160,6 +169,13 @@ class FcLink:
         problem = self.estimator.on_attitude(msg.yaw, msg.yawspeed, now_s)
         if problem is not None:
             self.refuse(Refusal.SENSOR, f"Ignored: {problem}")
+
+    def on_position(self, msg: FcPositionMsg, now_s: float) -> None:
+        """The board's LOCAL_POSITION_NED: to the estimator's heading bias (what it says once,
+        its estimate or its refusal, as a NOTICE)."""
+        notice = self.estimator.on_position(msg.x, msg.y, now_s)
+        if notice is not None:
+            self._ctx.say(Severity.NOTICE, notice)
 
     def on_wheel_distance(self, msg: WheelDistanceMsg, now_s: float) -> None:
         """The board's WHEEL_DISTANCE (at least four wheels): to the estimator."""

@@ -20,6 +20,7 @@ __all__ = [
     "AttitudeMsg",
     "CommandMsg",
     "FcParamValueMsg",
+    "FcPositionMsg",
     "FcSysStatusMsg",
     "FtpMsg",
     "ManualControlMsg",
@@ -160,6 +161,13 @@ class FcParamValueMsg(Received, Protocol):
 
     param_id: str
     param_value: float
+
+
+class FcPositionMsg(Received, Protocol):
+    """LOCAL_POSITION_NED from the flight controller (m, NED from its EKF's origin)."""
+
+    x: float
+    y: float
 
 
 class FcSysStatusMsg(Received, Protocol):

@@ -22,8 +22,11 @@ companion and the simulated robot alike. A channel without an active override ou
 wheel's trim (a stopped wheel).
 
 Telemetry, as ArduPilot Rover sends it: HEARTBEAT 1 Hz, ATTITUDE 20 Hz (true yaw, radians
-clockwise from north), WHEEL_DISTANCE 10 Hz (cumulative encoder metres FL, FR, RL, RR),
-SERVO_OUTPUT_RAW 10 Hz (the pulse width on each output) and SYS_STATUS 1 Hz (a battery). As
+clockwise from north, plus ``SIM_YAW_BIAS``: a compass or EKF heading that is off),
+LOCAL_POSITION_NED at ``SIM_POS_RATE`` (the true position and velocity, as a GPS-fused EKF
+gives them; 0 Hz, the default: none, a board without GPS), WHEEL_DISTANCE 10 Hz (cumulative
+encoder metres FL, FR, RL, RR), SERVO_OUTPUT_RAW 10 Hz (the pulse width on each output) and
+SYS_STATUS 1 Hz (a battery). As
 ArduPilot's simulators do, it also reports its ground truth in SIM_STATE at 5 Hz: the true
 pose (latitude and longitude about ``ORIGIN_LAT``/``ORIGIN_LON``, or about 0, 0 when no
 origin is set; yaw in radians clockwise from north) and the true velocity (north, east m/s),
@@ -232,6 +235,10 @@ class SimBoard:
             (_Every(SIM_STATE_PERIOD_S, now_s), self._sim_state),
             (self._rc_channels, self._rc_channels_msg),
         ]
+        self._yaw_bias_rad = math.radians(float(params["SIM_YAW_BIAS"]))
+        position_hz = float(params["SIM_POS_RATE"])
+        if position_hz > 0.0:
+            self._telemetry.append((_Every(1.0 / position_hz, now_s), self._local_position))
         self._contacts = contacts_of(self.chassis)
         if self._contacts is not None:
             self._telemetry.append((_Every(CONTACTS_PERIOD_S, now_s), self._wheel_contacts))
@@ -355,7 +362,17 @@ class SimBoard:
         c = self.chassis
         time_boot_ms = (self._boot_us(now_s) // 1000) & 0xFFFFFFFF
         roll, pitch = c.roll_pitch
-        mav.attitude_send(time_boot_ms, roll, pitch, c.pose.yaw_rad, 0.0, 0.0, c.yaw_rate)
+        yaw = c.pose.yaw_rad + self._yaw_bias_rad
+        mav.attitude_send(time_boot_ms, roll, pitch, (yaw + math.pi) % math.tau - math.pi, 0.0,
+                          0.0, c.yaw_rate)
+
+    def _local_position(self, mav: Any, now_s: float) -> None:
+        """LOCAL_POSITION_NED: the true position (m from the start's origin, NED) and
+        velocity (m/s), as a GPS-fused EKF reports it; altitude 0."""
+        c = self.chassis
+        v_north, v_east = body_to_ned(*c.velocity_body, c.pose.yaw_rad)
+        mav.local_position_ned_send((self._boot_us(now_s) // 1000) & 0xFFFFFFFF, c.pose.x_m,
+                                    c.pose.y_m, 0.0, v_north, v_east, 0.0)
 
     def _wheel_distance(self, mav: Any, now_s: float) -> None:
         """WHEEL_DISTANCE: cumulative encoder metres FL, FR, RL, RR, then zeros."""
