@@ -104,6 +104,8 @@ MJ = T + "test_mujoco_chassis.py::"
 PC = T + "test_shaping_pwm.py::"
 PL = T + "test_plant_calibration.py::"
 VW = T + "test_view.py::"
+HB = T + "test_estimator_heading_bias.py::"
+HS = T + "test_heading_bias.py::"
 
 MUTATIONS: tuple[Mutation, ...] = (
     # ---------------------------------------------------------------- neutral on every way out
@@ -1102,6 +1104,48 @@ MUTATIONS: tuple[Mutation, ...] = (
       "((1, 1.0), (4, 1.0), (3, 1.0), (2, 1.0))",
       T + "test_twin_mission.py::test_ardupilots_omni_x_motors_land_on_the_wheels_our_mixer_"
       "drives_the_same_way"),
+    M("hb-sign", "the heading bias is the odometry's direction minus the flight controller's",
+      PKG + "control/headingbias.py", "math.atan2(re_, rn) - math.atan2(fe, fn)",
+      "math.atan2(fe, fn) - math.atan2(re_, rn)",
+      HB + "test_a_straight_track_3_degrees_off_the_flight_controllers_gives_a_3_degree_bias",
+      HS + "test_with_a_heading_2_5_degrees_off_the_square_meets_its_goals_only_with_the_"
+      "estimator"),
+    M("hb-straight-only", "the heading bias is measured on straight stretches only",
+      PKG + "control/headingbias.py", "if chord < STRAIGHT_RATIO * path or ", "if ",
+      HB + "test_a_curved_track_gives_no_estimate_its_lag_would_look_like_degrees"),
+    M("hb-bound", "a heading bias beyond 10 degrees is not corrected, and said",
+      PKG + "control/headingbias.py", "if not abs(angle) <= MAX_BIAS_RAD:", "if False:",
+      HB + "test_a_bias_beyond_10_degrees_is_not_corrected_and_said_once"),
+    M("hb-outlier", "once settled, a measurement far from the estimate is an outlier",
+      PKG + "control/headingbias.py",
+      "and abs(angle - self.bias_rad) > OUTLIER_RAD:", "and False:",
+      HB + "test_a_flight_controller_position_that_jumps_sideways_does_not_move_a_settled_"
+      "estimate"),
+    M("hb-relearn", "outliers in a row mean the bias moved: it is learnt again",
+      PKG + "control/headingbias.py", "self.measurements = self.outliers = 0",
+      "self.outliers = 0",
+      HB + "test_a_bias_that_moved_for_good_is_learnt_again"),
+    M("hb-param-off", "ODOM_YAW_BIAS 0: the flight controller's position changes nothing",
+      PKG + "control/estimator.py", "if not (self.config.yaw_bias and ", "if not (True and ",
+      HB + "test_with_odom_yaw_bias_0_the_positions_change_nothing"),
+    M("hb-track-turned", "a new heading correction turns the track since the origin too",
+      PKG + "mecanum/odometry.py",
+      "Pose2d(about[0] + n * c - e * s, about[1] + n * s + e * c,",
+      "Pose2d(self._pose.x_m, self._pose.y_m,",
+      HB + "test_the_bias_is_taken_off_the_heading_and_the_track_since_the_origin_turned_back",
+      HS + "test_with_a_heading_2_5_degrees_off_the_square_meets_its_goals_only_with_the_"
+      "estimator"),
+    M("hb-yaw-corrected", "the estimated bias is taken off every ATTITUDE yaw",
+      PKG + "control/estimator.py", "yaw_rad -= self.yaw_correction", "yaw_rad -= 0.0",
+      HB + "test_the_bias_is_taken_off_the_heading_and_the_track_since_the_origin_turned_back",
+      HS + "test_with_a_heading_2_5_degrees_off_the_square_meets_its_goals_only_with_the_"
+      "estimator"),
+    M("hb-position-asked", "the companion asks the flight controller for LOCAL_POSITION_NED",
+      PKG + "control/fclink.py", """(mavlink.MAVLINK_MSG_ID_LOCAL_POSITION_NED,
+                                         FC_POSITION_INTERVAL_US)):""",
+      """(mavlink.MAVLINK_MSG_ID_SYS_STATUS,
+                                         FC_SYS_STATUS_INTERVAL_US)):""",
+      HS + "test_the_companion_asks_the_flight_controller_for_its_position_at_10_hz"),
 )
 
 # ====================================================================== running

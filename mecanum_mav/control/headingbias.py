@@ -24,7 +24,11 @@ when:
   wheels slipping are not a heading);
 - the angle is within :data:`MAX_BIAS_RAD` (10 degrees): beyond that it is not a compass bias
   to correct quietly; after :data:`REFUSE_AFTER` such windows in a row (and none accepted) it
-  is said once, the correction left as it is.
+  is said once, the correction left as it is;
+- once the estimate has settled, the angle is within :data:`OUTLIER_RAD` of it (a GPS glitch a
+  few centimetres sideways is degrees over half a metre); :data:`REFUSE_AFTER` outliers in a
+  row, none accepted between, mean the bias itself has moved: the filter starts again from
+  the next measurement (a plain mean first, as at the start).
 
 Rotation in place has no baseline (the raw path does not grow), a flight controller without
 a position sends nothing: no estimate, the odometry works exactly as without this. A gap in
@@ -58,6 +62,8 @@ MAX_BIAS_RAD = math.radians(10.0)
 """The largest heading bias corrected (rad)."""
 REFUSE_AFTER = 20
 """Measurements beyond :data:`MAX_BIAS_RAD` in a row, none accepted between, before it is said."""
+OUTLIER_RAD = math.radians(3.0)
+"""Once settled, a measurement further than this from the estimate (rad) is an outlier."""
 GAP_S = 1.0
 """Positions further apart than this (s) restart the window."""
 GAIN_MIN = 0.1
@@ -95,6 +101,8 @@ class HeadingBias:
         """Accepted measurements so far."""
         self.rejected = 0
         """Windows turned down for the bound, in a row."""
+        self.outliers = 0
+        """Windows turned down as outliers of the settled estimate, in a row."""
         self._samples: deque[_Sample] = deque()
         self._odometry: tuple[float, float] | None = None  # the last odometry position seen
         self._said_settled = False
@@ -159,6 +167,12 @@ class HeadingBias:
                         f"{math.degrees(MAX_BIAS_RAD):.0f}: not corrected")
             return None
         self.rejected = 0
+        if self.measurements >= SETTLED_COUNT and abs(angle - self.bias_rad) > OUTLIER_RAD:
+            self.outliers += 1
+            if self.outliers >= REFUSE_AFTER:  # not an outlier: the bias moved
+                self.measurements = self.outliers = 0
+            return None
+        self.outliers = 0
         self.measurements += 1
         gain = max(1.0 / self.measurements, GAIN_MIN)
         self.bias_rad += gain * (angle - self.bias_rad)
