@@ -461,6 +461,13 @@ SCHEMA: tuple[ParamSpec, ...] = (
         "at least 0.5 m and takes the constant offset (up to 10 deg) off the ATTITUDE yaw the "
         "odometry and the heading controller use; nothing without a position from it.",
     ),
+    ParamSpec(
+        "ODOM_POS_TAU", float, default=0.0, minimum=0.0, maximum=60.0, units="s",
+        description="Position fusion: time constant with which the odometry's position is "
+        "pulled toward the flight controller's LOCAL_POSITION_NED (its GPS-fused track, moved "
+        "to the odometry's origin); the wheels count within it, the flight controller beyond "
+        "it (0 = off: wheels only).",
+    ),
 
     # ---- TLM: Telemetry to the ground station
     ParamSpec(

@@ -257,12 +257,15 @@ class OdometryConfig:
     """The lag of commanded wheel speeds before they count as rolled, s (``ODOM_CMD_TAU``)."""
     yaw_bias: bool = True
     """Estimate and take off the flight controller's yaw bias (``ODOM_YAW_BIAS`` 1)."""
+    position_tau_s: float = 0.0
+    """Time constant of the pull toward the flight controller's position, s (``ODOM_POS_TAU``;
+    0 = none)."""
 
     @classmethod
     def from_params(cls, params: Params) -> OdometryConfig:
         """Read ``ODOM_SRC``, ``ODOM_YAW_SRC``, ``WHL_MAX_SPD``, ``GEO_HALF_*`` and
-        ``ODOM_CMD_TAU``, ``ODOM_YAW_BIAS``."""
+        ``ODOM_CMD_TAU``, ``ODOM_YAW_BIAS``, ``ODOM_POS_TAU``."""
         return cls(int(params["ODOM_SRC"]), int(params["ODOM_YAW_SRC"]) == 0,
                    float(params["WHL_MAX_SPD"]), float(params["GEO_HALF_LEN"]),
                    float(params["GEO_HALF_WID"]), float(params["ODOM_CMD_TAU"]),
-                   int(params["ODOM_YAW_BIAS"]) == 1)
+                   int(params["ODOM_YAW_BIAS"]) == 1, float(params["ODOM_POS_TAU"]))

@@ -26,9 +26,18 @@ Heading bias (parameter ``ODOM_YAW_BIAS``, on by default): while the flight cont
 is in use and it sends its own position (LOCAL_POSITION_NED, GPS-fused), its yaw's constant
 offset from the true heading is estimated from the two tracks
 (:mod:`mecanum_mav.control.headingbias`) and taken off the yaw the odometry, and so the heading
-controller, uses; each change of the correction also turns the track driven since the origin
-(the last reset) about the origin by as much, as if it had been driven with the corrected
-heading all along. No position from the flight controller: no correction. Translation
+controller, uses; until the estimate has settled, each change of the correction also turns the
+track driven since the origin (the last reset) about the origin by as much, as if it had been
+driven with the corrected heading all along (later changes, as the flight controller's bias
+drifts, apply from then on). No position from the flight controller: no correction.
+
+Position fusion (parameter ``ODOM_POS_TAU``, s, 0 = off): the same positions, moved to the
+odometry's origin (the flight controller's position when the odometry was last reset or first
+saw one), pull the odometry's position toward them, a complementary filter of that time
+constant: the wheels (or commanded speeds) for what happens within it, the flight controller's
+GPS-fused track for what accumulates beyond it. A position more than :data:`POSITION_GATE_M`
+from the odometry's is not used (a glitch, an EKF reset); :data:`POSITION_GATE_COUNT` of them in
+a row re-anchor the origin instead. Translation
 always comes from the wheels by least squares
 (:class:`~mecanum_mav.mecanum.kinematics.MecanumKinematics`) and the SE(2) exponential.
 
@@ -73,6 +82,12 @@ JUMP_SPEED_FACTOR = 2.0
 JUMP_MARGIN_M = 0.2
 """A fresh WHEEL_DISTANCE step longer than ``JUMP_SPEED_FACTOR x WHL_MAX_SPD x dt +
 JUMP_MARGIN_M`` (m) on any wheel is a jump: re-anchored, not driven."""
+POSITION_GATE_M = 0.5
+"""A flight-controller position further than this (m) from the odometry's is not fused."""
+POSITION_GATE_COUNT = 20
+"""... and this many of them in a row re-anchor the flight controller's track to the odometry."""
+POSITION_GAP_S = 0.5
+"""The fusion's step counts at most this long (s) after a gap in the positions."""
 MAX_YAW_RATE = 50.0
 """An ATTITUDE yaw rate beyond +- this (rad/s, 8 turns a second) is not a measurement."""
 
@@ -112,13 +127,16 @@ class WheelOdometryEstimator:
         self.yaw_correction = 0.0
         """The bias taken off the flight controller's yaw now (rad, clockwise)."""
         self._origin = (0.0, 0.0)  # where the track since the last reset began (m, NED)
+        self._fc_anchor: tuple[float, float] | None = None  # FC position minus odometry's
+        self._fc_position_s = -math.inf
+        self._fc_far = 0  # positions in a row beyond POSITION_GATE_M
 
     def reconfigure(self, params: Params) -> None:
         """Take the odometry sources and the wheel speed from ``params`` (``ODOM_YAW_BIAS``
         turned off takes the correction off at once)."""
         self.config = OdometryConfig.from_params(params)
         if not self.config.yaw_bias:
-            self._correct(0.0)
+            self._correct(0.0, turn_track=False)
             self.heading_bias.restart()
 
     @property
@@ -162,27 +180,55 @@ class WheelOdometryEstimator:
 
     def on_position(self, north_m: float, east_m: float, now_s: float) -> str | None:
         """The flight controller's own position (LOCAL_POSITION_NED, m; its origin does not
-        matter): a sample for the heading bias while its yaw is in use (module docstring).
-        Returns what to say once (the bias settled, or too large to correct), else None."""
-        if not (self.config.yaw_bias and abs(north_m) <= MAX_WHEEL_DISTANCE_M
-                and abs(east_m) <= MAX_WHEEL_DISTANCE_M) or self._yaw_if_used(now_s) is None:
+        matter): a sample for the heading bias while its yaw is in use, and the fusion's
+        (module docstring). Returns what to say once (the bias settled, or too large to
+        correct), else None."""
+        if not (abs(north_m) <= MAX_WHEEL_DISTANCE_M and abs(east_m) <= MAX_WHEEL_DISTANCE_M):
             return None  # (NaN too)
-        pose = self.odometry.pose
-        update = self.heading_bias.on_position(north_m, east_m, pose.x_m, pose.y_m,
-                                               self.yaw_correction, now_s)
-        self._correct(update.bias_rad)
-        return update.notice
+        notice = None
+        if self.config.yaw_bias and self._yaw_if_used(now_s) is not None:
+            pose = self.odometry.pose
+            settled = self.heading_bias.settled
+            update = self.heading_bias.on_position(north_m, east_m, pose.x_m, pose.y_m,
+                                                   self.yaw_correction, now_s)
+            self._correct(update.bias_rad, turn_track=not settled)
+            notice = update.notice
+        if self.config.position_tau_s > 0.0:
+            self._fuse(north_m, east_m, now_s)
+        return notice
 
-    def _correct(self, bias_rad: float) -> None:
-        """Take ``bias_rad`` off the flight controller's yaw from now on, and turn the track
-        since the origin by the change (module docstring)."""
+    def _fuse(self, north_m: float, east_m: float, now_s: float) -> None:
+        """Pull the odometry's position toward the flight controller's (module docstring)."""
+        pose = self.odometry.pose
+        dt = min(now_s - self._fc_position_s, POSITION_GAP_S)
+        self._fc_position_s = now_s
+        if self._fc_anchor is None:
+            self._fc_anchor = (north_m - pose.x_m, east_m - pose.y_m)
+            return
+        error_n = north_m - self._fc_anchor[0] - pose.x_m
+        error_e = east_m - self._fc_anchor[1] - pose.y_m
+        if not math.hypot(error_n, error_e) <= POSITION_GATE_M:
+            self._fc_far += 1
+            if self._fc_far >= POSITION_GATE_COUNT:
+                self._fc_anchor, self._fc_far = None, 0
+            return
+        self._fc_far = 0
+        gain = -math.expm1(-max(dt, 0.0) / self.config.position_tau_s)
+        self.odometry.shift(gain * error_n, gain * error_e)
+        moved = self.odometry.pose
+        self.heading_bias.follow(moved.x_m, moved.y_m)
+
+    def _correct(self, bias_rad: float, turn_track: bool) -> None:
+        """Take ``bias_rad`` off the flight controller's yaw from now on; ``turn_track``: turn
+        the track since the origin by the change too (module docstring)."""
         change = bias_rad - self.yaw_correction
         if change == 0.0:
             return
         self.yaw_correction = bias_rad
         if self._yaw is not None:
             self._yaw -= change
-        self.odometry.rotate(-change, self._origin)
+        self.odometry.rotate(-change, self._origin if turn_track else
+                             (self.odometry.pose.x_m, self.odometry.pose.y_m))
         pose = self.odometry.pose
         self.heading_bias.follow(pose.x_m, pose.y_m)
 
@@ -283,3 +329,4 @@ class WheelOdometryEstimator:
         self.odometry.reset(pose, self._virtual, self._yaw_if_used(now_s))
         self._origin = (self.odometry.pose.x_m, self.odometry.pose.y_m)
         self.heading_bias.restart()
+        self._fc_anchor = None  # (the next position anchors the flight controller's track)

@@ -17,9 +17,13 @@ measurement is made over the latest window whose raw path is at least :data:`BAS
 leaves the rover further off before it is corrected: 2.5 degrees over 1 m is 4.4 cm), and only
 when:
 
-- the raw path is straight (chord at least :data:`STRAIGHT_RATIO` of its length): on a curve a
+- both paths are straight (chord at least :data:`STRAIGHT_RATIO` of its length): on a curve a
   few centimetres of lag between the two tracks (GPS delay, the motors' lag in commanded
-  odometry) turns into degrees; on a straight line it only slides along it;
+  odometry) turns into degrees; on a straight line it only slides along it (an EKF's track
+  that swings past a corner the odometry turned exactly is not straight);
+- the rover moved steadily: no step of the raw path in the window is under
+  :data:`STEADY_RATIO` of its mean step (starting and stopping, an EKF's position follows its
+  own heading until GPS pulls it back: measured on ArduPilot SITL, degrees toward its bias);
 - the two chords agree in length within :data:`SCALE_TOLERANCE` (a GPS glitch, an EKF reset or
   wheels slipping are not a heading);
 - the angle is within :data:`MAX_BIAS_RAD` (10 degrees): beyond that it is not a compass bias
@@ -36,7 +40,7 @@ the positions longer than :data:`GAP_S`, or an odometry reset, restarts the wind
 a property of the flight controller's heading, is kept).
 
 The estimate is the mean of the first measurements, then an exponential filter with gain
-:data:`GAIN_MIN` per measurement (about 1 s at 10 Hz); it counts as settled after
+:data:`GAIN_MIN` per measurement; it counts as settled after
 :data:`SETTLED_COUNT` measurements (said once). Angles are radians, clockwise positive (NED).
 """
 
@@ -54,8 +58,10 @@ BASELINE_M = 0.5
 """Shortest raw odometry path a measurement is made over (m)."""
 WINDOW_S = 20.0
 """Samples older than this (s) are dropped: a baseline needs at least 5 cm/s."""
-STRAIGHT_RATIO = 0.98
+STRAIGHT_RATIO = 0.99
 """A window counts as straight when its chord is at least this fraction of its path."""
+STEADY_RATIO = 0.8
+"""Each step of a window's raw path is at least this fraction of the window's mean step."""
 SCALE_TOLERANCE = 0.2
 """The flight controller's chord over the odometry's must be within 1 +- this."""
 MAX_BIAS_RAD = math.radians(10.0)
@@ -66,8 +72,10 @@ OUTLIER_RAD = math.radians(3.0)
 """Once settled, a measurement further than this from the estimate (rad) is an outlier."""
 GAP_S = 1.0
 """Positions further apart than this (s) restart the window."""
-GAIN_MIN = 0.1
-"""The filter's gain per measurement once past the first ``1 / GAIN_MIN`` (a plain mean)."""
+GAIN_MIN = 0.05
+"""The filter's gain per measurement once past the first ``1 / GAIN_MIN`` (a plain mean): about
+2 s at 10 Hz, as ArduPilot's EKF3 heading error on SITL drifts (2.1 degrees at rest, 1.1 after
+45 s of driving) and each window's measurement scatters by about half a degree."""
 SETTLED_COUNT = 10
 """Measurements before the estimate is said."""
 
@@ -80,6 +88,8 @@ class _Sample(NamedTuple):
     """The raw path's length from the window's start (m)."""
     fc: tuple[float, float]
     """The flight controller's position (m, NED)."""
+    fc_path_m: float
+    """The flight controller's path's length from the window's start (m)."""
 
 
 class BiasUpdate(NamedTuple):
@@ -119,6 +129,11 @@ class HeadingBias:
         if self._odometry is not None:
             self._odometry = (odom_north_m, odom_east_m)
 
+    @property
+    def settled(self) -> bool:
+        """Whether the estimate has :data:`SETTLED_COUNT` measurements behind it."""
+        return self.measurements >= SETTLED_COUNT
+
     def on_position(self, fc_north_m: float, fc_east_m: float, odom_north_m: float,
                     odom_east_m: float, correction_rad: float, now_s: float) -> BiasUpdate:
         """One flight-controller position (m, NED) with the odometry's position at the same
@@ -129,14 +144,16 @@ class HeadingBias:
         last = self._odometry
         self._odometry = (odom_north_m, odom_east_m)
         if last is None or not samples:
-            samples.append(_Sample(now_s, (0.0, 0.0), 0.0, (fc_north_m, fc_east_m)))
+            samples.append(_Sample(now_s, (0.0, 0.0), 0.0, (fc_north_m, fc_east_m), 0.0))
             return BiasUpdate(self.bias_rad, None)
         # The odometry's step, rotated back by the correction it was made with: raw.
         dn, de = odom_north_m - last[0], odom_east_m - last[1]
         c, s = math.cos(correction_rad), math.sin(correction_rad)
         prev = samples[-1]
         raw = (prev.raw[0] + dn * c - de * s, prev.raw[1] + dn * s + de * c)
-        sample = _Sample(now_s, raw, prev.path_m + math.hypot(dn, de), (fc_north_m, fc_east_m))
+        fc_step = math.hypot(fc_north_m - prev.fc[0], fc_east_m - prev.fc[1])
+        sample = _Sample(now_s, raw, prev.path_m + math.hypot(dn, de), (fc_north_m, fc_east_m),
+                         prev.fc_path_m + fc_step)
         samples.append(sample)
         while now_s - samples[0].time_s > WINDOW_S:
             samples.popleft()
@@ -146,17 +163,24 @@ class HeadingBias:
     def _measure(self, now: _Sample) -> str | None:
         """Measure over the latest window of :data:`BASELINE_M`, if any; a notice or None."""
         start = None
+        least_step, later, steps = math.inf, now, 0
         for sample in reversed(self._samples):
+            if sample is not now:
+                least_step = min(least_step, later.path_m - sample.path_m)
+                later, steps = sample, steps + 1
             if now.path_m - sample.path_m >= BASELINE_M:
                 start = sample
                 break
         if start is None:
             return None
         path = now.path_m - start.path_m
+        if least_step < STEADY_RATIO * path / steps:
+            return None
         rn, re_ = now.raw[0] - start.raw[0], now.raw[1] - start.raw[1]
         fn, fe = now.fc[0] - start.fc[0], now.fc[1] - start.fc[1]
         chord, fc_chord = math.hypot(rn, re_), math.hypot(fn, fe)
-        if chord < STRAIGHT_RATIO * path or abs(fc_chord / chord - 1.0) > SCALE_TOLERANCE:
+        if chord < STRAIGHT_RATIO * path or fc_chord < STRAIGHT_RATIO * (
+                now.fc_path_m - start.fc_path_m) or abs(fc_chord / chord - 1.0) > SCALE_TOLERANCE:
             return None
         angle = wrap_pi(math.atan2(re_, rn) - math.atan2(fe, fn))
         if not abs(angle) <= MAX_BIAS_RAD:

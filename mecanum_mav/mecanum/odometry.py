@@ -139,6 +139,12 @@ class MecanumOdometry:
         self._pose = _checked_pose(Pose2d(about[0] + n * c - e * s, about[1] + n * s + e * c,
                                           self._pose.yaw_rad + angle_rad))
 
+    def shift(self, north_m: float, east_m: float) -> None:
+        """Move the position by (``north_m``, ``east_m``) m, the heading kept (a fused
+        position's pull). Not a reset (:attr:`reset_counter` stays)."""
+        self._pose = _checked_pose(self._pose._replace(x_m=self._pose.x_m + north_m,
+                                                       y_m=self._pose.y_m + east_m))
+
     def _set_state(
         self, pose: Pose2d, wheel_distances_m: Sequence[float], yaw_rad: float | None
     ) -> None:
