@@ -27,7 +27,7 @@ def square(bias_deg: float, estimate: int, position_hz: float = 10.0) -> RunFigu
     return row.fig
 
 
-def test_a_heading_2_5_degrees_off_meets_the_squares_arrival_and_heading_goals_only_with_the_estimator():
+def test_a_heading_2_5_deg_off_meets_the_square_arrival_and_heading_goals_only_when_estimated():
     on = square(2.5, 1)
     assert on.worst_arrival_m < GOALS.arrival_m, on
     assert on.worst_heading_deg < GOALS.heading_deg, on

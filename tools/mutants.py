@@ -1108,8 +1108,8 @@ MUTATIONS: tuple[Mutation, ...] = (
       PKG + "control/headingbias.py", "math.atan2(re_, rn) - math.atan2(fe, fn)",
       "math.atan2(fe, fn) - math.atan2(re_, rn)",
       HB + "test_a_straight_track_3_degrees_off_the_flight_controllers_gives_a_3_degree_bias",
-      HS + "test_a_heading_2_5_degrees_off_meets_the_squares_arrival_and_heading_goals_only_"
-      "with_the_estimator"),
+      HS + "test_a_heading_2_5_deg_off_meets_the_square_arrival_and_heading_goals_only_when_"
+      "estimated"),
     M("hb-straight-only", "the heading bias is measured on straight stretches only",
       PKG + "control/headingbias.py", "if chord < STRAIGHT_RATIO * path or ", "if ",
       HB + "test_a_curved_track_gives_no_estimate_its_lag_would_look_like_degrees"),
@@ -1133,13 +1133,13 @@ MUTATIONS: tuple[Mutation, ...] = (
       "Pose2d(about[0] + n * c - e * s, about[1] + n * s + e * c,",
       "Pose2d(self._pose.x_m, self._pose.y_m,",
       HB + "test_the_bias_is_taken_off_the_heading_and_the_track_since_the_origin_turned_back",
-      HS + "test_a_heading_2_5_degrees_off_meets_the_squares_arrival_and_heading_goals_only_"
-      "with_the_estimator"),
+      HS + "test_a_heading_2_5_deg_off_meets_the_square_arrival_and_heading_goals_only_when_"
+      "estimated"),
     M("hb-yaw-corrected", "the estimated bias is taken off every ATTITUDE yaw",
       PKG + "control/estimator.py", "yaw_rad -= self.yaw_correction", "yaw_rad -= 0.0",
       HB + "test_the_bias_is_taken_off_the_heading_and_the_track_since_the_origin_turned_back",
-      HS + "test_a_heading_2_5_degrees_off_meets_the_squares_arrival_and_heading_goals_only_"
-      "with_the_estimator"),
+      HS + "test_a_heading_2_5_deg_off_meets_the_square_arrival_and_heading_goals_only_when_"
+      "estimated"),
     M("hb-position-asked", "the companion asks the flight controller for LOCAL_POSITION_NED",
       PKG + "control/fclink.py", """(mavlink.MAVLINK_MSG_ID_LOCAL_POSITION_NED,
                                          FC_POSITION_INTERVAL_US)):""",
