@@ -102,9 +102,9 @@ def estimator(**values: float) -> WheelOdometryEstimator:
 
 
 def drive_north(est: WheelOdometryEstimator, bias_deg: float, seconds: float,
-                positions: bool = True) -> list[str]:
-    """Forward (truly north) at 1 m/s; the flight controller's yaw ``bias_deg`` off, its
-    position the truth at 10 Hz; what the estimator said."""
+                positions: bool = True, ekf: bool = False) -> list[str]:
+    """Forward (truly north) at 1 m/s; the flight controller's yaw ``bias_deg`` off, its GPS
+    fixes (or its EKF's positions) the truth at 10 Hz; what the estimator said."""
     said = []
     yaw = math.radians(bias_deg)
     est.on_attitude(yaw, 0.0, 0.0)  # (its heading the start's)
@@ -112,7 +112,8 @@ def drive_north(est: WheelOdometryEstimator, bias_deg: float, seconds: float,
         t = 0.02 * k
         if k % 5 == 0:
             est.on_attitude(yaw, 0.0, t)
-            if positions and (notice := est.on_position(t, 0.0, t)) is not None:
+            position = est.on_position if ekf else est.on_gps
+            if positions and (notice := position(t, 0.0, t)) is not None:
                 said.append(notice)
         est.on_commanded([1.0] * 4, 0.02, t)
     return said
@@ -129,6 +130,14 @@ def test_the_bias_is_taken_off_the_heading_and_the_track_since_the_origin_turned
     assert said == ["Heading: FC yaw +2.5 deg off its track: corrected"]
 
 
+def test_with_odom_yaw_bias_1_the_ekfs_position_is_the_reference_and_the_gps_is_not():
+    ekf, gps = estimator(ODOM_YAW_BIAS=1), estimator(ODOM_YAW_BIAS=1)
+    drive_north(ekf, 2.5, 4.0, ekf=True)
+    drive_north(gps, 2.5, 4.0)
+    assert math.degrees(ekf.yaw_correction) == pytest.approx(2.5, abs=0.01)
+    assert gps.yaw_correction == 0.0
+
+
 def test_with_odom_yaw_bias_0_the_positions_change_nothing():
     est = estimator(ODOM_YAW_BIAS=0)
     drive_north(est, 2.5, 4.0)
@@ -139,7 +148,7 @@ def test_with_odom_yaw_bias_0_the_positions_change_nothing():
 def test_without_positions_the_odometry_is_what_it_was_without_the_estimator():
     on, off = estimator(), estimator(ODOM_YAW_BIAS=0)
     drive_north(on, 2.5, 4.0, positions=False)
-    drive_north(off, 2.5, 4.0, positions=True)
+    drive_north(off, 2.5, 4.0)
     assert on.pose == off.pose and on.yaw_correction == 0.0
 
 
@@ -164,5 +173,5 @@ def test_a_position_that_is_not_a_number_is_ignored():
     est = estimator()
     est.on_attitude(0.0, 0.0, 0.0)
     assert est.on_position(math.nan, 0.0, 0.01) is None
-    assert est.on_position(0.0, math.inf, 0.02) is None
+    assert est.on_gps(0.0, math.inf, 0.02) is None
     assert est.heading_bias.measurements == 0 and est.yaw_correction == 0.0

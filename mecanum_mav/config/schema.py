@@ -454,12 +454,12 @@ SCHEMA: tuple[ParamSpec, ...] = (
         "wheels' own turn.",
     ),
     ParamSpec(
-        "ODOM_YAW_BIAS", int, default=1, minimum=0, maximum=1, units="",
-        values={0: "off", 1: "estimate"},
-        description="Flight controller heading bias: estimate compares its own position "
-        "track (LOCAL_POSITION_NED, GPS-fused) with the odometry's over straight stretches of "
-        "at least 0.5 m and takes the constant offset (up to 10 deg) off the ATTITUDE yaw the "
-        "odometry and the heading controller use; nothing without a position from it.",
+        "ODOM_YAW_BIAS", int, default=2, minimum=0, maximum=2, units="",
+        values={0: "off", 1: "ekf", 2: "gps"},
+        description="Flight controller heading bias: compares its position track (gps: its "
+        "GPS_RAW_INT fixes; ekf: its LOCAL_POSITION_NED) with the odometry's over straight, "
+        "steady stretches of at least 0.5 m and takes the offset (up to 10 deg) off the "
+        "ATTITUDE yaw the odometry and the heading controller use; nothing without a fix.",
     ),
     ParamSpec(
         "ODOM_POS_TAU", float, default=0.0, minimum=0.0, maximum=60.0, units="s",

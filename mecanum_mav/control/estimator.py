@@ -23,8 +23,9 @@ yet, sets the starting heading itself (its north is the local frame's north); la
 the heading from where it is (a gyro that came back after a gap does not turn it).
 
 Heading bias (parameter ``ODOM_YAW_BIAS``, on by default): while the flight controller's yaw
-is in use and it sends its own position (LOCAL_POSITION_NED, GPS-fused), its yaw's constant
-offset from the true heading is estimated from the two tracks
+is in use and it sends a position (its GPS's fixes, GPS_RAW_INT, by default; or its EKF's
+LOCAL_POSITION_NED), its yaw's constant offset from the true heading is estimated from the two
+tracks
 (:mod:`mecanum_mav.control.headingbias`) and taken off the yaw the odometry, and so the heading
 controller, uses; until the estimate has settled, each change of the correction also turns the
 track driven since the origin (the last reset) about the origin by as much, as if it had been
@@ -72,6 +73,8 @@ FRESH_S = 0.5
 """A WHEEL_DISTANCE or ATTITUDE older than this no longer counts as a live source (s)."""
 SOURCE_AUTO, SOURCE_WHEEL_DISTANCE, SOURCE_COMMANDED = 0, 1, 2
 """``ODOM_SRC`` values."""
+BIAS_FROM_EKF, BIAS_FROM_GPS = 1, 2
+"""``ODOM_YAW_BIAS`` values (0: off)."""
 COMMANDED_UPDATE_S = 0.02
 """Commanded speeds are integrated every tick but fed to the odometry at most this often."""
 SETTLED_MPS = 1e-6
@@ -185,17 +188,30 @@ class WheelOdometryEstimator:
         correct), else None."""
         if not (abs(north_m) <= MAX_WHEEL_DISTANCE_M and abs(east_m) <= MAX_WHEEL_DISTANCE_M):
             return None  # (NaN too)
-        notice = None
-        if self.config.yaw_bias and self._yaw_if_used(now_s) is not None:
-            pose = self.odometry.pose
-            settled = self.heading_bias.settled
-            update = self.heading_bias.on_position(north_m, east_m, pose.x_m, pose.y_m,
-                                                   self.yaw_correction, now_s)
-            self._correct(update.bias_rad, turn_track=not settled)
-            notice = update.notice
+        notice = self._bias_sample(north_m, east_m, now_s, BIAS_FROM_EKF)
         if self.config.position_tau_s > 0.0:
             self._fuse(north_m, east_m, now_s)
         return notice
+
+    def on_gps(self, north_m: float, east_m: float, now_s: float) -> str | None:
+        """A new GPS fix (GPS_RAW_INT about its first fix, m): a sample for the heading bias
+        while its yaw is in use (module docstring); what to say once, else None."""
+        if not (abs(north_m) <= MAX_WHEEL_DISTANCE_M and abs(east_m) <= MAX_WHEEL_DISTANCE_M):
+            return None  # (NaN too)
+        return self._bias_sample(north_m, east_m, now_s, BIAS_FROM_GPS)
+
+    def _bias_sample(self, north_m: float, east_m: float, now_s: float,
+                     source: int) -> str | None:
+        """A position from ``source`` to the heading bias, if it is the configured one and the
+        flight controller's yaw is in use; the correction follows."""
+        if self.config.yaw_bias != source or self._yaw_if_used(now_s) is None:
+            return None
+        pose = self.odometry.pose
+        settled = self.heading_bias.settled
+        update = self.heading_bias.on_position(north_m, east_m, pose.x_m, pose.y_m,
+                                               self.yaw_correction, now_s)
+        self._correct(update.bias_rad, turn_track=not settled)
+        return update.notice
 
     def _fuse(self, north_m: float, east_m: float, now_s: float) -> None:
         """Pull the odometry's position toward the flight controller's (module docstring)."""

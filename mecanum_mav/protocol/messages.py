@@ -19,6 +19,7 @@ __all__ = [
     "Addressed",
     "AttitudeMsg",
     "CommandMsg",
+    "FcGpsMsg",
     "FcParamValueMsg",
     "FcPositionMsg",
     "FcSysStatusMsg",
@@ -161,6 +162,15 @@ class FcParamValueMsg(Received, Protocol):
 
     param_id: str
     param_value: float
+
+
+class FcGpsMsg(Received, Protocol):
+    """GPS_RAW_INT from the flight controller (fix type, degE7; ``time_usec`` of the fix)."""
+
+    time_usec: int
+    fix_type: int
+    lat: int
+    lon: int
 
 
 class FcPositionMsg(Received, Protocol):

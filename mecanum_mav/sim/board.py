@@ -23,8 +23,9 @@ wheel's trim (a stopped wheel).
 
 Telemetry, as ArduPilot Rover sends it: HEARTBEAT 1 Hz, ATTITUDE 20 Hz (true yaw, radians
 clockwise from north, plus ``SIM_YAW_BIAS``: a compass or EKF heading that is off),
-LOCAL_POSITION_NED at ``SIM_POS_RATE`` (the true position and velocity, as a GPS-fused EKF
-gives them; 0 Hz, the default: none, a board without GPS), WHEEL_DISTANCE 10 Hz (cumulative
+LOCAL_POSITION_NED and GPS_RAW_INT at ``SIM_POS_RATE`` (the true position and velocity, as a
+GPS-fused EKF gives them, and a 3D fix there; 0 Hz, the default: none, a board without GPS),
+WHEEL_DISTANCE 10 Hz (cumulative
 encoder metres FL, FR, RL, RR), SERVO_OUTPUT_RAW 10 Hz (the pulse width on each output) and
 SYS_STATUS 1 Hz (a battery). As
 ArduPilot's simulators do, it also reports its ground truth in SIM_STATE at 5 Hz: the true
@@ -373,6 +374,9 @@ class SimBoard:
         v_north, v_east = body_to_ned(*c.velocity_body, c.pose.yaw_rad)
         mav.local_position_ned_send((self._boot_us(now_s) // 1000) & 0xFFFFFFFF, c.pose.x_m,
                                     c.pose.y_m, 0.0, v_north, v_east, 0.0)
+        lat_e7, lon_e7 = self._origin.to_global(c.pose.x_m, c.pose.y_m)
+        mav.gps_raw_int_send(self._boot_us(now_s), 3, lat_e7, lon_e7, 0, 100, 100, 65535, 65535,
+                             12)
 
     def _wheel_distance(self, mav: Any, now_s: float) -> None:
         """WHEEL_DISTANCE: cumulative encoder metres FL, FR, RL, RR, then zeros."""
