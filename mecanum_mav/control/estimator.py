@@ -63,7 +63,7 @@ from collections.abc import Sequence
 from mecanum_mav.config.params import Params
 from mecanum_mav.config.views import OdometryConfig
 from mecanum_mav.control.headingbias import HeadingBias
-from mecanum_mav.mecanum.geometry import Pose2d, ned_to_body, wrap_pi
+from mecanum_mav.mecanum.geometry import Pose2d, body_to_ned, ned_to_body, wrap_pi
 from mecanum_mav.mecanum.kinematics import MecanumKinematics
 from mecanum_mav.mecanum.odometry import MecanumOdometry
 
@@ -206,23 +206,35 @@ class WheelOdometryEstimator:
         flight controller's yaw is in use; the correction follows."""
         if self.config.yaw_bias != source or self._yaw_if_used(now_s) is None:
             return None
-        pose = self.odometry.pose
+        north, east = self._carried(now_s)
         settled = self.heading_bias.settled
-        update = self.heading_bias.on_position(north_m, east_m, pose.x_m, pose.y_m,
+        update = self.heading_bias.on_position(north_m, east_m, north, east,
                                                self.yaw_correction, now_s)
         self._correct(update.bias_rad, turn_track=not settled)
+        self.heading_bias.follow(*self._carried(now_s))
         return update.notice
+
+    def _carried(self, now_s: float) -> tuple[float, float]:
+        """The odometry's position (m, NED) carried to ``now_s`` at its velocity: it updates
+        every :data:`COMMANDED_UPDATE_S` or so, and a sample 20 ms stale is 2 cm at 1 m/s, 4 %
+        of a 0.5 m window."""
+        pose = self.odometry.pose
+        ahead = 0.0 if self._last_update_s is None else min(now_s - self._last_update_s,
+                                                             FRESH_S)
+        north, east = body_to_ned(*self.velocity_body, pose.yaw_rad)
+        return pose.x_m + north * ahead, pose.y_m + east * ahead
+
 
     def _fuse(self, north_m: float, east_m: float, now_s: float) -> None:
         """Pull the odometry's position toward the flight controller's (module docstring)."""
-        pose = self.odometry.pose
+        odom_n, odom_e = self._carried(now_s)
         dt = min(now_s - self._fc_position_s, POSITION_GAP_S)
         self._fc_position_s = now_s
         if self._fc_anchor is None:
-            self._fc_anchor = (north_m - pose.x_m, east_m - pose.y_m)
+            self._fc_anchor = (north_m - odom_n, east_m - odom_e)
             return
-        error_n = north_m - self._fc_anchor[0] - pose.x_m
-        error_e = east_m - self._fc_anchor[1] - pose.y_m
+        error_n = north_m - self._fc_anchor[0] - odom_n
+        error_e = east_m - self._fc_anchor[1] - odom_e
         if not math.hypot(error_n, error_e) <= POSITION_GATE_M:
             self._fc_far += 1
             if self._fc_far >= POSITION_GATE_COUNT:
@@ -231,8 +243,7 @@ class WheelOdometryEstimator:
         self._fc_far = 0
         gain = -math.expm1(-max(dt, 0.0) / self.config.position_tau_s)
         self.odometry.shift(gain * error_n, gain * error_e)
-        moved = self.odometry.pose
-        self.heading_bias.follow(moved.x_m, moved.y_m)
+        self.heading_bias.follow(*self._carried(now_s))
 
     def _correct(self, bias_rad: float, turn_track: bool) -> None:
         """Take ``bias_rad`` off the flight controller's yaw from now on; ``turn_track``: turn
