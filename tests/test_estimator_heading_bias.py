@@ -175,3 +175,59 @@ def test_a_position_that_is_not_a_number_is_ignored():
     assert est.on_position(math.nan, 0.0, 0.01) is None
     assert est.on_gps(0.0, math.inf, 0.02) is None
     assert est.heading_bias.measurements == 0 and est.yaw_correction == 0.0
+
+
+def test_once_settled_a_new_correction_does_not_move_the_rover_on_the_map():
+    """The track driven since the origin is turned while the estimate settles; a later change
+    (the flight controller's bias drifting) applies from then on: the rover stays put."""
+    est = estimator()
+    drive_north(est, 2.5, 4.0)
+    assert est.heading_bias.settled
+    before = est.pose
+    est.on_attitude(math.radians(3.5), 0.0, 4.05)  # the bias moved by 1 degree
+    t = 4.0
+    for k in range(1, 41):  # 0.8 s more north, the bias learnt anew bit by bit
+        t = 4.0 + 0.02 * k
+        if k % 5 == 0:
+            est.on_attitude(math.radians(3.5), 0.0, t)
+            est.on_gps(t, 0.0, t)
+        est.on_commanded([1.0] * 4, 0.02, t)
+    assert est.yaw_correction > math.radians(2.6)
+    # 0.8 m driven up to 1 degree off: 1.2 cm east. Turning the 4 m behind by the 0.2 degree
+    # learnt meanwhile would have put it 1.9 cm further west.
+    assert 0.008 < est.pose.y_m - before.y_m < 0.015
+
+
+def test_a_position_fused_pulls_the_odometry_toward_the_fcs_track_at_its_time_constant():
+    """ODOM_POS_TAU 1 s; the flight controller's position 10 cm east of the odometry's, all
+    the way north at 1 m/s: after 1 s the odometry has come 1 - 1/e of the way."""
+    est = estimator(ODOM_POS_TAU=1.0, ODOM_YAW_BIAS=0)
+    est.on_attitude(0.0, 0.0, 0.0)
+    t = 0.0
+    for k in range(1, 101):
+        t = 0.02 * k
+        est.on_commanded([1.0] * 4, 0.02, t)
+        if k % 5 == 0:  # after the odometry's update: the position of the same moment
+            est.on_position(100.0 + t, 50.1, t)  # its origin elsewhere; 10 cm east
+    # anchored at the first (t 0.1, where it was 10 cm east too): nothing to pull
+    assert est.pose.y_m == pytest.approx(0.0, abs=1e-9)
+    assert est.pose.x_m == pytest.approx(2.0, abs=1e-9)
+    for k in range(101, 151):  # now the flight controller's track is 10 cm further east
+        t = 0.02 * k
+        est.on_commanded([1.0] * 4, 0.02, t)
+        if k % 5 == 0:
+            est.on_position(100.0 + t, 50.2, t)
+    assert est.pose.y_m == pytest.approx(0.1 * (1 - math.exp(-1.0)), abs=1e-3)
+    assert est.pose.x_m == pytest.approx(3.0, abs=1e-3)  # and nothing along the track
+
+
+def test_a_fused_position_that_jumps_is_not_followed_until_it_stays():
+    est = estimator(ODOM_POS_TAU=0.5, ODOM_YAW_BIAS=0)
+    est.on_attitude(0.0, 0.0, 0.0)
+    est.on_position(0.0, 0.0, 0.0)  # anchors
+    for k in range(1, 11):  # 1 s: the flight controller's position 3 m away (an EKF reset)
+        est.on_position(3.0, 0.0, 0.1 * k)
+    assert est.pose == (0.0, 0.0, 0.0)
+    for k in range(11, 41):  # it stays there: re-anchored, still nothing moves
+        est.on_position(3.0, 0.0, 0.1 * k)
+    assert est.pose == (0.0, 0.0, 0.0)

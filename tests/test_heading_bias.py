@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
+from types import SimpleNamespace
+from typing import Any
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tools"))
 
@@ -14,6 +16,7 @@ import bench_control
 from conftest import lockstep
 
 from mecanum_mav.control.fclink import FC_POSITION_INTERVAL_US
+from mecanum_mav.mecanum.geo import GlobalOrigin
 from mecanum_mav.protocol.dialect import mavlink
 from mecanum_mav.sim.trackquality import RunFigures
 
@@ -48,7 +51,27 @@ def test_a_board_without_a_position_drives_exactly_as_without_the_estimator():
 def test_the_companion_asks_the_flight_controller_for_its_position_at_10_hz():
     h = lockstep()
     h.run_for(1.5)
-    asked = [m for m in h.fc_received if m.get_type() == "COMMAND_LONG"
-             and m.command == mavlink.MAV_CMD_SET_MESSAGE_INTERVAL
-             and int(m.param1) == mavlink.MAVLINK_MSG_ID_LOCAL_POSITION_NED]
-    assert [m.param2 for m in asked] == [FC_POSITION_INTERVAL_US] == [100_000]
+    asked = {int(m.param1): m.param2 for m in h.fc_received if m.get_type() == "COMMAND_LONG"
+             and m.command == mavlink.MAV_CMD_SET_MESSAGE_INTERVAL}
+    assert asked[mavlink.MAVLINK_MSG_ID_LOCAL_POSITION_NED] == FC_POSITION_INTERVAL_US == 100_000
+    assert asked[mavlink.MAVLINK_MSG_ID_GPS_RAW_INT] == FC_POSITION_INTERVAL_US
+
+
+def test_gps_fixes_without_a_3d_fix_are_not_a_track():
+    """Each new 3D fix reaches the estimator once, about the first one; a 2D fix (or none)
+    and a fix repeated (GPS_RAW_INT asked faster than the GPS's 5 Hz) do not."""
+    fc = lockstep().core._fc
+    seen: list[tuple[float, float]] = []
+    fc.estimator = SimpleNamespace(on_gps=lambda n, e, now_s: seen.append((n, e)))
+    fc.on_gps(gps_fix(2, 0.0, 1), 1.0)
+    fc.on_gps(gps_fix(3, 0.0, 2), 1.1)
+    fc.on_gps(gps_fix(3, 0.0, 2), 1.2)  # the same fix again
+    fc.on_gps(gps_fix(1, 5.0, 3), 1.3)
+    fc.on_gps(gps_fix(3, 1.0, 4), 1.4)
+    assert [(round(n, 2), round(e, 2)) for n, e in seen] == [(0.0, 0.0), (1.0, 0.0)]
+
+
+def gps_fix(fix_type: int, north_m: float, time_usec: int) -> Any:
+    """A GPS_RAW_INT ``north_m`` north of a point in Canberra (SITL's home)."""
+    lat_e7, lon_e7 = GlobalOrigin(-353632622, 1491652373).to_global(north_m, 0.0)
+    return SimpleNamespace(fix_type=fix_type, time_usec=time_usec, lat=lat_e7, lon=lon_e7)

@@ -109,7 +109,6 @@ class HeadingBias:
         """The estimate (rad, clockwise; 0 until the first measurement)."""
         self.measurements = 0
         """Accepted measurements so far."""
-
         self.rejected = 0
         """Windows turned down for the bound, in a row."""
         self.outliers = 0
