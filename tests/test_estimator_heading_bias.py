@@ -231,3 +231,20 @@ def test_a_fused_position_that_jumps_is_not_followed_until_it_stays():
     for k in range(11, 41):  # it stays there: re-anchored, still nothing moves
         est.on_position(3.0, 0.0, 0.1 * k)
     assert est.pose == (0.0, 0.0, 0.0)
+
+
+def test_a_fused_position_between_two_gps_fixes_leaves_the_heading_bias_its_steps():
+    """With ODOM_POS_TAU the EKF's positions pull the odometry between the GPS fixes: the pull
+    is not a step the rover drove, but the driving in between still is."""
+    est = estimator(ODOM_POS_TAU=2.0)
+    yaw = math.radians(2.5)
+    est.on_attitude(yaw, 0.0, 0.0)
+    for k in range(1, 201):
+        t = 0.02 * k
+        est.on_commanded([1.0] * 4, 0.02, t)
+        if k % 5 == 0:
+            est.on_attitude(yaw, 0.0, t)
+            est.on_position(t, 0.0, t)  # the EKF's, 10 Hz
+        if k % 10 == 5:
+            est.on_gps(t, 0.0, t)  # the GPS's, 5 Hz, between them
+    assert math.degrees(est.yaw_correction) == pytest.approx(2.5, abs=0.05)

@@ -243,7 +243,7 @@ class WheelOdometryEstimator:
         self._fc_far = 0
         gain = -math.expm1(-max(dt, 0.0) / self.config.position_tau_s)
         self.odometry.shift(gain * error_n, gain * error_e)
-        self.heading_bias.follow(*self._carried(now_s))
+        self.heading_bias.shifted(gain * error_n, gain * error_e)
 
     def _correct(self, bias_rad: float, turn_track: bool) -> None:
         """Take ``bias_rad`` off the flight controller's yaw from now on; ``turn_track``: turn

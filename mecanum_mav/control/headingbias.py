@@ -134,6 +134,12 @@ class HeadingBias:
         """Whether the estimate has :data:`SETTLED_COUNT` measurements behind it."""
         return self.measurements >= SETTLED_COUNT
 
+    def shifted(self, north_m: float, east_m: float) -> None:
+        """The odometry's position was shifted by (``north_m``, ``east_m``) m (a fused
+        position's pull): not a step it drove."""
+        if self._odometry is not None:
+            self._odometry = (self._odometry[0] + north_m, self._odometry[1] + east_m)
+
     def on_position(self, fc_north_m: float, fc_east_m: float, odom_north_m: float,
                     odom_east_m: float, correction_rad: float, now_s: float) -> BiasUpdate:
         """One flight-controller position (m, NED) with the odometry's position at the same
