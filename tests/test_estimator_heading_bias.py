@@ -69,6 +69,36 @@ def test_a_curved_track_gives_no_estimate_its_lag_would_look_like_degrees():
     assert bias.measurements == 0 and bias.bias_rad == 0.0
 
 
+def weaving(t: float) -> tuple[float, float]:
+    """North at 1 m/s, weaving 6 cm either side once a metre."""
+    return t, 0.06 * math.sin(2 * math.pi * t)
+
+
+def test_a_flight_controller_track_that_weaves_gives_no_estimate():
+    """An EKF swinging about the line the odometry drove (after a start or a stop it follows
+    its own heading until GPS pulls it back): its chords point everywhere."""
+    bias = HeadingBias()
+    feed(bias, weaving, lambda t: (t, 0.0), 10.0)
+    assert bias.measurements == 0
+
+
+def test_an_odometry_track_that_weaves_gives_no_estimate():
+    bias = HeadingBias()
+    feed(bias, lambda t: (t, 0.0), weaving, 10.0)
+    assert bias.measurements == 0
+
+
+def test_a_rover_that_keeps_speeding_up_and_slowing_down_gives_no_estimate():
+    """1 m/s and 0.3 m/s by turns every 0.3 s: no window of steady driving (while it starts
+    and stops an EKF's track follows its own heading)."""
+    def surging(t: float) -> tuple[float, float]:
+        whole, part = divmod(t, 0.6)
+        return whole * 0.39 + min(part, 0.3) * 1.0 + max(part - 0.3, 0.0) * 0.3, 0.0
+    bias = HeadingBias()
+    feed(bias, surging, rotated(surging, 2.0), 10.0)
+    assert bias.measurements == 0
+
+
 def test_a_bias_beyond_10_degrees_is_not_corrected_and_said_once():
     bias = HeadingBias()
     said = feed(bias, straight, rotated(straight, 15.0), 20.0)
@@ -84,6 +114,16 @@ def test_a_flight_controller_position_that_jumps_sideways_does_not_move_a_settle
     assert math.degrees(bias.bias_rad) == pytest.approx(2.0, abs=1e-6)
     feed(bias, lambda t: (t, 0.06), odometry, 4.0, start_s=4.1)
     assert math.degrees(bias.bias_rad) == pytest.approx(2.0, abs=0.05)
+
+
+def test_a_flight_controller_position_that_drifts_sideways_hardly_moves_a_settled_estimate():
+    """Multipath: the flight controller's position slides 6 cm east over 0.6 s from 4 s on;
+    the windows along the slide that are more than 3 degrees off the estimate are outliers."""
+    bias = HeadingBias()
+    odometry = rotated(lambda t: (t, 0.0), 2.0)
+    feed(bias, lambda t: (t, 0.0), odometry, 4.0)
+    feed(bias, lambda t: (t, 0.1 * min(max(t - 4.0, 0.0), 0.6)), odometry, 4.0, start_s=4.1)
+    assert math.degrees(bias.bias_rad) == pytest.approx(2.0, abs=0.15)  # 1.71 without
 
 
 def test_a_bias_that_moved_for_good_is_learnt_again():
