@@ -342,13 +342,6 @@ TWIN_ODOM_CMD_TAU = 0.12
 """``ODOM_CMD_TAU`` on the twin (no WHEEL_DISTANCE from ArduPilot: the odometry takes the
 commanded speeds): the motors' 0.08 s and the firmware's pass-through (measured at 1 m/s,
 friction 0.8: strafe-rotate drift 7.9 % with 0, 2-3 % with 0.12); a ``--set`` wins."""
-TWIN_ODOM_POS_TAU = 2.0
-"""``ODOM_POS_TAU`` on the twin: SITL's GPS is as good as an RTK one (at rest within 1 cm),
-and the firmware's LOCAL_POSITION_NED within 1-3 cm of the truth, so its position is fused
-with a 2 s time constant, as a user with an RTK GPS would set it (the default, 0, is for a
-GPS of metres). Measured at 1.0 m/s, friction 0.8, with the heading bias from GPS_RAW_INT:
-worst arrival square 3.71 -> 3.16 cm, eight 3.60 -> 1.81, strafe-rotate 3.96 -> 2.73 (one run
-each); a ``--set`` wins."""
 TWIN_FLOORS = (0.8,)
 """The twin's default floor (real time: one floor)."""
 SITL_BESIDE = Path(__file__).resolve().parent.parent.parent / "shared" / "ardupilot-sitl" / \
@@ -382,10 +375,8 @@ def twin_row(name: str, speed_mps: float, friction: float, driver: str,
 def twin_params(speed_mps: float, friction: float,
                 overrides: Sequence[tuple[str, float]] = ()) -> Params:
     """:func:`bench_params` on the MuJoCo chassis with ``ODOM_CMD_TAU`` at
-    :data:`TWIN_ODOM_CMD_TAU` and ``ODOM_POS_TAU`` at :data:`TWIN_ODOM_POS_TAU` (unless
-    overridden)."""
-    return bench_params(speed_mps, friction, [("ODOM_CMD_TAU", TWIN_ODOM_CMD_TAU),
-                                              ("ODOM_POS_TAU", TWIN_ODOM_POS_TAU), *overrides])
+    :data:`TWIN_ODOM_CMD_TAU` (unless overridden)."""
+    return bench_params(speed_mps, friction, [("ODOM_CMD_TAU", TWIN_ODOM_CMD_TAU), *overrides])
 
 
 def run_twin(sitl: Path, missions: Sequence[str], speeds: Sequence[float],
