@@ -87,11 +87,12 @@ def test_the_schema_has_exactly_the_parameters_the_rest_of_the_code_reads():
         "WP_RADIUS", "WP_POS_P", "WP_OVERSHOOT", "WP_YAW_BEHAVIOR", "ORIGIN_LAT", "ORIGIN_LON",
         "ODOM_SRC",
         "ODOM_CMD_TAU",
-        "ODOM_YAW_SRC",
+        "ODOM_YAW_SRC", "ODOM_YAW_BIAS", "ODOM_POS_TAU",
         "TLM_POS_RATE",
         "TLM_EXT_RATE",
         "SIM_MOTOR_TAU", "SIM_SLIP", "SIM_RC_TMO", "SIM_GCS_SYSID", "SIM_RATE", "SIM_SEED",
         "SIM_FRICTION", "SIM_MASS", "SIM_WHL_RAD", "SIM_MOT_TORQUE", "SIM_ESC_DZ",
+        "SIM_YAW_BIAS", "SIM_POS_RATE",
     ]
     assert [s.name for s in SCHEMA] == list(SPECS)
     assert SPECS["MIX_ALGO"].values == {

@@ -244,10 +244,12 @@ def test_sys_status_tells_the_truth_no_fence_or_gps_alarm_and_the_boards_battery
 
 def test_the_flight_controller_is_asked_for_its_battery_and_attitude_once_it_is_heard(harness):
     asks = [m for m in harness.fc_received if m.get_type() == "COMMAND_LONG"]
-    assert [ask.command for ask in asks] == [CMD.MAV_CMD_SET_MESSAGE_INTERVAL] * 2
+    assert [ask.command for ask in asks] == [CMD.MAV_CMD_SET_MESSAGE_INTERVAL] * 4
     assert [(ask.param1, ask.param2) for ask in asks] == [
         (mavlink.MAVLINK_MSG_ID_SYS_STATUS, 1_000_000),
-        (mavlink.MAVLINK_MSG_ID_ATTITUDE, 50_000)]  # the odometry's heading at 20 Hz
+        (mavlink.MAVLINK_MSG_ID_ATTITUDE, 50_000),  # the odometry's heading at 20 Hz
+        (mavlink.MAVLINK_MSG_ID_LOCAL_POSITION_NED, 100_000),  # the heading bias's track
+        (mavlink.MAVLINK_MSG_ID_GPS_RAW_INT, 100_000)]
     assert {(ask.target_system, ask.target_component) for ask in asks} == {(1, 1)}
 
 

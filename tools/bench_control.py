@@ -701,7 +701,9 @@ def main_twin(args: argparse.Namespace) -> int:
           f"{', '.join(f'{s:g}' for s in speeds)} m/s; friction "
           f"{', '.join(f'{f:g}' for f in floors)}; real time")
     print("companion with " + ", ".join(f"{n} {shown[n]:g}" for n in (*SHOWN, "ODOM_SRC",
-                                                                         "ODOM_CMD_TAU")
+                                                                         "ODOM_CMD_TAU",
+                                                                         "ODOM_YAW_BIAS",
+                                                                         "ODOM_POS_TAU")
                                       if n in shown))
     if args.firmware:
         print("firmware with " + ", ".join(f"{n} {v:g}" for n, v in args.firmware))

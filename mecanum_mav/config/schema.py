@@ -453,6 +453,21 @@ SCHEMA: tuple[ParamSpec, ...] = (
         "fresh (a gyro beats wheel-derived yaw on a slipping mecanum base), wheels uses the "
         "wheels' own turn.",
     ),
+    ParamSpec(
+        "ODOM_YAW_BIAS", int, default=2, minimum=0, maximum=2, units="",
+        values={0: "off", 1: "ekf", 2: "gps"},
+        description="Flight controller heading bias: compares its position track (gps: its "
+        "GPS_RAW_INT fixes; ekf: its LOCAL_POSITION_NED) with the odometry's over straight, "
+        "steady stretches of at least 0.5 m and takes the offset (up to 10 deg) off the "
+        "ATTITUDE yaw the odometry and the heading controller use; nothing without a fix.",
+    ),
+    ParamSpec(
+        "ODOM_POS_TAU", float, default=0.0, minimum=0.0, maximum=60.0, units="s",
+        description="Position fusion: time constant with which the odometry's position is "
+        "pulled toward the flight controller's LOCAL_POSITION_NED (its GPS-fused track, moved "
+        "to the odometry's origin); the wheels count within it, the flight controller beyond "
+        "it (0 = off: wheels only).",
+    ),
 
     # ---- TLM: Telemetry to the ground station
     ParamSpec(
@@ -532,6 +547,18 @@ SCHEMA: tuple[ParamSpec, ...] = (
         "fraction of full command; a smaller command leaves the motor unpowered, its windings "
         "shorted (the usual brake neutral: the wheel is braked to a stop, within "
         "SIM_MOT_TORQUE).",
+    ),
+    ParamSpec(
+        "SIM_YAW_BIAS", float, default=0.0, minimum=-30.0, maximum=30.0, units="deg",
+        reboot_required=True,
+        description="Simulator: added to the yaw the board reports in ATTITUDE (clockwise), "
+        "as a compass or an EKF heading a few degrees off (0 = the true yaw).",
+    ),
+    ParamSpec(
+        "SIM_POS_RATE", float, default=0.0, minimum=0.0, maximum=50.0, units="Hz",
+        reboot_required=True,
+        description="Simulator: rate of the board's own LOCAL_POSITION_NED (the true "
+        "position, as a GPS-fused EKF's; 0 = none, a board without GPS).",
     ),
 )
 """Every parameter, in file, table and MAVLink index order."""

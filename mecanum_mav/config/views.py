@@ -255,11 +255,18 @@ class OdometryConfig:
     """Half the track width, m (``GEO_HALF_WID``; used from the next start)."""
     commanded_tau_s: float = 0.0
     """The lag of commanded wheel speeds before they count as rolled, s (``ODOM_CMD_TAU``)."""
+    yaw_bias: int = 2
+    """Where the flight controller's yaw bias is estimated from: 0 nowhere (off), 1 its
+    LOCAL_POSITION_NED, 2 its GPS_RAW_INT (``ODOM_YAW_BIAS``)."""
+    position_tau_s: float = 0.0
+    """Time constant of the pull toward the flight controller's position, s (``ODOM_POS_TAU``;
+    0 = none)."""
 
     @classmethod
     def from_params(cls, params: Params) -> OdometryConfig:
         """Read ``ODOM_SRC``, ``ODOM_YAW_SRC``, ``WHL_MAX_SPD``, ``GEO_HALF_*`` and
-        ``ODOM_CMD_TAU``."""
+        ``ODOM_CMD_TAU``, ``ODOM_YAW_BIAS``, ``ODOM_POS_TAU``."""
         return cls(int(params["ODOM_SRC"]), int(params["ODOM_YAW_SRC"]) == 0,
                    float(params["WHL_MAX_SPD"]), float(params["GEO_HALF_LEN"]),
-                   float(params["GEO_HALF_WID"]), float(params["ODOM_CMD_TAU"]))
+                   float(params["GEO_HALF_WID"]), float(params["ODOM_CMD_TAU"]),
+                   int(params["ODOM_YAW_BIAS"]), float(params["ODOM_POS_TAU"]))

@@ -20,7 +20,25 @@ Heading (parameter ``ODOM_YAW_SRC``): 0 auto (default) takes the flight controll
 ``ATTITUDE`` yaw while it is fresh, because a gyro beats wheel-derived yaw on a slipping
 mecanum base; 1 uses the wheels' own turn. The first ATTITUDE, if the odometry has not moved
 yet, sets the starting heading itself (its north is the local frame's north); later ones steer
-the heading from where it is (a gyro that came back after a gap does not turn it). Translation
+the heading from where it is (a gyro that came back after a gap does not turn it).
+
+Heading bias (parameter ``ODOM_YAW_BIAS``, on by default): while the flight controller's yaw
+is in use and it sends a position (its GPS's fixes, GPS_RAW_INT, by default; or its EKF's
+LOCAL_POSITION_NED), its yaw's constant offset from the true heading is estimated from the two
+tracks
+(:mod:`mecanum_mav.control.headingbias`) and taken off the yaw the odometry, and so the heading
+controller, uses; until the estimate has settled, each change of the correction also turns the
+track driven since the origin (the last reset) about the origin by as much, as if it had been
+driven with the corrected heading all along (later changes, as the flight controller's bias
+drifts, apply from then on). No position from the flight controller: no correction.
+
+Position fusion (parameter ``ODOM_POS_TAU``, s, 0 = off): the same positions, moved to the
+odometry's origin (the flight controller's position when the odometry was last reset or first
+saw one), pull the odometry's position toward them, a complementary filter of that time
+constant: the wheels (or commanded speeds) for what happens within it, the flight controller's
+GPS-fused track for what accumulates beyond it. A position more than :data:`POSITION_GATE_M`
+from the odometry's is not used (a glitch, an EKF reset); :data:`POSITION_GATE_COUNT` of them in
+a row re-anchor the origin instead. Translation
 always comes from the wheels by least squares
 (:class:`~mecanum_mav.mecanum.kinematics.MecanumKinematics`) and the SE(2) exponential.
 
@@ -44,7 +62,8 @@ from collections.abc import Sequence
 
 from mecanum_mav.config.params import Params
 from mecanum_mav.config.views import OdometryConfig
-from mecanum_mav.mecanum.geometry import Pose2d, ned_to_body, wrap_pi
+from mecanum_mav.control.headingbias import HeadingBias
+from mecanum_mav.mecanum.geometry import Pose2d, body_to_ned, ned_to_body, wrap_pi
 from mecanum_mav.mecanum.kinematics import MecanumKinematics
 from mecanum_mav.mecanum.odometry import MecanumOdometry
 
@@ -54,6 +73,8 @@ FRESH_S = 0.5
 """A WHEEL_DISTANCE or ATTITUDE older than this no longer counts as a live source (s)."""
 SOURCE_AUTO, SOURCE_WHEEL_DISTANCE, SOURCE_COMMANDED = 0, 1, 2
 """``ODOM_SRC`` values."""
+BIAS_FROM_EKF, BIAS_FROM_GPS = 1, 2
+"""``ODOM_YAW_BIAS`` values (0: off)."""
 COMMANDED_UPDATE_S = 0.02
 """Commanded speeds are integrated every tick but fed to the odometry at most this often."""
 SETTLED_MPS = 1e-6
@@ -64,6 +85,12 @@ JUMP_SPEED_FACTOR = 2.0
 JUMP_MARGIN_M = 0.2
 """A fresh WHEEL_DISTANCE step longer than ``JUMP_SPEED_FACTOR x WHL_MAX_SPD x dt +
 JUMP_MARGIN_M`` (m) on any wheel is a jump: re-anchored, not driven."""
+POSITION_GATE_M = 0.5
+"""A flight-controller position further than this (m) from the odometry's is not fused."""
+POSITION_GATE_COUNT = 20
+"""... and this many of them in a row re-anchor the flight controller's track to the odometry."""
+POSITION_GAP_S = 0.5
+"""The fusion's step counts at most this long (s) after a gap in the positions."""
 MAX_YAW_RATE = 50.0
 """An ATTITUDE yaw rate beyond +- this (rad/s, 8 turns a second) is not a measurement."""
 
@@ -98,10 +125,22 @@ class WheelOdometryEstimator:
         """Body velocity (forward, right) in m/s, from the last update."""
         self.yaw_rate = 0.0
         """Yaw rate in rad/s, clockwise positive."""
+        self.heading_bias = HeadingBias()
+        """The flight controller's yaw bias, from its position track (``ODOM_YAW_BIAS``)."""
+        self.yaw_correction = 0.0
+        """The bias taken off the flight controller's yaw now (rad, clockwise)."""
+        self._origin = (0.0, 0.0)  # where the track since the last reset began (m, NED)
+        self._fc_anchor: tuple[float, float] | None = None  # FC position minus odometry's
+        self._fc_position_s = -math.inf
+        self._fc_far = 0  # positions in a row beyond POSITION_GATE_M
 
     def reconfigure(self, params: Params) -> None:
-        """Take the odometry sources and the wheel speed from ``params``."""
+        """Take the odometry sources and the wheel speed from ``params`` (``ODOM_YAW_BIAS``
+        turned off takes the correction off at once)."""
         self.config = OdometryConfig.from_params(params)
+        if not self.config.yaw_bias:
+            self._correct(0.0, turn_track=False)
+            self.heading_bias.restart()
 
     @property
     def pose(self) -> Pose2d:
@@ -131,6 +170,7 @@ class WheelOdometryEstimator:
         (rad/s); the reason it was not used, or None."""
         if not (abs(yaw_rad) <= 2 * math.pi and abs(yaw_rate) <= MAX_YAW_RATE):  # NaN too
             return f"ATTITUDE yaw {yaw_rad:g} rad, rate {yaw_rate:g} rad/s"
+        yaw_rad -= self.yaw_correction  # (the bias estimated, 0 without one)
         self._yaw, self._yaw_rate_gyro, self._attitude_s = yaw_rad, yaw_rate, now_s
         first, self._first_attitude = self._first_attitude, False
         if first and self.config.yaw_from_gyro and self.odometry.reset_counter == 0 \
@@ -140,6 +180,84 @@ class WheelOdometryEstimator:
             self.odometry = MecanumOdometry(self.odometry.kinematics, self._virtual,
                                             Pose2d(0.0, 0.0, wrap_pi(yaw_rad)), yaw_rad)
         return None
+
+    def on_position(self, north_m: float, east_m: float, now_s: float) -> str | None:
+        """The flight controller's own position (LOCAL_POSITION_NED, m; its origin does not
+        matter): a sample for the heading bias while its yaw is in use, and the fusion's
+        (module docstring). Returns what to say once (the bias settled, or too large to
+        correct), else None."""
+        if not (abs(north_m) <= MAX_WHEEL_DISTANCE_M and abs(east_m) <= MAX_WHEEL_DISTANCE_M):
+            return None  # (NaN too)
+        notice = self._bias_sample(north_m, east_m, now_s, BIAS_FROM_EKF)
+        if self.config.position_tau_s > 0.0:
+            self._fuse(north_m, east_m, now_s)
+        return notice
+
+    def on_gps(self, north_m: float, east_m: float, now_s: float) -> str | None:
+        """A new GPS fix (GPS_RAW_INT about its first fix, m): a sample for the heading bias
+        while its yaw is in use (module docstring); what to say once, else None."""
+        if not (abs(north_m) <= MAX_WHEEL_DISTANCE_M and abs(east_m) <= MAX_WHEEL_DISTANCE_M):
+            return None  # (NaN too)
+        return self._bias_sample(north_m, east_m, now_s, BIAS_FROM_GPS)
+
+    def _bias_sample(self, north_m: float, east_m: float, now_s: float,
+                     source: int) -> str | None:
+        """A position from ``source`` to the heading bias, if it is the configured one and the
+        flight controller's yaw is in use; the correction follows."""
+        if self.config.yaw_bias != source or self._yaw_if_used(now_s) is None:
+            return None
+        north, east = self._carried(now_s)
+        settled = self.heading_bias.settled
+        update = self.heading_bias.on_position(north_m, east_m, north, east,
+                                               self.yaw_correction, now_s)
+        self._correct(update.bias_rad, turn_track=not settled)
+        self.heading_bias.follow(*self._carried(now_s))
+        return update.notice
+
+    def _carried(self, now_s: float) -> tuple[float, float]:
+        """The odometry's position (m, NED) carried to ``now_s`` at its velocity: it updates
+        every :data:`COMMANDED_UPDATE_S` or so, and a sample 20 ms stale is 2 cm at 1 m/s, 4 %
+        of a 0.5 m window."""
+        pose = self.odometry.pose
+        ahead = 0.0 if self._last_update_s is None else min(now_s - self._last_update_s,
+                                                             FRESH_S)
+        north, east = body_to_ned(*self.velocity_body, pose.yaw_rad)
+        return pose.x_m + north * ahead, pose.y_m + east * ahead
+
+
+    def _fuse(self, north_m: float, east_m: float, now_s: float) -> None:
+        """Pull the odometry's position toward the flight controller's (module docstring)."""
+        odom_n, odom_e = self._carried(now_s)
+        dt = min(now_s - self._fc_position_s, POSITION_GAP_S)
+        self._fc_position_s = now_s
+        if self._fc_anchor is None:
+            self._fc_anchor = (north_m - odom_n, east_m - odom_e)
+            return
+        error_n = north_m - self._fc_anchor[0] - odom_n
+        error_e = east_m - self._fc_anchor[1] - odom_e
+        if not math.hypot(error_n, error_e) <= POSITION_GATE_M:
+            self._fc_far += 1
+            if self._fc_far >= POSITION_GATE_COUNT:
+                self._fc_anchor, self._fc_far = None, 0
+            return
+        self._fc_far = 0
+        gain = -math.expm1(-max(dt, 0.0) / self.config.position_tau_s)
+        self.odometry.shift(gain * error_n, gain * error_e)
+        self.heading_bias.shifted(gain * error_n, gain * error_e)
+
+    def _correct(self, bias_rad: float, turn_track: bool) -> None:
+        """Take ``bias_rad`` off the flight controller's yaw from now on; ``turn_track``: turn
+        the track since the origin by the change too (module docstring)."""
+        change = bias_rad - self.yaw_correction
+        if change == 0.0:
+            return
+        self.yaw_correction = bias_rad
+        if self._yaw is not None:
+            self._yaw -= change
+        self.odometry.rotate(-change, self._origin if turn_track else
+                             (self.odometry.pose.x_m, self.odometry.pose.y_m))
+        pose = self.odometry.pose
+        self.heading_bias.follow(pose.x_m, pose.y_m)
 
     def on_wheel_distance(self, distances_m: Sequence[float], now_s: float) -> str | None:
         """WHEEL_DISTANCE: cumulative metres FL, FR, RL, RR from the flight controller; the
@@ -237,5 +355,8 @@ class WheelOdometryEstimator:
     def reset(self, pose: Pose2d | None = None, now_s: float = 0.0) -> None:
         """Move the origin: the pose becomes ``pose`` (default the origin, heading kept)."""
         heading = self.odometry.pose.yaw_rad
-        self.odometry.reset(pose or Pose2d(0.0, 0.0, heading), self._virtual,
-                            self._yaw_if_used(now_s))
+        pose = pose or Pose2d(0.0, 0.0, heading)
+        self.odometry.reset(pose, self._virtual, self._yaw_if_used(now_s))
+        self._origin = (self.odometry.pose.x_m, self.odometry.pose.y_m)
+        self.heading_bias.restart()
+        self._fc_anchor = None  # (the next position anchors the flight controller's track)

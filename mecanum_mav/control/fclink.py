@@ -1,7 +1,9 @@
 """What the flight controller tells the companion: its HEARTBEAT (the link is up; then the
 battery stream, the receiver's channels and the setup check are asked for), SYS_STATUS (its
 battery), RC_CHANNELS (the receiver, when ``RCIN_ENABLE``), PARAM_VALUE (answers for the setup
-check, :mod:`mecanum_mav.control.fccheck`), WHEEL_DISTANCE and ATTITUDE (the estimator's).
+check, :mod:`mecanum_mav.control.fccheck`), WHEEL_DISTANCE, ATTITUDE, LOCAL_POSITION_NED and
+GPS_RAW_INT (the estimator's: the positions are the heading bias's reference; GPS_RAW_INT's
+fixes are placed about the first 3D fix heard).
 
 The core routes only messages from the flight controller's own system id here. Each handler
 takes one message and its arrival time (s); what goes back to the board is queued in the
@@ -17,11 +19,14 @@ from mecanum_mav.control.estimator import WheelOdometryEstimator
 from mecanum_mav.control.fccheck import FcCheckState
 from mecanum_mav.control.rcinput import RC_CHANNELS_INTERVAL_US, ReceiverInput
 from mecanum_mav.control.refusals import Refusal
+from mecanum_mav.mecanum.geo import GlobalOrigin
 from mecanum_mav.protocol.dialect import mavlink
 from mecanum_mav.protocol.health import BATTERY_FRESH_S, UNKNOWN_BATTERY, Battery
 from mecanum_mav.protocol.messages import (
     AttitudeMsg,
+    FcGpsMsg,
     FcParamValueMsg,
+    FcPositionMsg,
     FcSysStatusMsg,
     RcChannelsMsg,
     Received,
@@ -29,7 +34,8 @@ from mecanum_mav.protocol.messages import (
 )
 from mecanum_mav.protocol.statustext import Severity
 
-__all__ = ["FC_ATTITUDE_INTERVAL_US", "FC_SYS_STATUS_INTERVAL_US", "FcLink"]
+__all__ = ["FC_ATTITUDE_INTERVAL_US", "FC_POSITION_INTERVAL_US", "FC_SYS_STATUS_INTERVAL_US",
+           "FcLink"]
 
 FC_SYS_STATUS_INTERVAL_US = 1_000_000
 """The flight controller is asked for SYS_STATUS (its battery) at 1 Hz."""
@@ -37,6 +43,14 @@ FC_ATTITUDE_INTERVAL_US = 50_000
 """... and for ATTITUDE at 20 Hz: the odometry's heading (ArduPilot's own stream rate on a
 serial port, SRn_EXTRA1, can be a few Hz: measured 2 Hz on SITL's, whose yaw then steered
 the odometry half a second late)."""
+FC_POSITION_INTERVAL_US = 100_000
+"""... and for LOCAL_POSITION_NED at 10 Hz: the track the heading bias is measured against
+(:mod:`mecanum_mav.control.headingbias`; a board without a position sends none)."""
+GPS_RTK_FIX = 5
+"""GPS_RAW_INT ``fix_type`` from which a fix is used for the heading bias: RTK (float or
+fixed, GPS_FIX_TYPE_RTK_FLOAT and better). An ordinary 3D fix wanders by a metre or more,
+which over the estimator's half-metre windows is tens of degrees; an RTK fix is good to
+centimetres. (ArduPilot's SITL reports RTK fixed.)"""
 _FC_CHECK_FINE = (FcCheckState.SAFE, FcCheckState.NOT_CHECKED)
 """Verdicts said as a NOTICE; the others as a WARNING."""
 
@@ -62,11 +76,14 @@ class FcLink:
         self.rc_stream_asked = False
         """The receiver's RC_CHANNELS were asked for (again when the receiver is turned on)."""
         self.refuse = ctx.refuse
+        self._gps_origin: GlobalOrigin | None = None  # the first 3D fix
+        self._gps_fix_us = -1  # the last fix's time_usec (a repeated one is not a new fix)
 
     def routes(self) -> dict[str, Handler]:
         """The flight controller's messages handled here, by type."""
         return {"HEARTBEAT": self.on_heartbeat, "ATTITUDE": self.on_attitude,
-                "WHEEL_DISTANCE": self.on_wheel_distance, "SYS_STATUS": self.on_sys_status,
+                "WHEEL_DISTANCE": self.on_wheel_distance, "LOCAL_POSITION_NED": self.on_position,
+                "GPS_RAW_INT": self.on_gps, "SYS_STATUS": self.on_sys_status,
                 "PARAM_VALUE": self.on_param_value, "RC_CHANNELS": self.on_rc_channels}
 
     def battery(self, now_s: float) -> tuple[Battery, bool]:
@@ -100,7 +117,11 @@ class FcLink:
             for msg_id, interval_us in ((mavlink.MAVLINK_MSG_ID_SYS_STATUS,
                                          FC_SYS_STATUS_INTERVAL_US),
                                         (mavlink.MAVLINK_MSG_ID_ATTITUDE,
-                                         FC_ATTITUDE_INTERVAL_US)):
+                                         FC_ATTITUDE_INTERVAL_US),
+                                        (mavlink.MAVLINK_MSG_ID_LOCAL_POSITION_NED,
+                                         FC_POSITION_INTERVAL_US),
+                                        (mavlink.MAVLINK_MSG_ID_GPS_RAW_INT,
+                                         FC_POSITION_INTERVAL_US)):
                 ctx.to_fc.command_long_send(
                     ctx.identity.fc_sysid, ctx.identity.fc_compid,
                     mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, 0, msg_id, interval_us, 0, 0, 0, 0, 0)
@@ -160,6 +181,28 @@ class FcLink:
         problem = self.estimator.on_attitude(msg.yaw, msg.yawspeed, now_s)
         if problem is not None:
             self.refuse(Refusal.SENSOR, f"Ignored: {problem}")
+
+    def on_position(self, msg: FcPositionMsg, now_s: float) -> None:
+        """The board's LOCAL_POSITION_NED: to the estimator's heading bias (what it says once,
+        its estimate or its refusal, as a NOTICE)."""
+        notice = self.estimator.on_position(msg.x, msg.y, now_s)
+        if notice is not None:
+            self._ctx.say(Severity.NOTICE, notice)
+
+    def on_gps(self, msg: FcGpsMsg, now_s: float) -> None:
+        """The board's GPS_RAW_INT: each new RTK fix (:data:`GPS_RTK_FIX`), placed about the
+        first (m, NED), to the estimator's heading bias (what it says once as a NOTICE)."""
+        if msg.fix_type < GPS_RTK_FIX or msg.time_usec == self._gps_fix_us:
+            return
+        self._gps_fix_us = msg.time_usec
+        try:
+            if self._gps_origin is None:
+                self._gps_origin = GlobalOrigin(msg.lat, msg.lon)
+        except ValueError:  # not on earth
+            return
+        notice = self.estimator.on_gps(*self._gps_origin.to_local(msg.lat, msg.lon), now_s)
+        if notice is not None:
+            self._ctx.say(Severity.NOTICE, notice)
 
     def on_wheel_distance(self, msg: WheelDistanceMsg, now_s: float) -> None:
         """The board's WHEEL_DISTANCE (at least four wheels): to the estimator."""

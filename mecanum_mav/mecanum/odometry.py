@@ -128,6 +128,23 @@ class MecanumOdometry:
         self._set_state(pose, distances, yaw_rad)
         self.reset_counter += 1
 
+    def rotate(self, angle_rad: float, about: tuple[float, float]) -> None:
+        """Turn the track so far by ``angle_rad`` (clockwise) about ``about`` (north, east
+        m): the position moves about that point and the heading turns by as much (a heading
+        bias found late, corrected as if the track had been driven with it all along). The
+        external yaw's offset is kept: the caller turns the yaw it passes in by as much.
+        Not a reset (:attr:`reset_counter` stays)."""
+        c, s = math.cos(angle_rad), math.sin(angle_rad)
+        n, e = self._pose.x_m - about[0], self._pose.y_m - about[1]
+        self._pose = _checked_pose(Pose2d(about[0] + n * c - e * s, about[1] + n * s + e * c,
+                                          self._pose.yaw_rad + angle_rad))
+
+    def shift(self, north_m: float, east_m: float) -> None:
+        """Move the position by (``north_m``, ``east_m``) m, the heading kept (a fused
+        position's pull). Not a reset (:attr:`reset_counter` stays)."""
+        self._pose = _checked_pose(self._pose._replace(x_m=self._pose.x_m + north_m,
+                                                       y_m=self._pose.y_m + east_m))
+
     def _set_state(
         self, pose: Pose2d, wheel_distances_m: Sequence[float], yaw_rad: float | None
     ) -> None:

@@ -19,7 +19,9 @@ __all__ = [
     "Addressed",
     "AttitudeMsg",
     "CommandMsg",
+    "FcGpsMsg",
     "FcParamValueMsg",
+    "FcPositionMsg",
     "FcSysStatusMsg",
     "FtpMsg",
     "ManualControlMsg",
@@ -160,6 +162,22 @@ class FcParamValueMsg(Received, Protocol):
 
     param_id: str
     param_value: float
+
+
+class FcGpsMsg(Received, Protocol):
+    """GPS_RAW_INT from the flight controller (fix type, degE7; ``time_usec`` of the fix)."""
+
+    time_usec: int
+    fix_type: int
+    lat: int
+    lon: int
+
+
+class FcPositionMsg(Received, Protocol):
+    """LOCAL_POSITION_NED from the flight controller (m, NED from its EKF's origin)."""
+
+    x: float
+    y: float
 
 
 class FcSysStatusMsg(Received, Protocol):

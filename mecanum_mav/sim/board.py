@@ -22,8 +22,12 @@ companion and the simulated robot alike. A channel without an active override ou
 wheel's trim (a stopped wheel).
 
 Telemetry, as ArduPilot Rover sends it: HEARTBEAT 1 Hz, ATTITUDE 20 Hz (true yaw, radians
-clockwise from north), WHEEL_DISTANCE 10 Hz (cumulative encoder metres FL, FR, RL, RR),
-SERVO_OUTPUT_RAW 10 Hz (the pulse width on each output) and SYS_STATUS 1 Hz (a battery). As
+clockwise from north, plus ``SIM_YAW_BIAS``: a compass or EKF heading that is off),
+LOCAL_POSITION_NED and GPS_RAW_INT at ``SIM_POS_RATE`` (the true position and velocity, as a
+GPS-fused EKF gives them, and a 3D fix there; 0 Hz, the default: none, a board without GPS),
+WHEEL_DISTANCE 10 Hz (cumulative
+encoder metres FL, FR, RL, RR), SERVO_OUTPUT_RAW 10 Hz (the pulse width on each output) and
+SYS_STATUS 1 Hz (a battery). As
 ArduPilot's simulators do, it also reports its ground truth in SIM_STATE at 5 Hz: the true
 pose (latitude and longitude about ``ORIGIN_LAT``/``ORIGIN_LON``, or about 0, 0 when no
 origin is set; yaw in radians clockwise from north) and the true velocity (north, east m/s),
@@ -62,7 +66,7 @@ from typing import Any
 from mecanum_mav.config.params import Params
 from mecanum_mav.control.pwm import PwmMap
 from mecanum_mav.mecanum.geo import GlobalOrigin
-from mecanum_mav.mecanum.geometry import Pose2d
+from mecanum_mav.mecanum.geometry import Pose2d, body_to_ned
 from mecanum_mav.protocol.dialect import mavlink
 from mecanum_mav.protocol.fcsetup import safe_settings
 from mecanum_mav.protocol.modes import Mode
@@ -230,6 +234,10 @@ class SimBoard:
             (_Every(SIM_STATE_PERIOD_S, now_s), self._sim_state),
             (self._rc_channels, self._rc_channels_msg),
         ]
+        self._yaw_bias_rad = math.radians(float(params["SIM_YAW_BIAS"]))
+        position_hz = float(params["SIM_POS_RATE"])
+        if position_hz > 0.0:
+            self._telemetry.append((_Every(1.0 / position_hz, now_s), self._local_position))
         self._contacts = contacts_of(self.chassis)
         if self._contacts is not None:
             self._telemetry.append((_Every(CONTACTS_PERIOD_S, now_s), self._wheel_contacts))
@@ -353,7 +361,20 @@ class SimBoard:
         c = self.chassis
         time_boot_ms = (self._boot_us(now_s) // 1000) & 0xFFFFFFFF
         roll, pitch = c.roll_pitch
-        mav.attitude_send(time_boot_ms, roll, pitch, c.pose.yaw_rad, 0.0, 0.0, c.yaw_rate)
+        yaw = c.pose.yaw_rad + self._yaw_bias_rad
+        mav.attitude_send(time_boot_ms, roll, pitch, (yaw + math.pi) % math.tau - math.pi, 0.0,
+                          0.0, c.yaw_rate)
+
+    def _local_position(self, mav: Any, now_s: float) -> None:
+        """LOCAL_POSITION_NED: the true position (m from the start's origin, NED) and
+        velocity (m/s), as a GPS-fused EKF reports it; altitude 0."""
+        c = self.chassis
+        v_north, v_east = body_to_ned(*c.velocity_body, c.pose.yaw_rad)
+        mav.local_position_ned_send((self._boot_us(now_s) // 1000) & 0xFFFFFFFF, c.pose.x_m,
+                                    c.pose.y_m, 0.0, v_north, v_east, 0.0)
+        lat_e7, lon_e7 = self._origin.to_global(c.pose.x_m, c.pose.y_m)
+        mav.gps_raw_int_send(self._boot_us(now_s), mavlink.GPS_FIX_TYPE_RTK_FIXED, lat_e7,
+                             lon_e7, 0, 100, 100, 65535, 65535, 12)  # (an RTK fix, as SITL's)
 
     def _wheel_distance(self, mav: Any, now_s: float) -> None:
         """WHEEL_DISTANCE: cumulative encoder metres FL, FR, RL, RR, then zeros."""
