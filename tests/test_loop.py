@@ -192,3 +192,36 @@ def test_sticks_every_wake_leave_the_telemetry_and_heartbeats_their_rates():
     assert all(calm[kind] >= 1 for kind in calm), calm
     for kind, n in calm.items():
         assert abs(busy[kind] - n) <= 1, (kind, busy, calm)
+
+
+def test_a_lane_write_the_kernel_took_in_part_is_followed_in_that_pass():
+    """A serial board's link that took only part of the lane's packet (its kernel buffer
+    full) has the rest waiting: the pass of sticks ends there and the rest of the pass
+    watches the link for writing at once, not after the next stick."""
+    h = lockstep()
+    fc = h.loop.fc
+    fc.steady = False  # (a stream link's way: a serial board)
+    poller = VirtualPoller()
+    h.loop = ControlLoop(h.core, h.loop.gcs, fc, clock=h.loop.clock, poller=poller)
+    h.gcs.arm()
+    h.gcs.sticks(500)
+    h.run_for(0.2)
+    pilot = mavlink.MAVLink(None, srcSystem=255, srcComponent=190)
+    for i in range(100):  # until the next pass may be a stick alone
+        h.inject(_stick(pilot, 400 + i))
+        h.step()
+        if h.loop._sticks_until_s > -math.inf:
+            break
+    assert h.loop._sticks_until_s > -math.inf
+    send = fc.send_packet
+
+    def sent_in_part(packet: bytes) -> None:
+        send(packet)
+        fc.pending = fc.wants_write = True  # the rest waits in the link
+
+    fc.send_packet = sent_in_part  # type: ignore[method-assign]
+    answered = h.lane_answers
+    h.inject(_stick(pilot, 300))
+    h.step()
+    assert h.lane_answers == answered + 1
+    assert poller.get_key(fc.wait_fd()).events == selectors.EVENT_READ | selectors.EVENT_WRITE

@@ -771,6 +771,10 @@ MUTATIONS: tuple[Mutation, ...] = (
       "            if self._answer_first(link, now):\n                self._laned = True\n"
       "                return\n",
       T + "test_loop.py"),
+    M("loop-stick-pass-fc-busy", "a pass of sticks ends when the lane's write left the flight "
+      "controller's stream link busy", PKG + "runtime/loop.py",
+      "(self._fc_datagrams or (fc.up and not fc.pending))", "True",
+      T + "test_loop.py"),
     M("loop-stick-pass-unused", "a stick right after a stick in its lane is the whole pass",
       PKG + "runtime/loop.py", "if self._next_stick(ready):", "if False:",
       T + "test_loop.py"),
@@ -791,7 +795,7 @@ MUTATIONS: tuple[Mutation, ...] = (
       "the_input_timeout_still_come"),
     M("loop-stick-pass-settled", "a pass of sticks ends when the core has something to do",
       PKG + "runtime/loop.py",
-      "return self.core.settled(now) and (not self._streams or self._streams_idle())",
+      "return self.core.settled(now) and (self._fc_datagrams or (fc.up and not fc.pending))",
       "return True",
       T + "test_loop.py", T + "test_companion.py", T + "test_stream_lane.py"),
     M("loop-lane-signed", "the lane never answers on a signed link",

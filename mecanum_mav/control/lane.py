@@ -147,7 +147,12 @@ def compile_stick_lane(config: InputConfig, pwm: PwmMap, identity: IdentityConfi
         # PWM, then the override's fields and packet (as encode_rc_override: MAVLink 2
         # payload truncation, the native CRC).
         if cartesian:
-            wheels = mix_pairs(sx + sy, sx - sy, sr, priority)
+            a, b = sx + sy, sx - sy
+            if (a if a >= 0.0 else -a) + (sr if sr >= 0.0 else -sr) <= 1.0 and (
+                    b if b >= 0.0 else -b) + (sr if sr >= 0.0 else -sr) <= 1.0:
+                wheels = (a + sr, b - sr, b + sr, a - sr)  # (mix_pairs unsaturated)
+            else:
+                wheels = mix_pairs(a, b, sr, priority)
         else:
             wheels = wheels_from_stick(sx, sy, sr, algorithm, priority=priority)
         if inline_pwm:

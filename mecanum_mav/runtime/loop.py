@@ -345,7 +345,11 @@ class ControlLoop:
         if got is not None:
             self._answer(link.parse_datagram(*got), now, from_fc=False)
             return False
-        return self.core.settled(now) and (not self._streams or self._streams_idle())
+        # (The ground station's link is a datagram one: the only stream link there can be is
+        # the flight controller's, and this pass neither read nor followed it, so only the
+        # lane's write can have changed it: a break, or a write the kernel took in part.)
+        fc = self.fc
+        return self.core.settled(now) and (self._fc_datagrams or (fc.up and not fc.pending))
 
     def _drain(self, link: LoopLink) -> None:
         """Read what waits on ``link`` and answer it: on a datagram link from the ground
