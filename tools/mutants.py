@@ -781,8 +781,8 @@ MUTATIONS: tuple[Mutation, ...] = (
     M("loop-stick-pass-rest", "a pass of sticks still reads what waits behind the stick",
       PKG + "runtime/loop.py",
       "            self._answer(link.parse_datagram(*got), now, from_fc=False)\n"
-      "            return False\n        return self.core.settled",
-      "            return False\n        return self.core.settled",
+      "            return False\n        # (The ground",
+      "            return False\n        # (The ground",
       T + "test_loop.py"),
     M("loop-stick-pass-other-link", "a pass of sticks ends when anything else is ready",
       PKG + "runtime/loop.py", "if len(ready) != 1 or ready[0][0] is not link:",
