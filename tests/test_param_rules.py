@@ -19,9 +19,10 @@ def test_reboot_required_is_identity_geometry_and_the_simulator():
     expected = {"SYSID_THISMAV", "GEO_HALF_LEN", "GEO_HALF_WID", "WHL_STRAFE_EFF"} | {
         spec.name for spec in SCHEMA if spec.name.startswith("SIM_")}
     assert {spec.name for spec in SCHEMA if spec.reboot_required} == expected
-    # 4 + the 11 SIM_ (issue 25 added the strafe efficiency, which the kinematics are built
-    # from as from GEO_*, and 5 SIM_ for the MuJoCo chassis)
-    assert len(expected) == 15
+    # 4 + the 13 SIM_ (issue 25 added the strafe efficiency, which the kinematics are built
+    # from as from GEO_*, and 5 SIM_ for the MuJoCo chassis; issue 26 the simulated board's
+    # heading bias and position rate, SIM_YAW_BIAS and SIM_POS_RATE)
+    assert len(expected) == 17
 
 
 def test_the_parameter_service_reads_reboot_required_from_the_schema():
