@@ -1169,7 +1169,7 @@ MUTATIONS: tuple[Mutation, ...] = (
       PKG + "app/view.py", "batches = merged(connects)", "batches = merged(connects[:1])",
       VW + "test_the_live_view_of_a_tlog_and_a_twins_truth_records_both"),
     M("twin-view-follows-truth", "twin --view's view follows the truth the twin sends",
-      PKG + "app/cli.py", 'also=[f"udpin:{host}:{port}"])', "also=[])",
+      PKG + "app/cli.py", "also=[watch])", "also=[])",
       TW + "test_the_twin_command_with_view_serves_the_view_of_the_companions_links_and_ends_"
       "it"),
     M("twin-truth-on", "a twin with a truth URL publishes its truth there",
@@ -1247,7 +1247,7 @@ MUTATIONS: tuple[Mutation, ...] = (
       HS + "test_gps_fixes_without_an_rtk_fix_are_not_a_track"),
     M("hb-track-turned", "a new heading correction turns the track since the origin too",
       PKG + "mecanum/odometry.py",
-      "Pose2d(about[0] + n * c - e * s, about[1] + n * s + e * c,",
+      "Pose2d(about[0] + n, about[1] + e,",
       "Pose2d(self._pose.x_m, self._pose.y_m,",
       HB + "test_the_bias_is_taken_off_the_heading_and_the_track_since_the_origin_turned_back",
       HS + "test_a_heading_2_5_deg_off_meets_the_square_arrival_and_heading_goals_only_when_"

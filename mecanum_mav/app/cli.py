@@ -199,7 +199,7 @@ def cmd_twin(args: argparse.Namespace, params: Params) -> int:
     from mecanum_mav.app.twin import run_twin
     from mecanum_mav.sim.firmware import sitl_from_env
     from mecanum_mav.sim.process import free_port
-    from mecanum_mav.sim.truthsender import udp_address
+    from mecanum_mav.sim.truthsender import view_url
 
     sitl = args.sitl or sitl_from_env()
     if sitl is None:
@@ -208,13 +208,13 @@ def cmd_twin(args: argparse.Namespace, params: Params) -> int:
         return 2
     truth = args.truth or f"udpout:127.0.0.1:{free_port(socket.SOCK_DGRAM)}"
     try:
-        host, port = udp_address(truth)
+        watch = view_url(truth)
     except ValueError as exc:
         print(f"mecanum-mav twin: {exc}", file=sys.stderr)
         return 2
     return with_view(args, None, lambda tlog: run_twin(
         params, sitl, friction=args.friction, gcs=args.gcs, tlog=tlog, truth=truth),
-        also=[f"udpin:{host}:{port}"])
+        also=[watch])
 
 
 def cmd_demo(args: argparse.Namespace, params: Params) -> int:

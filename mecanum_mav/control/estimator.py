@@ -95,6 +95,13 @@ MAX_YAW_RATE = 50.0
 """An ATTITUDE yaw rate beyond +- this (rad/s, 8 turns a second) is not a measurement."""
 
 
+
+def _is_position(north_m: float, east_m: float) -> bool:
+    """Whether a flight controller's position (m) is one: finite (NaN is not) and within
+    :data:`MAX_WHEEL_DISTANCE_M`."""
+    return abs(north_m) <= MAX_WHEEL_DISTANCE_M and abs(east_m) <= MAX_WHEEL_DISTANCE_M
+
+
 class WheelOdometryEstimator:
     """Pose and velocity of the rover from wheel distances, commanded speeds and gyro yaw.
 
@@ -186,8 +193,8 @@ class WheelOdometryEstimator:
         matter): a sample for the heading bias while its yaw is in use, and the fusion's
         (module docstring). Returns what to say once (the bias settled, or too large to
         correct), else None."""
-        if not (abs(north_m) <= MAX_WHEEL_DISTANCE_M and abs(east_m) <= MAX_WHEEL_DISTANCE_M):
-            return None  # (NaN too)
+        if not _is_position(north_m, east_m):
+            return None
         notice = self._bias_sample(north_m, east_m, now_s, BIAS_FROM_EKF)
         if self.config.position_tau_s > 0.0:
             self._fuse(north_m, east_m, now_s)
@@ -196,8 +203,8 @@ class WheelOdometryEstimator:
     def on_gps(self, north_m: float, east_m: float, now_s: float) -> str | None:
         """A new GPS fix (GPS_RAW_INT about its first fix, m): a sample for the heading bias
         while its yaw is in use (module docstring); what to say once, else None."""
-        if not (abs(north_m) <= MAX_WHEEL_DISTANCE_M and abs(east_m) <= MAX_WHEEL_DISTANCE_M):
-            return None  # (NaN too)
+        if not _is_position(north_m, east_m):
+            return None
         return self._bias_sample(north_m, east_m, now_s, BIAS_FROM_GPS)
 
     def _bias_sample(self, north_m: float, east_m: float, now_s: float,
@@ -223,7 +230,6 @@ class WheelOdometryEstimator:
                                                              FRESH_S)
         north, east = body_to_ned(*self.velocity_body, pose.yaw_rad)
         return pose.x_m + north * ahead, pose.y_m + east * ahead
-
 
     def _fuse(self, north_m: float, east_m: float, now_s: float) -> None:
         """Pull the odometry's position toward the flight controller's (module docstring)."""

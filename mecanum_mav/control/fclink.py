@@ -3,7 +3,7 @@ battery stream, the receiver's channels and the setup check are asked for), SYS_
 battery), RC_CHANNELS (the receiver, when ``RCIN_ENABLE``), PARAM_VALUE (answers for the setup
 check, :mod:`mecanum_mav.control.fccheck`), WHEEL_DISTANCE, ATTITUDE, LOCAL_POSITION_NED and
 GPS_RAW_INT (the estimator's: the positions are the heading bias's reference; GPS_RAW_INT's
-fixes are placed about the first 3D fix heard).
+RTK fixes are placed about the first one heard).
 
 The core routes only messages from the flight controller's own system id here. Each handler
 takes one message and its arrival time (s); what goes back to the board is queued in the
@@ -76,7 +76,7 @@ class FcLink:
         self.rc_stream_asked = False
         """The receiver's RC_CHANNELS were asked for (again when the receiver is turned on)."""
         self.refuse = ctx.refuse
-        self._gps_origin: GlobalOrigin | None = None  # the first 3D fix
+        self._gps_origin: GlobalOrigin | None = None  # the first RTK fix
         self._gps_fix_us = -1  # the last fix's time_usec (a repeated one is not a new fix)
 
     def routes(self) -> dict[str, Handler]:
@@ -185,9 +185,7 @@ class FcLink:
     def on_position(self, msg: FcPositionMsg, now_s: float) -> None:
         """The board's LOCAL_POSITION_NED: to the estimator's heading bias (what it says once,
         its estimate or its refusal, as a NOTICE)."""
-        notice = self.estimator.on_position(msg.x, msg.y, now_s)
-        if notice is not None:
-            self._ctx.say(Severity.NOTICE, notice)
+        self._notice(self.estimator.on_position(msg.x, msg.y, now_s))
 
     def on_gps(self, msg: FcGpsMsg, now_s: float) -> None:
         """The board's GPS_RAW_INT: each new RTK fix (:data:`GPS_RTK_FIX`), placed about the
@@ -200,9 +198,13 @@ class FcLink:
                 self._gps_origin = GlobalOrigin(msg.lat, msg.lon)
         except ValueError:  # not on earth
             return
-        notice = self.estimator.on_gps(*self._gps_origin.to_local(msg.lat, msg.lon), now_s)
-        if notice is not None:
-            self._ctx.say(Severity.NOTICE, notice)
+        self._notice(self.estimator.on_gps(*self._gps_origin.to_local(msg.lat, msg.lon),
+                                           now_s))
+
+    def _notice(self, text: str | None) -> None:
+        """What the estimator says once (its heading bias settled, or refused), as a NOTICE."""
+        if text is not None:
+            self._ctx.say(Severity.NOTICE, text)
 
     def on_wheel_distance(self, msg: WheelDistanceMsg, now_s: float) -> None:
         """The board's WHEEL_DISTANCE (at least four wheels): to the estimator."""

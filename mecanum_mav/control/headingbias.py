@@ -50,7 +50,7 @@ import math
 from collections import deque
 from typing import NamedTuple
 
-from mecanum_mav.mecanum.geometry import wrap_pi
+from mecanum_mav.mecanum.geometry import body_to_ned, wrap_pi
 
 __all__ = ["BASELINE_M", "MAX_BIAS_RAD", "BiasUpdate", "HeadingBias"]
 
@@ -154,9 +154,9 @@ class HeadingBias:
             return BiasUpdate(self.bias_rad, None)
         # The odometry's step, rotated back by the correction it was made with: raw.
         dn, de = odom_north_m - last[0], odom_east_m - last[1]
-        c, s = math.cos(correction_rad), math.sin(correction_rad)
+        rn, re_ = body_to_ned(dn, de, correction_rad)  # (turned clockwise by the correction)
         prev = samples[-1]
-        raw = (prev.raw[0] + dn * c - de * s, prev.raw[1] + dn * s + de * c)
+        raw = (prev.raw[0] + rn, prev.raw[1] + re_)
         fc_step = math.hypot(fc_north_m - prev.fc[0], fc_east_m - prev.fc[1])
         sample = _Sample(now_s, raw, prev.path_m + math.hypot(dn, de), (fc_north_m, fc_east_m),
                          prev.fc_path_m + fc_step)

@@ -13,7 +13,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from mecanum_mav.mecanum.geometry import Pose2d, Twist2d, pose_exp, wrap_pi
+from mecanum_mav.mecanum.geometry import Pose2d, Twist2d, body_to_ned, pose_exp, wrap_pi
 from mecanum_mav.mecanum.kinematics import MecanumKinematics
 
 __all__ = ["MecanumOdometry"]
@@ -134,9 +134,9 @@ class MecanumOdometry:
         bias found late, corrected as if the track had been driven with it all along). The
         external yaw's offset is kept: the caller turns the yaw it passes in by as much.
         Not a reset (:attr:`reset_counter` stays)."""
-        c, s = math.cos(angle_rad), math.sin(angle_rad)
-        n, e = self._pose.x_m - about[0], self._pose.y_m - about[1]
-        self._pose = _checked_pose(Pose2d(about[0] + n * c - e * s, about[1] + n * s + e * c,
+        n, e = body_to_ned(self._pose.x_m - about[0], self._pose.y_m - about[1],
+                           angle_rad)  # (turned clockwise by the angle)
+        self._pose = _checked_pose(Pose2d(about[0] + n, about[1] + e,
                                           self._pose.yaw_rad + angle_rad))
 
     def shift(self, north_m: float, east_m: float) -> None:

@@ -66,13 +66,13 @@ from typing import Any
 from mecanum_mav.config.params import Params
 from mecanum_mav.control.pwm import PwmMap
 from mecanum_mav.mecanum.geo import GlobalOrigin
-from mecanum_mav.mecanum.geometry import Pose2d, body_to_ned
+from mecanum_mav.mecanum.geometry import Pose2d, body_to_ned, wrap_pi
 from mecanum_mav.protocol.dialect import mavlink
 from mecanum_mav.protocol.fcsetup import safe_settings
 from mecanum_mav.protocol.modes import Mode
 from mecanum_mav.protocol.rcoverride import CHANNELS, LEAVE, RELEASE, field_action
 from mecanum_mav.sim.chassis import ORIGIN_POSE
-from mecanum_mav.sim.physics import DEFAULT_PHYSICS, contacts_of, make_chassis
+from mecanum_mav.sim.physics import CONTACTS_PERIOD_S, DEFAULT_PHYSICS, contacts_of, make_chassis
 from mecanum_mav.sim.truthsender import CONTACT_NAMES, send_contacts, send_sim_state
 
 __all__ = ["CONTACT_NAMES", "ORIGIN", "RcOverrides", "SimBoard", "SimState", "board_parameters"]
@@ -100,8 +100,6 @@ _ATTITUDE_PERIOD_S = 0.05
 _WHEEL_DISTANCE_PERIOD_S = 0.1
 _SERVO_OUTPUT_PERIOD_S = 0.1
 _SYS_STATUS_PERIOD_S = 1.0
-CONTACTS_PERIOD_S = 0.1
-"""The wheel contacts (DEBUG_VECT, a chassis that has them) are sent this often (seconds)."""
 SIM_STATE_PERIOD_S = 0.2
 """The simulator's ground truth (SIM_STATE) is sent this often (seconds)."""
 BATTERY_V = 12.6
@@ -362,8 +360,7 @@ class SimBoard:
         time_boot_ms = (self._boot_us(now_s) // 1000) & 0xFFFFFFFF
         roll, pitch = c.roll_pitch
         yaw = c.pose.yaw_rad + self._yaw_bias_rad
-        mav.attitude_send(time_boot_ms, roll, pitch, (yaw + math.pi) % math.tau - math.pi, 0.0,
-                          0.0, c.yaw_rate)
+        mav.attitude_send(time_boot_ms, roll, pitch, wrap_pi(yaw), 0.0, 0.0, c.yaw_rate)
 
     def _local_position(self, mav: Any, now_s: float) -> None:
         """LOCAL_POSITION_NED: the true position (m from the start's origin, NED) and

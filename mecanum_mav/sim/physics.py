@@ -22,9 +22,19 @@ from mecanum_mav.sim.chassis import ORIGIN_POSE, SimChassis
 if TYPE_CHECKING:
     from mecanum_mav.config.params import Params
 
-__all__ = ["DEFAULT_PHYSICS", "MIN_REAL_TIME_FACTOR", "PHYSICS", "Chassis",
-           "PhysicsUnavailableError", "WheelContact", "contacts_of", "make_chassis",
-           "mujoco_real_time_factor", "require_mujoco"]
+__all__ = [
+    "CONTACTS_PERIOD_S",
+    "DEFAULT_PHYSICS",
+    "MIN_REAL_TIME_FACTOR",
+    "PHYSICS",
+    "Chassis",
+    "PhysicsUnavailableError",
+    "WheelContact",
+    "contacts_of",
+    "make_chassis",
+    "mujoco_real_time_factor",
+    "require_mujoco",
+]
 
 PHYSICS = ("kinematic", "mujoco")
 """The chassis models, by name (``sim --physics NAME``)."""
@@ -48,6 +58,10 @@ class WheelContact(NamedTuple):
     slip_mps: float
     slipping: bool
 
+
+CONTACTS_PERIOD_S = 0.1
+"""How often a chassis's wheel contacts are read and sent (seconds; 10 Hz): the simulated
+board's DEBUG_VECTs, the twin's bridge's record and its truth publisher alike."""
 
 Contacts = Callable[[], tuple[WheelContact, WheelContact, WheelContact, WheelContact]]
 """A chassis's way to read its wheels' contacts now (FL, FR, RL, RR)."""

@@ -26,14 +26,14 @@ from collections.abc import Sequence
 from typing import Any
 
 from mecanum_mav.mecanum.geo import GlobalOrigin
-from mecanum_mav.mecanum.geometry import body_to_ned
+from mecanum_mav.mecanum.geometry import body_to_ned, wrap_pi
 from mecanum_mav.mecanum.wheels import WHEEL_KEYS
 from mecanum_mav.protocol.dialect import mavlink
 from mecanum_mav.sim.physics import WheelContact
 from mecanum_mav.sim.twinrecord import TwinRecord
 
 __all__ = ["CONTACT_NAMES", "SIM_STATE_RATE_HZ", "TRUTH_SOURCE", "TruthPublisher",
-           "send_contacts", "send_sim_state", "udp_address"]
+           "send_contacts", "send_sim_state", "udp_address", "view_url"]
 
 TRUTH_SOURCE = (1, mavlink.MAV_COMP_ID_USER1)
 """The (system, component) the twin's truth is sent as (the view's truth from a twin)."""
@@ -77,6 +77,12 @@ def udp_address(url: str) -> tuple[str, int]:
     return host, int(port)
 
 
+def view_url(url: str) -> str:
+    """What ``mecanum-mav view --connect`` takes to show the truth sent to ``url``
+    (``udpout:HOST:PORT`` -> ``udpin:HOST:PORT``; ValueError as :func:`udp_address`)."""
+    return "udpin:{}:{}".format(*udp_address(url))
+
+
 class _Datagrams:
     """A file-like sink for pymavlink: each packet written is one datagram to ``address``."""
 
@@ -108,7 +114,7 @@ class TruthPublisher:
                  rate_hz: float = SIM_STATE_RATE_HZ) -> None:
         self._sink = _Datagrams(udp_address(url))
         self.url = url
-        self.view_url = "udpin:{}:{}".format(*self._sink.address)
+        self.view_url = view_url(url)
         """What ``mecanum-mav view --connect`` takes to show this truth."""
         self.mav = mavlink.MAVLink(self._sink, srcSystem=TRUTH_SOURCE[0],
                                    srcComponent=TRUTH_SOURCE[1])
@@ -133,7 +139,7 @@ class TruthPublisher:
             self._count = count
             _, time_s, north, east, yaw, forward, right = rows[-1].tolist()
             dt = time_s - float(rows[0][1])
-            turned = math.remainder(yaw - float(rows[0][4]), math.tau)
+            turned = wrap_pi(yaw - float(rows[0][4]))
             send_sim_state(self.mav, self._origin, north, east, yaw, forward, right,
                            turned / dt if dt > 0.0 else 0.0)
         read = self._record.contacts()

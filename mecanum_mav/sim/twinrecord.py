@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mecanum_mav.sim.physics import WheelContact
+from mecanum_mav.sim.physics import CONTACTS_PERIOD_S, WheelContact
 
 __all__ = ["BUSY_S", "COMMANDS", "CONTACTS", "CONTACTS_PERIOD_S", "COUNT", "DROPPED",
            "FIRST_WALL", "FRAMES", "FRAME_RATE", "HEADER", "LAST_WALL", "MALFORMED", "PHYSICS_S",
@@ -33,9 +33,6 @@ TRUTH_CAPACITY = 720_000
 COMMANDS, PULSES, COUNT, CONTACTS = 10, 14, 18, 19
 HEADER = CONTACTS + 13
 ROW = 7
-CONTACTS_PERIOD_S = 0.1
-"""The bridge reads the wheels' contacts this often (physics seconds; a publisher sends
-them at 10 Hz, as the simulated board does)."""
 
 
 @dataclass(frozen=True)
