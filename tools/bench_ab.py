@@ -11,7 +11,9 @@ Why
 Method
     Three systems under test on 127.0.0.1, each in its own process and driven by its own
     :class:`bench_latency.Harness` (a ground station sending MANUAL_CONTROL, a flight
-    controller sending HEARTBEAT at 2 Hz and receiving the overrides):
+    controller sending HEARTBEAT at 2 Hz and receiving the overrides; with ``--path serial``
+    the flight controller is the master end of a pty, as in ``bench_latency``'s serial
+    path):
 
     - ``floor``: :func:`bench_latency.run_floor`, the least a correct Python relay does;
     - ``base``: the companion at revision ``--base`` (default ``HEAD``: the last commit),
@@ -19,7 +21,8 @@ Method
     - ``head``: the companion in this working tree (uncommitted changes included), or at
       ``--head`` when given.
 
-    Each companion is ``python -m mecanum_mav run --gcs udpout:... --fc udpout:...`` on the
+    Each companion is ``python -m mecanum_mav run --gcs udpout:... --fc udpout:...`` (``--fc
+    PTY,BAUD`` on the serial path) on the
     default parameters (:class:`mecanum_mav.sim.process.CompanionProcess`, its tree's package
     imported), armed over COMMAND_LONG. Its CPU is read from the kernel's clock of the
     process (:func:`mecanum_mav.sim.process.process_cpu_s`), before and after each round.
@@ -33,8 +36,8 @@ Report
     head was the cheaper: a change that holds in most rounds is real; one that does not is
     noise, whatever the totals say.
 
-    python tools/bench_ab.py [--base REV] [--head REV] [--rate 1000] [--rounds 10]
-                             [--per-round 300]
+    python tools/bench_ab.py [--base REV] [--head REV] [--path udpout|serial] [--rate 1000]
+                             [--rounds 10] [--per-round 300]
 """
 
 from __future__ import annotations
@@ -79,14 +82,16 @@ def main() -> int:
     parser.add_argument("--base", default="HEAD", help="the revision to compare against")
     parser.add_argument("--head", default=None,
                         help="a revision instead of this working tree")
+    parser.add_argument("--path", choices=("udpout", "serial"), default="udpout",
+                        help="the flight controller's link: UDP, or a serial line (a pty at "
+                             f"{bl.SERIAL_BAUD} baud)")
     parser.add_argument("--rate", type=float, default=1000.0, help="sticks per second")
     parser.add_argument("--rounds", type=int, default=10)
     parser.add_argument("--per-round", type=int, default=300, help="sticks per round")
     args = parser.parse_args()
     if args.rounds < 2 or args.per_round < 10 or not 1.0 <= args.rate <= 5000.0:
         parser.error("need --rounds >= 2, --per-round >= 10 and 1 <= --rate <= 5000")
-    params = Params()
-    channel, encode = bl.companion_pulse_fn(params)
+    _, encode = bl.companion_pulse_fn(Params())
     cycle = bl.stick_cycle([encode, bl.relay_pulse], {1500, bl.relay_pulse(0)})
     harnesses: dict[str, bl.Harness] = {}
     suts: dict[str, bl.SutProcess | CompanionProcess] = {}
@@ -96,9 +101,7 @@ def main() -> int:
         try:
             for kind in SYSTEMS:
                 relay = kind == FLOOR
-                harness = harnesses[kind] = bl.Harness(1 if relay else channel,
-                                                       bl.relay_pulse if relay else encode,
-                                                       cycle)
+                harness = harnesses[kind] = bl.open_harness(args.path, kind, cycle)
                 suts[kind] = (bl.SutProcess(kind, *harness.urls, profile=False) if relay
                               else CompanionProcess(*harness.urls, Path(tmp) / f"run-{kind}",
                                                     package_root=trees[kind]))
@@ -107,7 +110,8 @@ def main() -> int:
                     harness.arm()
                 harness.run_input(200.0, 20, drain_s=0.05)
             print(f"# bench_ab: base {args.base}, head {args.head or 'the working tree'}; "
-                  f"{args.rounds} rounds of {args.per_round} sticks at {args.rate:g} Hz, "
+                  f"path {args.path}, {args.rounds} rounds of {args.per_round} sticks at "
+                  f"{args.rate:g} Hz, "
                   f"python {sys.version.split()[0]}, {os.cpu_count()} cores")
             rounds = measure(harnesses, suts, args.rounds, args.per_round, args.rate)
         finally:
