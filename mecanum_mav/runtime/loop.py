@@ -331,19 +331,21 @@ class ControlLoop:
         """After a pass that was a stick in its lane and left nothing to do: whether the next
         wake (``ready``) was the same and nothing more, so that the pass ends here: only the
         ground station's datagram link ready, its first datagram a stick the lane answered
-        (:meth:`_answer_first`), nothing behind it, the core still settled and the stream
-        links idle. The timers could only have moved later (a message would have unsettled
-        the core): the wait ran until the earliest of them as that pass saw it. Else the
-        rest of the pass takes over, with ``ready`` (what was read here was answered)."""
+        (:meth:`_answer_first`), the core still settled and the stream links idle. The timers
+        could only have moved later (a message would have unsettled the core): the wait ran
+        until the earliest of them as that pass saw it. Else the rest of the pass takes over,
+        with ``ready`` (what was read here was answered).
+
+        What waits behind the stick is not read here: the poller is level-triggered, so the
+        next wait returns at once with the link still ready and that pass reads it (a
+        datagram more or another stick). Asking here would cost every stick a read that finds
+        nothing (a syscall and a raised ``BlockingIOError``: 14 % of the companion's CPU per
+        stick at 1 kHz, ``tools/bench_ab.py --path serial``)."""
         link = self._gcs_datagrams
         if len(ready) != 1 or ready[0][0] is not link:
             return False
         now = self.clock()
         if not self._answer_first(link, now):
-            return False
-        got = link.receive_datagram()  # (the pass's drain reads the rest)
-        if got is not None:
-            self._answer(link.parse_datagram(*got), now, from_fc=False)
             return False
         # (The ground station's link is a datagram one: the only stream link there can be is
         # the flight controller's, and this pass neither read nor followed it, so only the

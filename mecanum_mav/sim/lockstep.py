@@ -19,7 +19,9 @@ socket would carry. One step to ``t``:
 2. one pass of the companion's loop (:meth:`~mecanum_mav.runtime.loop.ControlLoop.run_once`)
    at ``t``: it runs as the companion's does when it wakes then (something to read, or a
    timer due), and does nothing in a step where the companion would still be asleep; what
-   it sends reaches the ground station and the board at ``t``;
+   it sends reaches the ground station and the board at ``t``. A pass that left something
+   to read (a pass that was a stick alone reads only the stick) is followed by another at
+   ``t``, as the companion's level-triggered epoll wakes it again at once;
 3. the board steps its physics and sends its telemetry (delivered in the next step).
 
 So a command's answer and an override's effect are exact in virtual time, and a run of
@@ -54,6 +56,10 @@ from mecanum_mav.sim.wires import (
 __all__ = ["SIGNING_START_TICKS", "TLOG_EPOCH_S", "Lockstep", "OverrideSeen"]
 
 T = TypeVar("T")
+
+MAX_PASSES_PER_STEP = 16
+"""Passes of the loop in one step at most (a pass reads at least one datagram, and a step
+delivers far fewer than this behind a stick): a bound, not a rate."""
 
 
 class OverrideSeen(NamedTuple):
@@ -165,7 +171,12 @@ class Lockstep:
         self._core_to_gcs.follow_clock(now)
         if not self.fc_link_up:
             self._fc_to_core.drop()
-        self.loop.run_once()  # the companion's loop, one pass
+        loop, links = self.loop, self._links.values()
+        loop.run_once()  # the companion's loop, one pass,
+        for _ in range(MAX_PASSES_PER_STEP - 1):  # and more at once while a link is readable
+            if not any(link.readable() for link in links):
+                break
+            loop.run_once()
         self.gcs.receive(self._core_to_gcs.deliver(), now)
         received = self._core_to_fc.deliver() if self.fc_link_up else self._core_to_fc.drop()
         if received:
