@@ -789,6 +789,12 @@ MUTATIONS: tuple[Mutation, ...] = (
       "self._sticks_until_s = math.inf  #",
       T + "test_stream_lane.py::test_after_the_pilots_last_stick_in_its_lane_the_refresh_and_"
       "the_input_timeout_still_come"),
+    M("child-dies-with-parent", "a companion process ends when its parent is killed",
+      PKG + "sim/process.py", "preexec_fn=dies_with_this_thread(signal.SIGTERM)",
+      "preexec_fn=None", T + "test_process_cleanup.py"),
+    M("firmware-dies-with-parent", "the firmware ends when its parent is killed",
+      PKG + "sim/firmware.py", "preexec_fn=dies_with_this_thread(signal.SIGKILL)",
+      "preexec_fn=None", T + "test_process_cleanup.py"),
     M("loop-stick-pass-settled", "a pass of sticks ends when the core has something to do",
       PKG + "runtime/loop.py",
       "return self.core.settled(now) and (self._fc_datagrams or (fc.up and not fc.pending))",

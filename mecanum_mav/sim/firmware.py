@@ -4,10 +4,12 @@ controller, and the tests'.
 :class:`Firmware` starts ``ardurover --model JSON:127.0.0.1`` (its physics is the twin's
 bridge, on the UDP port ``--sim-port-out`` names) in a temporary working directory of its own
 (it writes ``eeprom.bin`` and ``logs/`` there) and a process group of its own, killed on every
-way out. Its serial ports are UDP clients on ports from :func:`~mecanum_mav.sim.process.
-free_port`: SERIAL0 for the companion's flight-controller link (:attr:`Firmware.fc_url`), SERIAL1
-for a ground station or monitor talking to the firmware directly (:attr:`Firmware.gcs_url`),
-so that several firmwares run side by side.
+way out, its parent's end included (``kill -9`` of the twin: SIGKILL by the parent-death
+signal, :func:`~mecanum_mav.sim.process.dies_with_this_thread`). Its serial ports are UDP
+clients on ports from :func:`~mecanum_mav.sim.process.free_port`: SERIAL0 for the
+companion's flight-controller link (:attr:`Firmware.fc_url`), SERIAL1 for a ground station
+or monitor talking to the firmware directly (:attr:`Firmware.gcs_url`), so that several
+firmwares run side by side.
 
 It starts without ``-w``: the directory is new, so there is no stored parameter yet, and a
 reboot (``setup-fc --apply --reboot``; SITL re-executes itself with the same arguments) keeps
@@ -31,7 +33,7 @@ from pathlib import Path
 from types import TracebackType
 from typing import Any, TypeVar
 
-from mecanum_mav.sim.process import free_port
+from mecanum_mav.sim.process import dies_with_this_thread, free_port
 
 __all__ = ["ENV_SITL", "Firmware", "Started", "kill_group", "parm_text", "sitl_from_env"]
 
@@ -154,7 +156,8 @@ class Firmware(Started):
         with self.log_path.open("wb") as log:
             self.proc = subprocess.Popen(self.command, cwd=self.workdir, stdin=subprocess.DEVNULL,
                                          stdout=log, stderr=subprocess.STDOUT,
-                                         start_new_session=True)
+                                         start_new_session=True,
+                                         preexec_fn=dies_with_this_thread(signal.SIGKILL))
 
     def alive(self) -> bool:
         return self.proc is not None and self.proc.poll() is None

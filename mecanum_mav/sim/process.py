@@ -11,6 +11,7 @@ companion this one way.
 from __future__ import annotations
 
 import contextlib
+import ctypes
 import os
 import random
 import signal
@@ -18,12 +19,13 @@ import socket
 import subprocess
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from types import TracebackType
 from typing import TypeVar
 
-__all__ = ["CliProcess", "CompanionProcess", "free_port", "process_cpu_s"]
+__all__ = ["CliProcess", "CompanionProcess", "dies_with_this_thread", "free_port",
+           "process_cpu_s"]
 
 def free_port(kind: int = socket.SOCK_DGRAM, host: str = "127.0.0.1") -> int:
     """A port free now, for programs that cannot bind port 0 themselves and say which one
@@ -48,6 +50,33 @@ FREE_PORTS = (20000, 32768)
 """Where :func:`free_port` draws from: above the fixed MAVLink ports (5760, 14550, 14560 +
 10 N), below the ephemeral range, so no port-0 bind can take it meanwhile."""
 _random = random.SystemRandom()
+
+
+_PR_SET_PDEATHSIG = 1
+"""Linux's ``prctl`` option: the signal a process gets when its parent ends."""
+
+
+def dies_with_this_thread(sig: int) -> Callable[[], None]:
+    """A ``preexec_fn`` for :class:`subprocess.Popen`: the child gets ``sig`` when the thread
+    that started it ends (Linux's parent-death signal; for the main thread, when the process
+    ends, ``kill -9`` included), so a killed twin, tool or test run leaves no firmware or
+    companion behind. It also holds across SITL's reboot (the firmware re-executes itself).
+    Where ``prctl`` is missing it does nothing. Start such children from a thread that lives
+    as long as they should."""
+    parent = os.getpid()
+    try:
+        prctl = ctypes.CDLL(None, use_errno=True).prctl
+    except (OSError, AttributeError):  # not Linux
+        prctl = None
+
+    def arm() -> None:
+        if prctl is None:
+            return
+        prctl(_PR_SET_PDEATHSIG, sig)
+        if os.getppid() != parent:  # it ended between the fork and the prctl
+            os.kill(os.getpid(), sig)
+
+    return arm
 
 
 _PACKAGE_ROOT = Path(__file__).resolve().parents[2]
@@ -76,7 +105,10 @@ class CliProcess:
     ``package_root`` (default: the one this module belongs to; another checkout's tree to run
     another version), its output (stdout and stderr) in ``workdir/log_name``.
 
-    A context manager: on the way out the group is killed if it is still running.
+    A context manager: on the way out the group is killed if it is still running. It gets
+    SIGTERM (the companion's orderly stop: neutral, then the channels released) when the
+    thread that started it ends (:func:`dies_with_this_thread`): a killed parent leaves none
+    running.
     """
 
     def __init__(self, argv: Sequence[str], workdir: Path, *,
@@ -90,7 +122,8 @@ class CliProcess:
         with self.log_path.open("wb") as log:
             self.proc = subprocess.Popen(self.command, cwd=workdir, env=env,
                                          stdin=subprocess.DEVNULL, stdout=log,
-                                         stderr=subprocess.STDOUT, start_new_session=True)
+                                         stderr=subprocess.STDOUT, start_new_session=True,
+                                         preexec_fn=dies_with_this_thread(signal.SIGTERM))
         self.pid = self.proc.pid
 
     def alive(self) -> bool:
