@@ -102,7 +102,7 @@ def main() -> int:
         tlog, rrd = folder / "long.tlog", folder / "long.rrd"
         messages = long_tlog(tlog, args.minutes)
         started = time.perf_counter()
-        with gc_paused():  # as 'log' reads
+        with gc_paused(keep=True):  # as 'log' reads
             entries = read_tlog(tlog).entries
         read_s = time.perf_counter() - started
         started = time.perf_counter()

@@ -1075,7 +1075,7 @@ MUTATIONS: tuple[Mutation, ...] = (
     M("view-companion-modes", "the vehicle's modes come from the companion, not its flight "
       "controller sharing its ids",
       PKG + "app/rerunview.py",
-      'or self._senders.role(index) == "vehicle")', "or True)",
+      'or self._senders.role(self._index - 1) == "vehicle"', "or True",
       VW + "test_modes_arming_and_failsafes_are_on_the_timeline"),
     M("view-north-up", "the map draws north up (east, -north in Rerun's y-down 2D view)",
       PKG + "app/rerunview.py",
@@ -1105,6 +1105,20 @@ MUTATIONS: tuple[Mutation, ...] = (
       PKG + "protocol/codec.py",
       "if crc != crc16(crc_extra, crc16(buf[pos + 1:crc_at], 0xFFFF)):", "if False:",
       TF + "test_a_damaged_tlog_reads_as_pymavlink_reads_it"),
+    M("log-read-frozen", "the log command leaves what it read out of the collector's passes",
+      PKG + "app/logview.py", "    with gc_paused(keep=True):", "    with gc_paused():",
+      T + "test_log_open.py::test_the_log_command_leaves_what_it_read_out_of_the_collectors_"
+      "later_passes"),
+    M("gc-paused-keep", "gc_paused(keep=True) freezes what was made meanwhile",
+      PKG + "app/view.py", """        if keep:
+            gc.freeze()""", """        if False:
+            gc.freeze()""",
+      T + "test_log_open.py::test_the_log_command_leaves_what_it_read_out_of_the_collectors_"
+      "later_passes"),
+    M("log-plots-lazy", "a view of a log imports nothing of the PNG's",
+      PKG + "app/logview.py", "from mecanum_mav.protocol.dialect import mavlink\n",
+      "from mecanum_mav.protocol.dialect import mavlink\nimport mecanum_mav.app.plots\n",
+      T + "test_log_open.py::test_a_view_of_a_log_imports_no_plotting"),
     M("odom-cmd-lag", "commanded wheel speeds pass the ODOM_CMD_TAU lag before they count",
       PKG + "control/estimator.py", "lagged = self.config.commanded_tau_s > 0.0",
       "lagged = False",
