@@ -13,7 +13,7 @@ their CRC; they are counted and skipped, not reported as damage.
 
 Each packet goes through the companion's codec first
 (:func:`~mecanum_mav.protocol.codec.decode_packet`: the same message object as pymavlink's,
-in a third of the time); what it does not take (an unknown id, an odd flag, damage) goes
+in about half the time); what it does not take (an unknown id, an odd flag, damage) goes
 through pymavlink's ``decode``, which decides as it always did.
 
 :func:`read_tlog` reads a file; the result holds every message with its time, and the problems
@@ -114,7 +114,7 @@ class _Decoder:
         if not EARLIEST_US <= stamp <= LATEST_US:
             return None
         fast = decode_packet(data, at + STAMP_LEN)
-        if fast is not None:  # the companion's codec: the same message, a third of the time
+        if fast is not None:  # the companion's codec: the same message, faster
             return fast[1] - at, stamp / 1e6, fast[0]
         length = _packet_len(data, at + STAMP_LEN)
         end = at + STAMP_LEN + (length or 0)
