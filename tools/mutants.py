@@ -104,6 +104,7 @@ MJ = T + "test_mujoco_chassis.py::"
 PC = T + "test_shaping_pwm.py::"
 PL = T + "test_plant_calibration.py::"
 VW = T + "test_view.py::"
+TF = T + "test_tlog_fast.py::"
 TW = T + "test_twin.py::"
 HB = T + "test_estimator_heading_bias.py::"
 HS = T + "test_heading_bias.py::"
@@ -1076,7 +1077,7 @@ MUTATIONS: tuple[Mutation, ...] = (
     M("view-companion-modes", "the vehicle's modes come from the companion, not its flight "
       "controller sharing its ids",
       PKG + "app/rerunview.py",
-      'or self._senders.role(index) == "vehicle")', "or True)",
+      'or self._senders.role(self._index - 1) == "vehicle"', "or True",
       VW + "test_modes_arming_and_failsafes_are_on_the_timeline"),
     M("view-north-up", "the map draws north up (east, -north in Rerun's y-down 2D view)",
       PKG + "app/rerunview.py",
@@ -1090,6 +1091,36 @@ MUTATIONS: tuple[Mutation, ...] = (
       """                recording.flush()
             recording.disconnect()""",
       VW + "test_the_live_view_of_a_tlog_being_written_records_what_the_log_view_has"),
+    # The tlog reader's fast path (io/tlog.py, protocol/codec.py decode_packet; issue 27).
+    M("tlog-fast-time", "a record read by the fast path has the time pymavlink's path gives it",
+      PKG + "io/tlog.py", "return fast[1] - at, stamp / 1e6, fast[0]",
+      "return fast[1] - at, stamp * 1e-6, fast[0]",
+      TF + "test_the_fast_read_of_a_sample_drive_equals_pymavlinks_entry_for_entry"),
+    M("tlog-fast-used", "a tlog's packets go through the companion's codec, not pymavlink's "
+      "decode", PKG + "io/tlog.py", "fast = decode_packet(data, at + STAMP_LEN)", "fast = None",
+      TF + "test_only_what_the_codec_cannot_take_goes_through_pymavlinks_decode"),
+    M("tlog-fast-signed", "a signed packet in a tlog is decoded by the fast path too",
+      PKG + "protocol/codec.py",
+      "end += SIGNATURE_BLOCK_LEN if buf[pos + 2] == IFLAG_SIGNED else 0", "end += 0",
+      TF + "test_only_what_the_codec_cannot_take_goes_through_pymavlinks_decode"),
+    M("tlog-fast-crc", "a damaged packet in a tlog is not MAVLink for the fast path either",
+      PKG + "protocol/codec.py",
+      "if crc != crc16(crc_extra, crc16(buf[pos + 1:crc_at], 0xFFFF)):", "if False:",
+      TF + "test_a_damaged_tlog_reads_as_pymavlink_reads_it"),
+    M("log-read-frozen", "the log command leaves what it read out of the collector's passes",
+      PKG + "app/logview.py", "    with gc_paused(keep=True):", "    with gc_paused():",
+      T + "test_log_open.py::test_the_log_command_leaves_what_it_read_out_of_the_collectors_"
+      "later_passes"),
+    M("gc-paused-keep", "gc_paused(keep=True) freezes what was made meanwhile",
+      PKG + "app/view.py", """        if keep:
+            gc.freeze()""", """        if False:
+            gc.freeze()""",
+      T + "test_log_open.py::test_the_log_command_leaves_what_it_read_out_of_the_collectors_"
+      "later_passes"),
+    M("log-plots-lazy", "a view of a log imports nothing of the PNG's",
+      PKG + "app/logview.py", "from mecanum_mav.protocol.dialect import mavlink\n",
+      "from mecanum_mav.protocol.dialect import mavlink\nimport mecanum_mav.app.plots\n",
+      T + "test_log_open.py::test_a_view_of_a_log_imports_no_plotting"),
     M("odom-cmd-lag", "commanded wheel speeds pass the ODOM_CMD_TAU lag before they count",
       PKG + "control/estimator.py", "lagged = self.config.commanded_tau_s > 0.0",
       "lagged = False",

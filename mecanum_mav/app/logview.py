@@ -271,7 +271,7 @@ def run_log(tlog: Path, png: Path | None, out: TextIO | None = None,
     err = err or sys.stderr
     from mecanum_mav.app.view import gc_paused
 
-    with gc_paused():
+    with gc_paused(keep=True):
         read = read_tlog(tlog)
     for problem in read.problems:
         print(f"mecanum-mav log: {problem}", file=err)

@@ -58,6 +58,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
+from operator import attrgetter
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -108,7 +109,8 @@ _PLAN_COLOUR = (150, 150, 150)
 _CHASSIS_COLOUR = (220, 220, 220)
 _WHEEL_COLOUR = (44, 160, 44)
 _MAP_PARAMS = ("GEO_HALF_LEN", "GEO_HALF_WID")
-_CHANNEL_FIELDS = tuple(f"chan{i}_raw" for i in range(1, 19))
+_channels = attrgetter(*(f"chan{i}_raw" for i in range(1, 19)))
+"""An RC_CHANNELS_OVERRIDE's 18 channels, channel 1 first."""
 _LEAVE = (0, 65534, 65535)
 """RC_CHANNELS_OVERRIDE values that leave a channel alone or release it (not a pulse)."""
 
@@ -197,7 +199,6 @@ class ViewMapping:
         self._mode: str | None = None
         self._armed: bool | None = None
         self._status = StatusChunks()
-        self._from_companion = True  # (of the message being fed)
         self.messages = 0
         """Messages fed so far."""
         self._handlers: dict[str, Callable[[float, Any], None]] = {
@@ -234,8 +235,6 @@ class ViewMapping:
                 self._split = True
             handler = self._handlers.get(kind)
             if handler is not None:
-                self._from_companion = (not self._split
-                                        or self._senders.role(index) == "vehicle")
                 handler(time_s, msg)
         except (AttributeError, TypeError, ValueError, OverflowError, KeyError):
             return
@@ -256,7 +255,12 @@ class ViewMapping:
         """Whether ``msg`` is the vehicle's (its system; the companion, not its flight
         controller, where the two share an id)."""
         return (self.vehicle is None or msg.get_srcSystem() == self.vehicle[0]) and \
-            self._from_companion
+            self._from_companion()
+
+    def _from_companion(self) -> bool:
+        """Whether the message being fed is the companion's, not its flight controller's
+        sharing its ids (asked only where it matters: the senders' roles take time)."""
+        return not self._split or self._senders.role(self._index - 1) == "vehicle"
 
     def _event(self, time_s: float, text: str, level: str) -> None:
         self._add("events", "text", time_s, (text, level))
@@ -269,7 +273,7 @@ class ViewMapping:
         if self.vehicle is None:
             self.vehicle = (msg.get_srcSystem(), msg.get_srcComponent())
         if (msg.get_srcSystem(), msg.get_srcComponent()) != self.vehicle or \
-                not self._from_companion:
+                not self._from_companion():
             return
         mode = _mode_name(msg)
         armed = bool(msg.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED)
@@ -385,11 +389,11 @@ class ViewMapping:
                          for w in self.pwm.wheels])
 
     def _override(self, t: float, msg: Any) -> None:
-        channels = [getattr(msg, name, 0) for name in _CHANNEL_FIELDS]
+        channels = list(_channels(msg))
         # Whose it is depends on the ids and which channels it leaves alone: decided once per
         # kind (the companion sends one kind 25 times a second).
         key = (msg.get_srcSystem(), msg.get_srcComponent(), msg.target_system,
-               msg.target_component, self.vehicle, *(c if c in _LEAVE else -1 for c in channels))
+               msg.target_component, self.vehicle, *[c if c in _LEAVE else -1 for c in channels])
         pilot = self._override_kinds.get(key)
         if pilot is None:
             pilot = self._override_kinds[key] = override_from_pilot(msg, channels, self.vehicle)
