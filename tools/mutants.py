@@ -107,6 +107,7 @@ VW = T + "test_view.py::"
 TW = T + "test_twin.py::"
 HB = T + "test_estimator_heading_bias.py::"
 HS = T + "test_heading_bias.py::"
+OG = T + "test_estimator_gain.py::"
 
 MUTATIONS: tuple[Mutation, ...] = (
     # ---------------------------------------------------------------- neutral on every way out
@@ -1267,6 +1268,12 @@ MUTATIONS: tuple[Mutation, ...] = (
       PKG + "control/fclink.py", "(mavlink.MAVLINK_MSG_ID_GPS_RAW_INT,",
       "(mavlink.MAVLINK_MSG_ID_SYS_STATUS,",
       HS + "test_the_companion_asks_the_flight_controller_for_its_position_at_10_hz"),
+    M("odom-cmd-gain", "the commanded odometry counts each wheel's speed times ODOM_CMD_GAIN",
+      PKG + "control/estimator.py",
+      "return self.config.wheel_speed_max_mps * self.config.commanded_gain",
+      "return self.config.wheel_speed_max_mps",
+      OG + "test_a_commanded_gain_scales_the_distance_every_wheel_is_counted_to_roll",
+      OG + "test_on_the_mujoco_chassis_the_measured_gain_takes_the_odometrys_over_reading_away"),
 )
 
 # ====================================================================== running
