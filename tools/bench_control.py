@@ -712,6 +712,7 @@ def main_twin(args: argparse.Namespace) -> int:
           f"{', '.join(f'{f:g}' for f in floors)}; real time")
     print("companion with " + ", ".join(f"{n} {shown[n]:g}" for n in (*SHOWN, "ODOM_SRC",
                                                                          "ODOM_CMD_TAU",
+                                                                         "ODOM_CMD_GAIN",
                                                                          "ODOM_YAW_BIAS",
                                                                          "ODOM_POS_TAU")
                                       if n in shown))
