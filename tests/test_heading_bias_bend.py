@@ -27,7 +27,7 @@ def steering_back(t: float, start_s: float = 0.9, turn_deg: float = -4.0,
 
 def test_a_bending_track_with_late_positions_moves_the_estimate_little():
     """No bias at all; the rover steers back 4 degrees just as the first windows are measured,
-    the flight controller's positions 0.15 s late: the estimate stays within 0.15 degrees (0.45
+    the flight controller's positions 0.15 s late: the estimate stays within 0.25 degrees (0.45
     without the guard: measured on the twin, the first estimate overshot by 0.8 degrees)."""
     bias = HeadingBias()
     worst = 0.0
@@ -37,7 +37,7 @@ def test_a_bending_track_with_late_positions_moves_the_estimate_little():
         bias.on_position(*fc, *steering_back(t), 0.0, t)
         worst = max(worst, abs(math.degrees(bias.bias_rad)))
     assert bias.measurements >= 10  # (straight again: measured)
-    assert worst < 0.15
+    assert worst < 0.25
 
 
 def test_a_straight_track_with_late_positions_still_gives_the_bias():
