@@ -86,7 +86,7 @@ def test_the_schema_has_exactly_the_parameters_the_rest_of_the_code_reads():
         "GUID_POS_P", "GUID_YAW_P", "GUID_YAW_LEAD", "GUID_TIMEOUT", "WP_SPEED", "WP_ACCEL",
         "WP_RADIUS", "WP_POS_P", "WP_OVERSHOOT", "WP_YAW_BEHAVIOR", "ORIGIN_LAT", "ORIGIN_LON",
         "ODOM_SRC",
-        "ODOM_CMD_TAU",
+        "ODOM_CMD_TAU", "ODOM_CMD_GAIN",
         "ODOM_YAW_SRC", "ODOM_YAW_BIAS", "ODOM_POS_TAU",
         "TLM_POS_RATE",
         "TLM_EXT_RATE",

@@ -342,6 +342,13 @@ TWIN_ODOM_CMD_TAU = 0.12
 """``ODOM_CMD_TAU`` on the twin (no WHEEL_DISTANCE from ArduPilot: the odometry takes the
 commanded speeds): the motors' 0.08 s and the firmware's pass-through (measured at 1 m/s,
 friction 0.8: strafe-rotate drift 7.9 % with 0, 2-3 % with 0.12); a ``--set`` wins."""
+TWIN_ODOM_CMD_GAIN = 0.9975
+TWIN_STRAFE_EFF = 0.983
+"""``ODOM_CMD_GAIN`` and ``WHL_STRAFE_EFF`` on the twin, calibrated as a user without encoders
+does: its AUTO driving 3 m and back at 1 m/s, friction 0.8, read 0.15-0.35 % long forward and
+0.6-0.8 % long strafing (under load the MuJoCo motors run below their command, and the strafe
+slips beyond :data:`MUJOCO_STRAFE_EFF`; the chassis alone through the same PWM edge: 0.25 %
+and 0.9 %); a ``--set`` wins."""
 TWIN_FLOORS = (0.8,)
 """The twin's default floor (real time: one floor)."""
 SITL_BESIDE = Path(__file__).resolve().parent.parent.parent / "shared" / "ardupilot-sitl" / \
@@ -374,9 +381,12 @@ def twin_row(name: str, speed_mps: float, friction: float, driver: str,
 
 def twin_params(speed_mps: float, friction: float,
                 overrides: Sequence[tuple[str, float]] = ()) -> Params:
-    """:func:`bench_params` on the MuJoCo chassis with ``ODOM_CMD_TAU`` at
-    :data:`TWIN_ODOM_CMD_TAU` (unless overridden)."""
-    return bench_params(speed_mps, friction, [("ODOM_CMD_TAU", TWIN_ODOM_CMD_TAU), *overrides])
+    """:func:`bench_params` on the MuJoCo chassis with ``ODOM_CMD_TAU``, ``ODOM_CMD_GAIN`` and
+    ``WHL_STRAFE_EFF`` at :data:`TWIN_ODOM_CMD_TAU`, :data:`TWIN_ODOM_CMD_GAIN` and
+    :data:`TWIN_STRAFE_EFF` (unless overridden)."""
+    return bench_params(speed_mps, friction, [
+        ("ODOM_CMD_TAU", TWIN_ODOM_CMD_TAU), ("ODOM_CMD_GAIN", TWIN_ODOM_CMD_GAIN),
+        ("WHL_STRAFE_EFF", TWIN_STRAFE_EFF), *overrides])
 
 
 def run_twin(sitl: Path, missions: Sequence[str], speeds: Sequence[float],
@@ -702,6 +712,7 @@ def main_twin(args: argparse.Namespace) -> int:
           f"{', '.join(f'{f:g}' for f in floors)}; real time")
     print("companion with " + ", ".join(f"{n} {shown[n]:g}" for n in (*SHOWN, "ODOM_SRC",
                                                                          "ODOM_CMD_TAU",
+                                                                         "ODOM_CMD_GAIN",
                                                                          "ODOM_YAW_BIAS",
                                                                          "ODOM_POS_TAU")
                                       if n in shown))

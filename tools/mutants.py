@@ -108,6 +108,8 @@ TF = T + "test_tlog_fast.py::"
 TW = T + "test_twin.py::"
 HB = T + "test_estimator_heading_bias.py::"
 HS = T + "test_heading_bias.py::"
+OG = T + "test_estimator_gain.py::"
+BG = T + "test_heading_bias_bend.py::"
 
 MUTATIONS: tuple[Mutation, ...] = (
     # ---------------------------------------------------------------- neutral on every way out
@@ -1223,7 +1225,8 @@ MUTATIONS: tuple[Mutation, ...] = (
     M("hb-straight-only", "the heading bias is measured on straight stretches only",
       PKG + "control/headingbias.py", "if chord < STRAIGHT_RATIO * path or fc_chord <",
       "if False or False and fc_chord <",
-      HB + "test_a_curved_track_gives_no_estimate_its_lag_would_look_like_degrees"),
+      HB + "test_a_curved_track_gives_no_estimate_its_lag_would_look_like_degrees",
+      HB + "test_a_flight_controller_track_that_weaves_gives_no_estimate"),
     M("hb-straight-odometry", "the odometry's side of a window must be straight",
       PKG + "control/headingbias.py", "if chord < STRAIGHT_RATIO * path or fc_chord <",
       "if False or fc_chord <",
@@ -1300,6 +1303,16 @@ MUTATIONS: tuple[Mutation, ...] = (
       PKG + "control/fclink.py", "(mavlink.MAVLINK_MSG_ID_GPS_RAW_INT,",
       "(mavlink.MAVLINK_MSG_ID_SYS_STATUS,",
       HS + "test_the_companion_asks_the_flight_controller_for_its_position_at_10_hz"),
+    M("hb-bend-guard", "no heading-bias window while the raw track bends (late positions)",
+      PKG + "control/headingbias.py", "        if self._bends(start, now):",
+      "        if False:",
+      BG + "test_a_bending_track_with_late_positions_moves_the_estimate_little"),
+    M("odom-cmd-gain", "the commanded odometry counts each wheel's speed times ODOM_CMD_GAIN",
+      PKG + "control/estimator.py",
+      "return self.config.wheel_speed_max_mps * self.config.commanded_gain",
+      "return self.config.wheel_speed_max_mps",
+      OG + "test_a_commanded_gain_scales_the_distance_every_wheel_is_counted_to_roll",
+      OG + "test_on_the_mujoco_chassis_the_measured_gain_takes_the_odometrys_over_reading_away"),
 )
 
 # ====================================================================== running

@@ -447,6 +447,12 @@ SCHEMA: tuple[ParamSpec, ...] = (
         "step in command.",
     ),
     ParamSpec(
+        "ODOM_CMD_GAIN", float, default=1.0, minimum=0.8, maximum=1.2, units="",
+        description="Commanded-speed odometry: the fraction of its commanded speed a wheel "
+        "really rolls (motors under load run below it; 1 = exactly). Measure the distance "
+        "truly driven over the odometry's on a long straight run at mission speed.",
+    ),
+    ParamSpec(
         "ODOM_YAW_SRC", int, default=0, minimum=0, maximum=1, units="",
         values={0: "auto", 1: "wheels"},
         description="Odometry heading: auto uses the flight controller's ATTITUDE yaw while "

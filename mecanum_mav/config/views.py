@@ -261,12 +261,15 @@ class OdometryConfig:
     position_tau_s: float = 0.0
     """Time constant of the pull toward the flight controller's position, s (``ODOM_POS_TAU``;
     0 = none)."""
+    commanded_gain: float = 1.0
+    """The fraction of a commanded wheel speed the wheel really rolls (``ODOM_CMD_GAIN``)."""
 
     @classmethod
     def from_params(cls, params: Params) -> OdometryConfig:
         """Read ``ODOM_SRC``, ``ODOM_YAW_SRC``, ``WHL_MAX_SPD``, ``GEO_HALF_*`` and
-        ``ODOM_CMD_TAU``, ``ODOM_YAW_BIAS``, ``ODOM_POS_TAU``."""
+        ``ODOM_CMD_TAU``, ``ODOM_YAW_BIAS``, ``ODOM_POS_TAU``, ``ODOM_CMD_GAIN``."""
         return cls(int(params["ODOM_SRC"]), int(params["ODOM_YAW_SRC"]) == 0,
                    float(params["WHL_MAX_SPD"]), float(params["GEO_HALF_LEN"]),
                    float(params["GEO_HALF_WID"]), float(params["ODOM_CMD_TAU"]),
-                   int(params["ODOM_YAW_BIAS"]), float(params["ODOM_POS_TAU"]))
+                   int(params["ODOM_YAW_BIAS"]), float(params["ODOM_POS_TAU"]),
+                   float(params["ODOM_CMD_GAIN"]))

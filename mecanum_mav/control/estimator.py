@@ -14,7 +14,10 @@ first-order lag, discretized exactly as the simulated chassis's motors
 so the odometry moves when the wheels do. Without it the commanded distance leads the true one
 by ``tau x speed``, and on a rover that turns while it drives that lead is rotated by the
 heading of the moment it was commanded, not of the moment it was driven (a 90 deg/s turn with
-0.08 s of lag: 7 degrees of error in the direction of travel).
+0.08 s of lag: 7 degrees of error in the direction of travel). Motors under load also run a
+little below their command (the MuJoCo chassis's at 1 m/s: 0.3 % forward, 0.9 % strafing):
+``ODOM_CMD_GAIN`` scales every commanded wheel speed (1 = none; measured as
+``WHL_STRAFE_EFF`` is, over a long straight run).
 
 Heading (parameter ``ODOM_YAW_SRC``): 0 auto (default) takes the flight controller's
 ``ATTITUDE`` yaw while it is fresh, because a gyro beats wheel-derived yaw on a slipping
@@ -304,7 +307,7 @@ class WheelOdometryEstimator:
         if rolled is None:  # no lag (the default): the commanded speeds as they are, no list
             fl, fr, rl, rr = wheel_commands
             if fl or fr or rl or rr:
-                speed, virtual = self.config.wheel_speed_max_mps * max(dt_s, 0.0), self._virtual
+                speed, virtual = self._commanded_mps() * max(dt_s, 0.0), self._virtual
                 virtual[0] += fl * speed
                 virtual[1] += fr * speed
                 virtual[2] += rl * speed
@@ -323,12 +326,16 @@ class WheelOdometryEstimator:
         else:  # standing still: nothing to integrate
             self.velocity_body, self.yaw_rate, self._last_update_s = (0.0, 0.0), 0.0, now_s
 
+    def _commanded_mps(self) -> float:
+        """What a wheel command of 1 rolls, m/s: ``WHL_MAX_SPD`` x ``ODOM_CMD_GAIN``."""
+        return self.config.wheel_speed_max_mps * self.config.commanded_gain
+
     def _roll(self, wheel_commands: Sequence[float], dt_s: float) -> list[float]:
         """The metres each wheel rolls in ``dt_s`` s with ``wheel_commands`` held, through the
         ``ODOM_CMD_TAU`` lag (positive; its state advanced here)."""
         if dt_s <= 0.0:
             return [0.0, 0.0, 0.0, 0.0]
-        speed = self.config.wheel_speed_max_mps
+        speed = self._commanded_mps()
         targets = [c * speed for c in wheel_commands]
         tau = self.config.commanded_tau_s
         gain = -math.expm1(-dt_s / tau)  # 1 - exp(-dt/tau), accurate for small dt

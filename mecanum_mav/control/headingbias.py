@@ -21,6 +21,13 @@ when:
   few centimetres of lag between the two tracks (GPS delay, the motors' lag in commanded
   odometry) turns into degrees; on a straight line it only slides along it (an EKF's track
   that swings past a corner the odometry turned exactly is not straight);
+- the raw path kept its direction (within :data:`TURN_GUARD_RAD`, its two halves' chords) from
+  :data:`TURN_GUARD_S` before the window to its end: the flight controller's fixes come late
+  (ArduPilot SITL's GPS about 0.15 s, 15 cm at 1 m/s), so while the track bends (the rover
+  steering back onto its line after a correction) the fixes' chord points where the track
+  went a moment before: measured on the twin, the first estimate overshot by 0.8 degrees for a
+  second (a track that keeps its direction within a degree leaves the window's error under a
+  third of that; the twin's cross-track corrections bend it by about that much);
 - the rover moved steadily: no step of the raw path in the window is under
   :data:`STEADY_RATIO` of its mean step (starting and stopping, an EKF's position follows its
   own heading until GPS pulls it back: measured on ArduPilot SITL, degrees toward its bias);
@@ -62,6 +69,11 @@ STRAIGHT_RATIO = 0.99
 """A window counts as straight when its chord is at least this fraction of its path."""
 STEADY_RATIO = 0.8
 """Each step of a window's raw path is at least this fraction of the window's mean step."""
+TURN_GUARD_S = 0.5
+"""How long before a window its raw path must already keep its direction (s): longer than a
+flight controller's position is late."""
+TURN_GUARD_RAD = math.radians(1.0)
+"""The most the directions of the two halves of the guarded raw path may differ (rad)."""
 SCALE_TOLERANCE = 0.2
 """The flight controller's chord over the odometry's must be within 1 +- this."""
 MAX_BIAS_RAD = math.radians(10.0)
@@ -73,9 +85,13 @@ OUTLIER_RAD = math.radians(3.0)
 GAP_S = 1.0
 """Positions further apart than this (s) restart the window."""
 GAIN_MIN = 0.05
-"""The filter's gain per measurement once past the first ``1 / GAIN_MIN`` (a plain mean): about
-2 s at 10 Hz, as ArduPilot's EKF3 heading error on SITL drifts (2.1 degrees at rest, 1.1 after
-45 s of driving) and each window's measurement scatters by about half a degree."""
+"""The filter's gain per measurement once past the first ``1 / GAIN_MIN`` (a plain mean).
+Windows are rare on a mission (straight, steady half-metres: on the twin 29 in 51 s of the
+square and strafe-rotate) while ArduPilot's EKF3 heading error on SITL drifts (2.1 degrees at
+rest, 0.9 a minute of driving later): replayed, 0.05 followed it 0.27 degrees behind on
+average, 0.2 0.19; but 0.2 let a GPS fix sliding 6 cm sideways over 0.6 s walk the settled
+estimate 2.5 degrees away (its windows each within :data:`OUTLIER_RAD` of the last), 0.05
+0.4."""
 SETTLED_COUNT = 10
 """Measurements before the estimate is said."""
 
@@ -166,6 +182,26 @@ class HeadingBias:
         notice = self._measure(sample)
         return BiasUpdate(self.bias_rad, notice)
 
+    def _bends(self, start: _Sample, now: _Sample) -> bool:
+        """Whether the raw path from :data:`TURN_GUARD_S` before ``start`` (or the oldest
+        sample) to ``now`` turns: its two halves' chords more than :data:`TURN_GUARD_RAD`
+        apart."""
+        first: _Sample | None = None
+        mid, half = None, math.inf
+        for sample in self._samples:  # oldest first
+            if first is None:
+                if sample.time_s < start.time_s - TURN_GUARD_S:
+                    continue
+                first, half = sample, (sample.path_m + now.path_m) / 2.0
+            if sample.path_m >= half:
+                mid = sample
+                break
+        if first is None or mid is None or mid is first or mid is now:
+            return False
+        before = math.atan2(mid.raw[1] - first.raw[1], mid.raw[0] - first.raw[0])
+        after = math.atan2(now.raw[1] - mid.raw[1], now.raw[0] - mid.raw[0])
+        return abs(wrap_pi(before - after)) > TURN_GUARD_RAD
+
     def _measure(self, now: _Sample) -> str | None:
         """Measure over the latest window of :data:`BASELINE_M`, if any; a notice or None."""
         start = None
@@ -181,6 +217,8 @@ class HeadingBias:
             return None
         path = now.path_m - start.path_m
         if least_step < STEADY_RATIO * path / steps:
+            return None
+        if self._bends(start, now):
             return None
         rn, re_ = now.raw[0] - start.raw[0], now.raw[1] - start.raw[1]
         fn, fe = now.fc[0] - start.fc[0], now.fc[1] - start.fc[1]
