@@ -226,3 +226,43 @@ def test_a_lane_write_the_kernel_took_in_part_is_followed_in_that_pass():
     h.step()
     assert h.lane_answers == answered + 1
     assert poller.get_key(fc.wait_fd()).events == selectors.EVENT_READ | selectors.EVENT_WRITE
+
+
+def test_a_pass_that_answered_a_stick_yields_the_cpu_before_its_housekeeping_and_only_then():
+    """A pty delivers the stick's override from a kernel worker on the writer's CPU, which
+    runs only when the companion sleeps or yields: a pass that answered a stick in its lane
+    and goes on to housekeeping (telemetry: a few hundred microseconds) yields first, so the
+    override is not held behind it, whether the stick woke a whole pass or a pass of sticks
+    alone. Passes without a stick in the lane never yield."""
+    h = lockstep()
+    h.gcs.arm()
+    h.gcs.sticks(500)
+    h.run_for(0.2)
+    pilot = mavlink.MAVLink(None, srcSystem=255, srcComponent=190)
+    events: list[str] = []
+    housekeeping, answered = h.core.housekeeping, h.loop._answer_first
+
+    def watched_housekeeping(now_s: float) -> Any:
+        events.append("housekeeping")
+        return housekeeping(now_s)
+
+    def watched_answer_first(link: Any, now_s: float) -> bool:
+        laned = answered(link, now_s)
+        if laned:
+            events.append("stick")
+        return laned
+
+    h.core.housekeeping = watched_housekeeping  # type: ignore[method-assign]
+    h.loop._answer_first = watched_answer_first  # type: ignore[method-assign]
+    h.loop.poller.yield_cpu = lambda: events.append("yield")  # type: ignore[method-assign]
+    for i in range(1000):  # 1 s at 50 Hz (a stick every tenth 2 ms step), then 1 s at 500 Hz
+        if i % 10 == 0 or i >= 500:  # (passes of sticks alone: ControlLoop._next_stick)
+            h.inject(_stick(pilot, 400 + i % 100))
+        events.append("pass")
+        h.step()
+    passes = [p.split() for p in " ".join(events).split("pass")[1:]]
+    with_stick = [p for p in passes if "stick" in p and "housekeeping" in p]
+    without = [p for p in passes if "stick" not in p and "housekeeping" in p]
+    assert len(with_stick) >= 3 and len(without) >= 3  # (both kinds were there)
+    assert all(p.index("yield") < p.index("housekeeping") for p in with_stick), with_stick
+    assert all("yield" not in p for p in passes if "stick" not in p)

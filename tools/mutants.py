@@ -768,12 +768,6 @@ MUTATIONS: tuple[Mutation, ...] = (
       "nothing waits", PKG + "runtime/loop.py",
       "            if writing or link.pending", "            if link.pending",
       T + "test_loop.py"),
-    M("loop-lane-first-only", "after the lane's answer the rest waiting is still read",
-      PKG + "runtime/loop.py",
-      "            self._laned = self._answer_first(link, now)\n",
-      "            if self._answer_first(link, now):\n                self._laned = True\n"
-      "                return\n",
-      T + "test_loop.py"),
     M("loop-stick-pass-fc-busy", "a pass of sticks ends when the lane's write left the flight "
       "controller's stream link busy", PKG + "runtime/loop.py",
       "(self._fc_datagrams or (fc.up and not fc.pending))", "True",
@@ -798,6 +792,22 @@ MUTATIONS: tuple[Mutation, ...] = (
     M("firmware-dies-with-parent", "the firmware ends when its parent is killed",
       PKG + "sim/firmware.py", "preexec_fn=dies_with_this_thread(signal.SIGKILL)",
       "preexec_fn=None", T + "test_process_cleanup.py"),
+    M("loop-yield-before-housekeeping", "a pass that answered a stick yields the CPU before "
+      "its housekeeping (a pty's delivery of the override runs then)", PKG + "runtime/loop.py",
+      "        if self._laned:  # (a pty", "        if False:  # (a pty",
+      T + "test_loop.py::test_a_pass_that_answered_a_stick_yields_the_cpu_before_its_"
+      "housekeeping_and_only_then"),
+    M("loop-yield-stick-pass", "a pass of sticks that goes on to housekeeping counts its stick",
+      PKG + "runtime/loop.py",
+      "            return False\n        self._laned = True\n",
+      "            return False\n",
+      T + "test_loop.py::test_a_pass_that_answered_a_stick_yields_the_cpu_before_its_"
+      "housekeeping_and_only_then"),
+    M("loop-yield-only-after-stick", "a pass without a stick in the lane never yields",
+      PKG + "runtime/loop.py", "self._laned |= self._answer_first(link, now)",
+      "self._laned = True; self._answer_first(link, now)",
+      T + "test_loop.py::test_a_pass_that_answered_a_stick_yields_the_cpu_before_its_"
+      "housekeeping_and_only_then"),
     M("loop-stick-pass-settled", "a pass of sticks ends when the core has something to do",
       PKG + "runtime/loop.py",
       "return self.core.settled(now) and (self._fc_datagrams or (fc.up and not fc.pending))",

@@ -27,7 +27,9 @@ One pass, top to bottom:
    tick's override waits its turn, newest wins). Then the shell's slow timer, if due.
 3. ``core.tick``: its RC_CHANNELS_OVERRIDE goes out at once; then ``core.housekeeping``:
    odometry, telemetry, heartbeats and status texts (after a stick the lane answered the
-   tick has nothing to do, and housekeeping takes the odometry, after the send). Each is
+   tick has nothing to do, and housekeeping takes the odometry, after the send; the poller
+   yields the CPU before it, :meth:`~mecanum_mav.io.poller.Poller.yield_cpu`, so that what
+   the stick's write woke runs first: a pty's delivery). Each is
    skipped while the core is :meth:`~mecanum_mav.control.core.RoverCore.settled` (no timer
    due, nothing new) and the stream links are idle: an idle rover's refresh wake, or a
    stick the lane answered, is that alone.
@@ -181,6 +183,9 @@ class LoopPoller(Protocol):
         """Wait up to ``timeout_s``; the ready registrations' data and epoll events (data None:
         the shell's own wake-up)."""
 
+    def yield_cpu(self) -> None:
+        """Let whatever a write woke on this CPU run now (the loop has more to do)."""
+
     def register(self, fileobj: Any, events: int, data: Any = None) -> Any: ...
 
     def unregister(self, fileobj: Any) -> Any: ...
@@ -255,6 +260,7 @@ class ControlLoop:
 
     def run_once(self) -> None:
         """One pass (module docstring): wait, read and answer, tick, housekeeping, links."""
+        self._laned = False
         if self._sticks_until_s > -math.inf:  # the last pass was a stick, in its lane: wait
             ready = self.poller.wait(self._sticks_until_s - self.clock())  # for the next one
             if self._next_stick(ready):
@@ -268,7 +274,6 @@ class ControlLoop:
                   gcs.next_send_s, fc.next_send_s, self._timer_due_s)
         if ready is None:
             ready = self.poller.wait(due - clock())
-        self._laned = False
         for link, events in ready:
             if link is None:
                 self._woken()
@@ -291,6 +296,8 @@ class ControlLoop:
             self._write(out)  # the override first,
         if core.settled(now) and (not streams or self._streams_idle()):
             return  # the pass was the output's refresh (or the lane's): nothing else is due
+        if self._laned:  # (a pty delivers the stick's write from a kernel worker on this CPU:
+            self.poller.yield_cpu()  # it runs now, not after housekeeping's few hundred us)
         out = core.housekeeping(now)
         if out is not NOTHING:
             self._write(out)  # then everything else
@@ -347,6 +354,7 @@ class ControlLoop:
         now = self.clock()
         if not self._answer_first(link, now):
             return False
+        self._laned = True
         # (The ground station's link is a datagram one: the only stream link there can be is
         # the flight controller's, and this pass neither read nor followed it, so only the
         # lane's write can have changed it: a break, or a write the kernel took in part.)
@@ -359,7 +367,7 @@ class ControlLoop:
         (:meth:`_answer_first`); the rest goes to the core in order."""
         now, from_fc = self.clock(), link is self.fc
         if link is self._gcs_datagrams:  # the first datagram is answered first
-            self._laned = self._answer_first(link, now)
+            self._laned |= self._answer_first(link, now)
         messages = link.read()
         if link.signature_check is not None:
             rejected = link.take_rejections()

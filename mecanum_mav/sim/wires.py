@@ -225,3 +225,6 @@ class VirtualPoller:
 
     def wait(self, timeout_s: float) -> list[tuple[Any, int]]:
         return [(key.data, _READABLE) for key in self._keys.values() if key.data.readable()]
+
+    def yield_cpu(self) -> None:
+        """Nothing: virtual time has no other CPU user."""
