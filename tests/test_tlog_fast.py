@@ -65,7 +65,7 @@ def odd_tlog() -> bytes:
 def slow_read(data: bytes, monkeypatch: pytest.MonkeyPatch) -> TlogRead:
     """The reader as it was: every packet through pymavlink's decode."""
     with monkeypatch.context() as m:
-        m.setattr(tlog, "decode_packet", lambda buf, pos=0: None)
+        m.setattr(tlog, "decode_datagram", lambda datagram: None)
         return parse_tlog(data, "x.tlog")
 
 

@@ -1103,17 +1103,18 @@ MUTATIONS: tuple[Mutation, ...] = (
       """                recording.flush()
             recording.disconnect()""",
       VW + "test_the_live_view_of_a_tlog_being_written_records_what_the_log_view_has"),
-    # The tlog reader's fast path (io/tlog.py, protocol/codec.py decode_packet; issue 27).
+    # The tlog reader's fast path (io/tlog.py through protocol/codec.py decode_datagram; issue 27).
     M("tlog-fast-time", "a record read by the fast path has the time pymavlink's path gives it",
-      PKG + "io/tlog.py", "return fast[1] - at, stamp / 1e6, fast[0]",
-      "return fast[1] - at, stamp * 1e-6, fast[0]",
+      PKG + "io/tlog.py", "return STAMP_LEN + length, stamp / 1e6, fast[0]",
+      "return STAMP_LEN + length, stamp * 1e-6, fast[0]",
       TF + "test_the_fast_read_of_a_sample_drive_equals_pymavlinks_entry_for_entry"),
     M("tlog-fast-used", "a tlog's packets go through the companion's codec, not pymavlink's "
-      "decode", PKG + "io/tlog.py", "fast = decode_packet(data, at + STAMP_LEN)", "fast = None",
+      "decode", PKG + "io/tlog.py", "fast = decode_datagram(packet)", "fast = None",
       TF + "test_only_what_the_codec_cannot_take_goes_through_pymavlinks_decode"),
     M("tlog-fast-signed", "a signed packet in a tlog is decoded by the fast path too",
-      PKG + "protocol/codec.py",
-      "end += SIGNATURE_BLOCK_LEN if buf[pos + 2] == IFLAG_SIGNED else 0", "end += 0",
+      PKG + "io/tlog.py",
+      "return 12 + data[start + 1] + (_SIGNATURE_LEN if signed else 0)",
+      "return 12 + data[start + 1]",
       TF + "test_only_what_the_codec_cannot_take_goes_through_pymavlinks_decode"),
     M("tlog-fast-crc", "a damaged packet in a tlog is not MAVLink for the fast path either",
       PKG + "protocol/codec.py",
@@ -1319,8 +1320,8 @@ MUTATIONS: tuple[Mutation, ...] = (
       BG + "test_a_bending_track_with_late_positions_moves_the_estimate_little"),
     M("odom-cmd-gain", "the commanded odometry counts each wheel's speed times ODOM_CMD_GAIN",
       PKG + "control/estimator.py",
-      "return self.config.wheel_speed_max_mps * self.config.commanded_gain",
-      "return self.config.wheel_speed_max_mps",
+      "self._commanded_mps = config.wheel_speed_max_mps * config.commanded_gain",
+      "self._commanded_mps = config.wheel_speed_max_mps",
       OG + "test_a_commanded_gain_scales_the_distance_every_wheel_is_counted_to_roll",
       OG + "test_on_the_mujoco_chassis_the_measured_gain_takes_the_odometrys_over_reading_away"),
 )

@@ -116,7 +116,7 @@ class WheelOdometryEstimator:
     """
 
     def __init__(self, params: Params) -> None:
-        self.config = OdometryConfig.from_params(params)
+        self._take_config(params)
         kinematics = MecanumKinematics.from_half_extents(
             self.config.half_length_m, self.config.half_width_m,
             strafe_efficiency=float(params["WHL_STRAFE_EFF"]))
@@ -147,10 +147,16 @@ class WheelOdometryEstimator:
     def reconfigure(self, params: Params) -> None:
         """Take the odometry sources and the wheel speed from ``params`` (``ODOM_YAW_BIAS``
         turned off takes the correction off at once)."""
-        self.config = OdometryConfig.from_params(params)
+        self._take_config(params)
         if not self.config.yaw_bias:
             self._correct(0.0, turn_track=False)
             self.heading_bias.restart()
+
+    def _take_config(self, params: Params) -> None:
+        self.config = config = OdometryConfig.from_params(params)
+        self._commanded_mps = config.wheel_speed_max_mps * config.commanded_gain
+        """What a wheel command of 1 rolls, m/s: ``WHL_MAX_SPD`` x ``ODOM_CMD_GAIN`` (read
+        once here: the commanded odometry adds every stick)."""
 
     @property
     def pose(self) -> Pose2d:
@@ -307,7 +313,7 @@ class WheelOdometryEstimator:
         if rolled is None:  # no lag (the default): the commanded speeds as they are, no list
             fl, fr, rl, rr = wheel_commands
             if fl or fr or rl or rr:
-                speed, virtual = self._commanded_mps() * max(dt_s, 0.0), self._virtual
+                speed, virtual = self._commanded_mps * max(dt_s, 0.0), self._virtual
                 virtual[0] += fl * speed
                 virtual[1] += fr * speed
                 virtual[2] += rl * speed
@@ -326,16 +332,12 @@ class WheelOdometryEstimator:
         else:  # standing still: nothing to integrate
             self.velocity_body, self.yaw_rate, self._last_update_s = (0.0, 0.0), 0.0, now_s
 
-    def _commanded_mps(self) -> float:
-        """What a wheel command of 1 rolls, m/s: ``WHL_MAX_SPD`` x ``ODOM_CMD_GAIN``."""
-        return self.config.wheel_speed_max_mps * self.config.commanded_gain
-
     def _roll(self, wheel_commands: Sequence[float], dt_s: float) -> list[float]:
         """The metres each wheel rolls in ``dt_s`` s with ``wheel_commands`` held, through the
         ``ODOM_CMD_TAU`` lag (positive; its state advanced here)."""
         if dt_s <= 0.0:
             return [0.0, 0.0, 0.0, 0.0]
-        speed = self._commanded_mps()
+        speed = self._commanded_mps
         targets = [c * speed for c in wheel_commands]
         tau = self.config.commanded_tau_s
         gain = -math.expm1(-dt_s / tau)  # 1 - exp(-dt/tau), accurate for small dt

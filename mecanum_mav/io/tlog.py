@@ -11,10 +11,10 @@ MAVLink (skipped)``. A last record cut short is reported as ``truncated at byte 
 of message ids the ArduPilot dialect does not know (another dialect's) cannot be checked by
 their CRC; they are counted and skipped, not reported as damage.
 
-Each packet goes through the companion's codec first
-(:func:`~mecanum_mav.protocol.codec.decode_packet`: the same message object as pymavlink's,
-in about half the time); what it does not take (an unknown id, an odd flag, damage) goes
-through pymavlink's ``decode``, which decides as it always did.
+Each packet (its length from its header) goes through the companion's codec first
+(:func:`~mecanum_mav.protocol.codec.decode_datagram`: the same message object as
+pymavlink's, in about half the time); what it does not take (an unknown id, an odd flag,
+damage) goes through pymavlink's ``decode``, which decides as it always did.
 
 :func:`read_tlog` reads a file; the result holds every message with its time, and the problems
 as text. An unreadable file gives no messages and one problem.
@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from mecanum_mav.protocol.codec import decode_packet
+from mecanum_mav.protocol.codec import decode_datagram
 from mecanum_mav.protocol.dialect import mavlink
 
 __all__ = ["TlogEntry", "TlogRead", "parse_tlog", "read_tlog", "tlog_record"]
@@ -113,15 +113,16 @@ class _Decoder:
         stamp = _STAMP.unpack_from(data, at)[0]
         if not EARLIEST_US <= stamp <= LATEST_US:
             return None
-        fast = decode_packet(data, at + STAMP_LEN)
-        if fast is not None:  # the companion's codec: the same message, faster
-            return fast[1] - at, stamp / 1e6, fast[0]
         length = _packet_len(data, at + STAMP_LEN)
         end = at + STAMP_LEN + (length or 0)
         if length is None or end > len(data):
             return None
+        packet = data[at + STAMP_LEN:end]
+        fast = decode_datagram(packet)
+        if fast is not None:  # the companion's codec: the same message, faster
+            return STAMP_LEN + length, stamp / 1e6, fast[0]
         try:
-            msg = self.mav.decode(bytearray(data[at + STAMP_LEN:end]))
+            msg = self.mav.decode(bytearray(packet))
         except Exception:  # pymavlink raises MAVError, struct.error, ... on bad packets
             return None
         known = not isinstance(msg, mavlink.MAVLink_unknown)

@@ -44,7 +44,6 @@ __all__ = [
     "StickWire",
     "decode_datagram",
     "decode_manual_control",
-    "decode_packet",
     "encode_rc_override",
     "pack_message",
     "send_message",
@@ -290,7 +289,7 @@ def _decoder(msgid: int) -> _Decoder | None:
     return plan
 
 
-def decode_datagram(datagram: bytes | bytearray) -> list[Any] | None:
+def decode_datagram(datagram: bytes) -> list[Any] | None:
     """Every message of one datagram, as pymavlink's parser returns them, or None.
 
     Args:
@@ -309,30 +308,6 @@ def decode_datagram(datagram: bytes | bytearray) -> list[Any] | None:
         return _decode_packets(bytearray(datagram))
     except Exception:  # never seen; pymavlink's path has its own way with whatever this is
         return None
-
-
-def decode_packet(buf: bytes | bytearray, pos: int = 0) -> tuple[Any, int] | None:
-    """The message of the one packet that starts at ``buf[pos]`` and the offset just past it,
-    the message equal to what pymavlink's ``MAVLink.decode`` (keyless) returns for the
-    packet's bytes; None where :func:`decode_datagram` would say None for that packet alone
-    (not a well-formed packet of a known message with a good CRC, or cut off by the end of
-    ``buf``): the caller then takes pymavlink's path. What follows the packet (a tlog's next
-    record) is not looked at, nor copied. Never raises."""
-    size = len(buf)
-    if pos < 0 or pos + 3 > size:
-        return None
-    magic = buf[pos]
-    if magic == _MAGIC:
-        end = pos + _HEADER_LEN + buf[pos + 1] + 2
-        end += SIGNATURE_BLOCK_LEN if buf[pos + 2] == IFLAG_SIGNED else 0
-    elif magic == _MAGIC_V1:
-        end = pos + _HEADER_LEN_V1 + buf[pos + 1] + 2
-    else:
-        return None
-    if end > size:
-        return None
-    messages = decode_datagram(buf[pos:end])  # the companion's own path, left as it is
-    return (messages[0], end) if messages is not None else None
 
 
 def _decode_packets(buf: bytearray) -> list[Any] | None:
