@@ -99,6 +99,43 @@ def test_a_rover_that_keeps_speeding_up_and_slowing_down_gives_no_estimate():
     assert bias.measurements == 0
 
 
+def speeding_up(t: float) -> tuple[float, float]:
+    """North from rest at 0.5 m/s/s up to 1 m/s."""
+    return (0.25 * t * t if t < 2.0 else 1.0 + (t - 2.0)), 0.0
+
+
+def late(track: Track, lag_s: float) -> Track:
+    """``track`` as fixes that come ``lag_s`` late (ArduPilot SITL's GPS: about 0.15 s)."""
+    return lambda t: track(max(t - lag_s, 0.0))
+
+
+def test_gps_fixes_measure_the_bias_while_the_rover_speeds_up_from_rest():
+    """Late GPS fixes slide along a straight line: the first window of a mission's first leg
+    counts, not the first one after the rover reached its speed."""
+    bias = HeadingBias()
+    odometry = rotated(speeding_up, 2.0)
+    for k in range(41):
+        t = k / 10.0
+        bias.on_position(*late(speeding_up, 0.15)(t), *odometry(t), 0.0, t, follows_yaw=False)
+        if bias.measurements:
+            break
+    assert math.degrees(bias.bias_rad) == pytest.approx(2.0, abs=1e-6)
+    assert speeding_up(t)[0] < 0.6  # metres driven when it was first measured
+
+
+def test_an_ekf_position_is_measured_against_only_once_the_rover_drives_steadily():
+    """The same start against the EKF's position (it follows the flight controller's own
+    heading while the speed changes): no measurement until the speed is steady."""
+    bias = HeadingBias()
+    odometry = rotated(speeding_up, 2.0)
+    for k in range(41):
+        t = k / 10.0
+        bias.on_position(*speeding_up(t), *odometry(t), 0.0, t)
+        if bias.measurements:
+            break
+    assert speeding_up(t)[0] > 0.8
+
+
 def test_a_bias_beyond_10_degrees_is_not_corrected_and_said_once():
     bias = HeadingBias()
     said = feed(bias, straight, rotated(straight, 15.0), 20.0)
@@ -288,3 +325,29 @@ def test_a_fused_position_between_two_gps_fixes_leaves_the_heading_bias_its_step
         if k % 10 == 5:
             est.on_gps(t, 0.0, t)  # the GPS's, 5 Hz, between them
     assert math.degrees(est.yaw_correction) == pytest.approx(2.5, abs=0.05)
+
+
+def speed_up_north(est: WheelOdometryEstimator, bias_deg: float, metres: float,
+                   ekf: bool) -> None:
+    """From rest north at 0.5 m/s/s (wheel commands ramping, WHL_MAX_SPD 1 m/s) until
+    ``metres``; the flight controller's yaw ``bias_deg`` off, its positions the truth at 10 Hz
+    (its EKF's with ``ekf``, else GPS fixes)."""
+    yaw = math.radians(bias_deg)
+    est.on_attitude(yaw, 0.0, 0.0)
+    position = est.on_position if ekf else est.on_gps
+    k = 0
+    while speeding_up(0.02 * k)[0] < metres:
+        k += 1
+        t = 0.02 * k
+        if k % 5 == 0:
+            est.on_attitude(yaw, 0.0, t)
+            position(speeding_up(t)[0], 0.0, t)
+        est.on_commanded([min(0.5 * t, 1.0)] * 4, 0.02, t)
+
+
+def test_from_a_standing_start_gps_fixes_correct_the_heading_within_0_6_m_and_an_ekf_not():
+    gps, ekf = estimator(ODOM_YAW_BIAS=2), estimator(ODOM_YAW_BIAS=1)
+    speed_up_north(gps, 2.0, 0.6, ekf=False)
+    speed_up_north(ekf, 2.0, 0.6, ekf=True)
+    assert math.degrees(gps.yaw_correction) == pytest.approx(2.0, abs=0.2)
+    assert ekf.yaw_correction == 0.0

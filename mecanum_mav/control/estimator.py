@@ -225,7 +225,8 @@ class WheelOdometryEstimator:
         north, east = self._carried(now_s)
         settled = self.heading_bias.settled
         update = self.heading_bias.on_position(north_m, east_m, north, east,
-                                               self.yaw_correction, now_s)
+                                               self.yaw_correction, now_s,
+                                               follows_yaw=source == BIAS_FROM_EKF)
         self._correct(update.bias_rad, turn_track=not settled)
         self.heading_bias.follow(*self._carried(now_s))
         return update.notice

@@ -28,9 +28,14 @@ when:
   went a moment before: measured on the twin, the first estimate overshot by 0.8 degrees for a
   second (a track that keeps its direction within a degree leaves the window's error under a
   third of that; the twin's cross-track corrections bend it by about that much);
-- the rover moved steadily: no step of the raw path in the window is under
-  :data:`STEADY_RATIO` of its mean step (starting and stopping, an EKF's position follows its
-  own heading until GPS pulls it back: measured on ArduPilot SITL, degrees toward its bias);
+- against the flight controller's EKF position (``follows_yaw``), the rover moved steadily: no
+  step of the raw path in the window is under :data:`STEADY_RATIO` of its mean step (starting
+  and stopping, an EKF's position follows its own heading until GPS pulls it back: measured on
+  ArduPilot SITL, degrees toward its bias). GPS fixes do not follow the yaw: they are measured
+  against from a standing start on (they come late, which on a straight line only slides
+  them along it), so the first correction comes after about :data:`BASELINE_M` of a mission's
+  first leg, not after the rover has reached its speed (on the twin, 2 degrees of bias had put
+  the square's first leg 4.3 cm off by then);
 - the two chords agree in length within :data:`SCALE_TOLERANCE` (a GPS glitch, an EKF reset or
   wheels slipping are not a heading);
 - the angle is within :data:`MAX_BIAS_RAD` (10 degrees): beyond that it is not a compass bias
@@ -157,9 +162,12 @@ class HeadingBias:
             self._odometry = (self._odometry[0] + north_m, self._odometry[1] + east_m)
 
     def on_position(self, fc_north_m: float, fc_east_m: float, odom_north_m: float,
-                    odom_east_m: float, correction_rad: float, now_s: float) -> BiasUpdate:
+                    odom_east_m: float, correction_rad: float, now_s: float, *,
+                    follows_yaw: bool = True) -> BiasUpdate:
         """One flight-controller position (m, NED) with the odometry's position at the same
-        moment and the correction (rad) it has used since the previous call."""
+        moment and the correction (rad) it has used since the previous call; ``follows_yaw``:
+        the position is the flight controller's EKF's (measured over steady driving only),
+        not a GPS fix."""
         samples = self._samples
         if samples and now_s - samples[-1].time_s > GAP_S:
             self.restart()
@@ -179,7 +187,7 @@ class HeadingBias:
         samples.append(sample)
         while now_s - samples[0].time_s > WINDOW_S:
             samples.popleft()
-        notice = self._measure(sample)
+        notice = self._measure(sample, follows_yaw)
         return BiasUpdate(self.bias_rad, notice)
 
     def _bends(self, start: _Sample, now: _Sample) -> bool:
@@ -202,8 +210,9 @@ class HeadingBias:
         after = math.atan2(now.raw[1] - mid.raw[1], now.raw[0] - mid.raw[0])
         return abs(wrap_pi(before - after)) > TURN_GUARD_RAD
 
-    def _measure(self, now: _Sample) -> str | None:
-        """Measure over the latest window of :data:`BASELINE_M`, if any; a notice or None."""
+    def _measure(self, now: _Sample, steady_only: bool) -> str | None:
+        """Measure over the latest window of :data:`BASELINE_M`, if any (``steady_only``: if
+        the rover drove it steadily); a notice or None."""
         start = None
         least_step, later, steps = math.inf, now, 0
         for sample in reversed(self._samples):
@@ -216,7 +225,7 @@ class HeadingBias:
         if start is None:
             return None
         path = now.path_m - start.path_m
-        if least_step < STEADY_RATIO * path / steps:
+        if steady_only and least_step < STEADY_RATIO * path / steps:
             return None
         if self._bends(start, now):
             return None
