@@ -17,7 +17,12 @@ import pytest
 from mecanum_mav.config.params import Params
 from mecanum_mav.mecanum.geometry import Pose2d
 from mecanum_mav.protocol.modes import Mode
-from mecanum_mav.sim.missionrun import MISSION_COMPLETE, MissionWatch, waypoint_mission
+from mecanum_mav.sim.missionrun import (
+    MISSION_COMPLETE,
+    MissionWatch,
+    passed_at_speed,
+    waypoint_mission,
+)
 from mecanum_mav.sim.trackquality import (
     RunFigures,
     drift_percent,
@@ -78,6 +83,35 @@ def test_arrival_is_the_true_distance_and_heading_to_the_waypoint_when_it_is_rea
     assert fig.headings_deg == pytest.approx((2.0, 1.0))  # -179 is 1 degree past 180
     assert fig.worst_arrival_m == pytest.approx(0.05)
     assert fig.worst_heading_deg == pytest.approx(2.0)
+
+
+def test_a_waypoint_passed_at_speed_is_arrived_at_where_the_rover_crossed_its_line_first():
+    # North through (1, 0) (heading 30 there) on to (2, 0): the rover crosses the line through
+    # (1, 0) between the looks at 0.9 and 1.1 s, 2 cm east, heading 30; the report comes at
+    # 1.12 s, 12 cm further on and turned on. Past the line the cross-track is the next leg's.
+    steps = [(0.0, (0.0, 0.0, 0.0), []),
+             (0.9, (0.9, 0.01, 27.0), []),
+             (1.1, (1.1, 0.03, 33.0), []),
+             (1.12, (1.12, 0.03, 33.6), [msg("MISSION_ITEM_REACHED", seq=1)]),
+             (2.0, (2.0, 0.0, 60.0), [msg("MISSION_ITEM_REACHED", seq=2)])]
+    watch, fig = figures_of(steps, [(1.0, 0.0), (2.0, 0.0)], [30.0, 60.0], heading_deg=None)
+    assert fig.arrivals_m == pytest.approx((0.02, 0.0))
+    assert fig.headings_deg == pytest.approx((0.0, 0.0))
+    assert fig.worst_cross_track_m == pytest.approx(0.03)  # not 0.104 to the end of leg 1
+    assert watch.run.legs[1].max_cross_track_m == pytest.approx(0.03)
+
+
+def test_a_waypoint_the_rover_stops_at_is_arrived_at_where_it_stood_at_the_report():
+    # A 90 degree corner at (1, 0) is a stop: 3 cm past its line, then back, then reported.
+    steps = [(0.0, (0.0, 0.0, 0.0), []),
+             (1.0, (1.03, 0.0, 0.0), []),
+             (1.5, (1.01, 0.0, 0.0), [msg("MISSION_ITEM_REACHED", seq=1)]),
+             (3.0, (1.0, 1.0, 0.0), [msg("MISSION_ITEM_REACHED", seq=2)])]
+    watch, fig = figures_of(steps, [(1.0, 0.0), (1.0, 1.0)], heading_deg=None)
+    assert fig.arrivals_m == pytest.approx((0.01, 0.0))
+    assert watch.run.legs[0].max_cross_track_m == pytest.approx(0.03)
+    assert not passed_at_speed(watch.run.planned, 1)
+    assert not passed_at_speed(watch.run.planned, 2)  # the last
 
 
 def test_a_reached_item_that_is_not_the_next_waypoint_ends_no_leg():

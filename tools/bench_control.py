@@ -12,7 +12,9 @@ harness (virtual time: deterministic, a mission in a fraction of its driving tim
 
 Per run (one row per mission x speed x chassis x floor): the mission time, worst and RMS
 cross-track of the true path (distance to the current leg), the worst true arrival error at
-MISSION_ITEM_REACHED (position, and heading against the waypoint's), the odometry's drift at the
+MISSION_ITEM_REACHED (position, and heading against the waypoint's; a waypoint passed at speed is
+arrived at where the rover truly crosses its line, if before the report:
+:mod:`mecanum_mav.sim.missionrun`), the odometry's drift at the
 end (LOCAL_POSITION_NED minus truth, % of the distance truly driven), then every waypoint's
 arrival error. Goals (issue 25) are judged at 1.0 m/s: arrival under 2 cm and 1 degree, worst
 cross-track under 3 cm, drift under 1 %; on friction 0.4 (any floor below 0.8) twice those;
@@ -641,7 +643,8 @@ def parser() -> argparse.ArgumentParser:
 def report(rows: Sequence[Row], picture: Path | None, started: float) -> None:
     """After the table: every waypoint's arrival, the goals, the picture, the wall time since
     ``started`` (monotonic s)."""
-    print("\nper waypoint (true, at MISSION_ITEM_REACHED):")
+    print("\nper waypoint (true, at MISSION_ITEM_REACHED; passed at speed: where it crossed the "
+          "line, if first):")
     for row in rows:
         print(arrivals_line(row))
         if row.failure is not None:
