@@ -110,17 +110,19 @@ def late(track: Track, lag_s: float) -> Track:
 
 
 def test_gps_fixes_measure_the_bias_while_the_rover_speeds_up_from_rest():
-    """Late GPS fixes slide along a straight line: the first window of a mission's first leg
-    counts, not the first one after the rover reached its speed."""
+    """Late GPS fixes slide along a straight line (and fall short of a window that speeds
+    up): the first window of a mission's first leg counts, not the first one after the rover
+    reached its speed. Fixes at 5 Hz, 0.3 s late, as ArduPilot SITL's reach the companion."""
     bias = HeadingBias()
     odometry = rotated(speeding_up, 2.0)
-    for k in range(41):
-        t = k / 10.0
-        bias.on_position(*late(speeding_up, 0.15)(t), *odometry(t), 0.0, t, follows_yaw=False)
+    for k in range(21):
+        t = k / 5.0
+        bias.on_position(*late(speeding_up, 0.3)(t), *odometry(t), 0.0, t, follows_yaw=False)
         if bias.measurements:
             break
     assert math.degrees(bias.bias_rad) == pytest.approx(2.0, abs=1e-6)
-    assert speeding_up(t)[0] < 0.6  # metres driven when it was first measured
+    assert speeding_up(t)[0] < 0.7  # metres driven when it was first measured (1.0 m with
+    # the chords' lengths held to within 20 %, 1.2 m while the speed had to be steady too)
 
 
 def test_an_ekf_position_is_measured_against_only_once_the_rover_drives_steadily():

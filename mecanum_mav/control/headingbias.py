@@ -37,7 +37,10 @@ when:
   first leg, not after the rover has reached its speed (on the twin, 2 degrees of bias had put
   the square's first leg 4.3 cm off by then);
 - the two chords agree in length within :data:`SCALE_TOLERANCE` (a GPS glitch, an EKF reset or
-  wheels slipping are not a heading);
+  wheels slipping are not a heading), and within what the positions' lateness explains
+  besides: :data:`FIX_LAG_S` times the change of speed over the window (a late track is short
+  of a window that speeds up: on the twin the GPS's chord was 0.74-0.77 of the odometry's for
+  the first 1.1 m of a start from rest, and the first correction waited until then);
 - the angle is within :data:`MAX_BIAS_RAD` (10 degrees): beyond that it is not a compass bias
   to correct quietly; after :data:`REFUSE_AFTER` such windows in a row (and none accepted) it
   is said once, the correction left as it is;
@@ -80,7 +83,11 @@ flight controller's position is late."""
 TURN_GUARD_RAD = math.radians(1.0)
 """The most the directions of the two halves of the guarded raw path may differ (rad)."""
 SCALE_TOLERANCE = 0.2
-"""The flight controller's chord over the odometry's must be within 1 +- this."""
+"""The flight controller's chord over the odometry's must be within 1 +- this (and
+:data:`FIX_LAG_S` times the window's change of speed)."""
+FIX_LAG_S = 0.4
+"""How late a flight controller's position may be (s): ArduPilot SITL's GPS fixes (5 Hz, 0.15
+s of delay) reach the companion 0.15-0.35 s after they were true."""
 MAX_BIAS_RAD = math.radians(10.0)
 """The largest heading bias corrected (rad)."""
 REFUSE_AFTER = 20
@@ -111,6 +118,12 @@ class _Sample(NamedTuple):
     """The flight controller's position (m, NED)."""
     fc_path_m: float
     """The flight controller's path's length from the window's start (m)."""
+
+
+def _speed(first: _Sample, second: _Sample) -> float:
+    """The raw path's speed between two samples (m/s; 0 if no time passed)."""
+    dt = second.time_s - first.time_s
+    return (second.path_m - first.path_m) / dt if dt > 0.0 else 0.0
 
 
 class BiasUpdate(NamedTuple):
@@ -214,16 +227,16 @@ class HeadingBias:
         """Measure over the latest window of :data:`BASELINE_M`, if any (``steady_only``: if
         the rover drove it steadily); a notice or None."""
         start = None
-        least_step, later, steps = math.inf, now, 0
+        least_step, later, after, steps = math.inf, now, now, 0
         for sample in reversed(self._samples):
             if sample is not now:
                 least_step = min(least_step, later.path_m - sample.path_m)
-                later, steps = sample, steps + 1
+                after, later, steps = later, sample, steps + 1
             if now.path_m - sample.path_m >= BASELINE_M:
                 start = sample
                 break
         if start is None:
-            return None
+            return None  # (start is not now: the window is BASELINE_M long)
         path = now.path_m - start.path_m
         if steady_only and least_step < STEADY_RATIO * path / steps:
             return None
@@ -232,8 +245,10 @@ class HeadingBias:
         rn, re_ = now.raw[0] - start.raw[0], now.raw[1] - start.raw[1]
         fn, fe = now.fc[0] - start.fc[0], now.fc[1] - start.fc[1]
         chord, fc_chord = math.hypot(rn, re_), math.hypot(fn, fe)
+        late_m = FIX_LAG_S * abs(_speed(self._samples[-2], now) - _speed(start, after))
         if chord < STRAIGHT_RATIO * path or fc_chord < STRAIGHT_RATIO * (
-                now.fc_path_m - start.fc_path_m) or abs(fc_chord / chord - 1.0) > SCALE_TOLERANCE:
+                now.fc_path_m - start.fc_path_m) or abs(
+                fc_chord - chord) > SCALE_TOLERANCE * chord + late_m:
             return None
         angle = wrap_pi(math.atan2(re_, rn) - math.atan2(fe, fn))
         if not abs(angle) <= MAX_BIAS_RAD:
