@@ -1255,6 +1255,15 @@ MUTATIONS: tuple[Mutation, ...] = (
       "if steady_only and least_step < STEADY_RATIO * path / steps:",
       "if least_step < STEADY_RATIO * path / steps:",
       HB + "test_gps_fixes_measure_the_bias_while_the_rover_speeds_up_from_rest"),
+    M("stop-at-right-angle", "a turn of 90 degrees or more is a stop, for the executor and the "
+      "bench alike", PKG + "control/pathfollow.py",
+      "return a[0] * b[0] + a[1] * b[1] <= 0.0", "return a[0] * b[0] + a[1] * b[1] < -0.5",
+      AU + "test_corner_speed_stops_for_right_angles_and_carries_speed_through_straight_ones"),
+    M("bench-pass-crossing", "a waypoint passed at speed is graded where the rover crossed its "
+      "line", PKG + "sim/missionrun.py", "        at = self._crossed or pose",
+      "        at = pose",
+      T + "test_bench_control.py::"
+      "test_a_waypoint_passed_at_speed_is_arrived_at_where_the_rover_crossed_its_line_first"),
     M("hb-fix-lag", "a window that speeds up may find the late positions' chord short",
       PKG + "control/headingbias.py",
       "late_m = FIX_LAG_S * abs(", "late_m = 0.0 * abs(",

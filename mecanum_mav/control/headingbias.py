@@ -98,12 +98,12 @@ GAP_S = 1.0
 """Positions further apart than this (s) restart the window."""
 GAIN_MIN = 0.05
 """The filter's gain per measurement once past the first ``1 / GAIN_MIN`` (a plain mean).
-Windows are rare on a mission (straight, steady half-metres: on the twin 29 in 51 s of the
-square and strafe-rotate) while ArduPilot's EKF3 heading error on SITL drifts (2.1 degrees at
-rest, 0.9 a minute of driving later): replayed, 0.05 followed it 0.27 degrees behind on
-average, 0.2 0.19; but 0.2 let a GPS fix sliding 6 cm sideways over 0.6 s walk the settled
-estimate 2.5 degrees away (its windows each within :data:`OUTLIER_RAD` of the last), 0.05
-0.4."""
+Windows are rare on a mission (straight half-metres: on the twin 29 in 51 s of the square and
+strafe-rotate, when they also had to be driven steadily) while ArduPilot's EKF3 heading error
+on SITL drifts (2.1 degrees at rest, 0.9 a minute of driving later): replayed, 0.05 followed
+it 0.27 degrees behind on average, 0.2 0.19; but 0.2 let a GPS fix sliding 6 cm sideways over
+0.6 s walk the settled estimate 2.5 degrees away (its windows each within
+:data:`OUTLIER_RAD` of the last), 0.05 0.4."""
 SETTLED_COUNT = 10
 """Measurements before the estimate is said."""
 
@@ -236,7 +236,7 @@ class HeadingBias:
                 start = sample
                 break
         if start is None:
-            return None  # (start is not now: the window is BASELINE_M long)
+            return None
         path = now.path_m - start.path_m
         if steady_only and least_step < STEADY_RATIO * path / steps:
             return None
@@ -245,6 +245,7 @@ class HeadingBias:
         rn, re_ = now.raw[0] - start.raw[0], now.raw[1] - start.raw[1]
         fn, fe = now.fc[0] - start.fc[0], now.fc[1] - start.fc[1]
         chord, fc_chord = math.hypot(rn, re_), math.hypot(fn, fe)
+        # (start is not now, the window being BASELINE_M long: the samples are two or more)
         late_m = FIX_LAG_S * abs(_speed(self._samples[-2], now) - _speed(start, after))
         if chord < STRAIGHT_RATIO * path or fc_chord < STRAIGHT_RATIO * (
                 now.fc_path_m - start.fc_path_m) or abs(

@@ -31,7 +31,7 @@ from dataclasses import dataclass
 from mecanum_mav.mecanum.geometry import wrap_pi
 
 __all__ = ["Leg", "LegFollower", "corner_lead", "corner_speed", "exit_speed_ahead",
-           "heading_schedule", "sqrt_controller"]
+           "heading_schedule", "sqrt_controller", "stops_between"]
 
 Vec = tuple[float, float]
 
@@ -92,21 +92,24 @@ class Leg:
         return abs(cross)
 
 
+def stops_between(incoming: Leg, outgoing: Leg) -> bool:
+    """Whether the rover stops at the waypoint joining two legs, whatever its speed: the path
+    turns there by 90 degrees or more, or a leg has no length."""
+    a, b = incoming.direction, outgoing.direction
+    return a[0] * b[0] + a[1] * b[1] <= 0.0  # (a leg of no length has direction (0, 0))
+
+
 def corner_speed(incoming: Leg, outgoing: Leg, cruise: float, accel: float,
                  overshoot_m: float) -> float:
     """Speed (m/s) at which to pass the waypoint joining two legs.
 
     The velocity across the outgoing leg, ``v * sin(turn)``, must stop within
-    ``overshoot_m`` at ``accel``: ``v = sqrt(2 * accel * overshoot_m) / sin(turn)``. Turns of
-    90 degrees or more, and legs of no length, stop at the waypoint (0). Never above
-    ``cruise``.
+    ``overshoot_m`` at ``accel``: ``v = sqrt(2 * accel * overshoot_m) / sin(turn)``. Where
+    :func:`stops_between` says so, 0. Never above ``cruise``.
     """
+    if stops_between(incoming, outgoing):
+        return 0.0
     a, b = incoming.direction, outgoing.direction
-    if a == (0.0, 0.0) or b == (0.0, 0.0):
-        return 0.0
-    cos_turn = a[0] * b[0] + a[1] * b[1]
-    if cos_turn <= 0.0:
-        return 0.0
     sin_turn = abs(a[0] * b[1] - a[1] * b[0])
     if sin_turn < 1e-9:
         return cruise

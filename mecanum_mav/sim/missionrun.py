@@ -36,7 +36,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-from mecanum_mav.control.pathfollow import Leg
+from mecanum_mav.control.pathfollow import Leg, stops_between
 from mecanum_mav.mecanum.geometry import Pose2d, wrap_pi
 from mecanum_mav.protocol.dialect import mavlink
 from mecanum_mav.protocol.mission import MissionItem
@@ -142,13 +142,11 @@ class MissionRun:
 
 
 def passed_at_speed(planned: Sequence[Vec], k: int) -> bool:
-    """Whether waypoint ``planned[k]`` (``planned[0]`` the origin) is passed at speed: it is
-    not the last, and the legs meeting there turn by less than 90 degrees (the executor stops
-    at the last waypoint and for turns of 90 degrees or more)."""
-    if k + 1 >= len(planned):
-        return False
-    a, b = Leg(planned[k - 1], planned[k]).direction, Leg(planned[k], planned[k + 1]).direction
-    return a[0] * b[0] + a[1] * b[1] > 0.0
+    """Whether waypoint ``planned[k]`` (``planned[0]`` the origin) is passed at speed, as the
+    executor drives it: it is not the last, and the rover does not stop there
+    (:func:`~mecanum_mav.control.pathfollow.stops_between`: a turn of 90 degrees or more)."""
+    return k + 1 < len(planned) and not stops_between(Leg(planned[k - 1], planned[k]),
+                                                      Leg(planned[k], planned[k + 1]))
 
 
 OnLeg = Callable[[int, LegReport], None]
@@ -227,6 +225,8 @@ class MissionWatch:
         self.on_leg = on_leg
         self._leg_start_s = start_s
         self._leg_cross = 0.0
+        self._passed = [passed_at_speed(self.run.planned, k + 1)
+                        for k in range(len(self.waypoints))]  # each waypoint passed at speed?
         self._crossed: Pose2d | None = None  # where the rover crossed the current waypoint's
         self._next_cross = 0.0  # line (passed at speed), and the next leg's cross-track since
         self._last: Pose2d | None = None  # the pose at the look before
@@ -272,7 +272,7 @@ class MissionWatch:
         the line through a waypoint it passes at speed), kept as the leg's largest."""
         planned, here = self.run.planned, (pose.x_m, pose.y_m)
         leg = Leg(planned[k], planned[k + 1])
-        if self._crossed is None and self._last is not None and passed_at_speed(planned, k + 1):
+        if self._crossed is None and self._last is not None and self._passed[k]:
             along, _ = leg.errors(here)
             if along >= leg.length_m:
                 before, _ = leg.errors((self._last.x_m, self._last.y_m))
