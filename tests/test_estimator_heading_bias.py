@@ -122,7 +122,7 @@ def test_gps_fixes_measure_the_bias_while_the_rover_speeds_up_from_rest():
             break
     assert math.degrees(bias.bias_rad) == pytest.approx(2.0, abs=1e-6)
     assert speeding_up(t)[0] < 0.7  # metres driven when it was first measured (1.0 m with
-    # the chords' lengths held to within 20 %, 1.2 m while the speed had to be steady too)
+    # the chords' lengths held to within 20 %, with or without the steady rule)
 
 
 def test_an_ekf_position_is_measured_against_only_once_the_rover_drives_steadily():
