@@ -11,6 +11,7 @@ import re
 from collections.abc import Generator, Iterator
 
 import pytest
+from hypothesis import settings
 from support import wait_until as wait_until
 
 from mecanum_mav.config.params import Params
@@ -50,6 +51,75 @@ def _private_rover_claims(tmp_path_factory: pytest.TempPathFactory) -> Iterator[
         del os.environ["XDG_RUNTIME_DIR"]
     else:
         os.environ["XDG_RUNTIME_DIR"] = old
+
+
+# --------------------------------------------------------------------------- parallel runs
+
+settings.register_profile("suite", deadline=None)
+settings.load_profile("suite")
+"""Hypothesis's per-example deadline (200 ms) is a wall-clock limit: with the suite's workers
+sharing two cores an example of 90 ms took 400 ms. Speed is the benchmarks' (tools/); a
+property test checks the property."""
+
+WORKERS_PER_CORE = 2
+"""``-n auto`` (pyproject's addopts) starts this many pytest-xdist workers per core: most of the
+suite's wall time is spent waiting on real processes (the firmware, the companion, MAVProxy),
+so two workers a core keep both cores busy (measured: 1.1 of 2 cores on average with 4
+workers, docs/testing.md). ``PYTEST_XDIST_AUTO_NUM_WORKERS`` or ``-n N`` overrides it."""
+
+MAX_WORKERS = 8
+"""Each worker may run a firmware, a companion and a ground station at once: no more than this
+on a big machine."""
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_xdist_auto_num_workers(config: pytest.Config) -> int:
+    """Workers for ``-n auto``: :data:`WORKERS_PER_CORE` per core, at most :data:`MAX_WORKERS`."""
+    return max(1, min(MAX_WORKERS, WORKERS_PER_CORE * (os.cpu_count() or 1)))
+
+
+SHARED_FIXTURE_GROUP = "module"
+"""A module whose tests share a module-scoped fixture (a twin, three firmwares, a fleet, a
+recorded drive) runs on one worker (xdist's ``loadgroup``): split across workers, each would
+build the fixture again."""
+
+
+def _shares_a_module_fixture(item: pytest.Item) -> bool:
+    fixturedefs = getattr(item, "_fixtureinfo", None)
+    if fixturedefs is None:
+        return False
+    return any(defs[-1].scope == "module" for defs in fixturedefs.name2fixturedefs.values())
+
+
+def _runs_long(item: pytest.Item) -> bool:
+    return item.get_closest_marker("sitl") is not None or \
+        item.get_closest_marker("slow") is not None
+
+
+@pytest.hookimpl(tryfirst=True)  # before xdist's own, which reads the groups
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Long tests (marked ``sitl`` or ``slow``) first, so that no worker starts a minute-long
+    test as the others finish; a module's tests that share a module fixture in one xdist group
+    (:data:`SHARED_FIXTURE_GROUP`). The order within each kind is kept."""
+    for item in items:
+        if _shares_a_module_fixture(item):
+            module = item.nodeid.split("::", 1)[0]
+            item.add_marker(pytest.mark.xdist_group(f"{SHARED_FIXTURE_GROUP}:{module}"))
+    items.sort(key=lambda item: not _runs_long(item))
+
+
+@pytest.hookimpl(trylast=True)  # after xdist's own, which marks a grouped test's node id
+def pytest_collection_finish(session: pytest.Session) -> None:
+    """In an xdist worker: each grouped test's node id carries its group (``...@group``), or the
+    groups were lost and each module fixture would be built once per worker."""
+    if not session.config.getoption("loadgroup", False):
+        return
+    lost = [item.nodeid for item in session.items
+            if item.get_closest_marker("xdist_group") and "@" not in item.nodeid]
+    if lost:
+        raise pytest.UsageError(
+            f"pytest-xdist put no group in {len(lost)} node ids (first {lost[0]}): this pytest "
+            "and pytest-xdist do not work together (pytest-xdist issue 1386); see pyproject.toml")
 
 
 # --------------------------------------------------------------------------- CI knows what ran

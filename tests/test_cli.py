@@ -190,9 +190,11 @@ def test_run_prints_its_refusal_counts_on_sigusr1_and_at_exit(tmp_path):
         with CompanionProcess(port.url, f"udpout:127.0.0.1:{fc.getsockname()[1]}",
                               tmp_path) as companion:
             assert gcs.wait("HEARTBEAT", timeout_s=10.0), companion.log()
+            sent = gcs.mark()  # before sending: a busy test may read the answer only later
             gcs.mav.manual_control_send(1, 4000, 0, 500, 0, 0)
             gcs.mav.param_set_send(1, 1, b"OUT_RATE", 1e30, mavlink.MAV_PARAM_TYPE_REAL32)
-            assert gcs.wait("STATUSTEXT", lambda m: "Param refused" in m.text, 5.0)
+            assert gcs.wait("STATUSTEXT", lambda m: "Param refused" in m.text, 5.0,
+                            since=sent), companion.log()
 
             def status_lines() -> list[str]:
                 return [line for line in companion.log().splitlines() if "refused " in line]

@@ -52,6 +52,7 @@ def test_a_mavproxy_line_is_seen_only_as_a_whole_line_so_armed_is_not_disarmed()
     assert console.saw("ARMED", 0, 0.1) and not console.saw("Mode HOLD", 0, 0.1)
 
 
+@pytest.mark.slow
 def test_mavproxy_with_the_passphrase_arms_and_drives_the_signed_rover_and_without_it_cannot(
         tmp_path):
     """``signing key PASSPHRASE`` in MAVProxy and the same passphrase in --signing-key's file
@@ -83,6 +84,7 @@ def test_mavproxy_with_the_passphrase_arms_and_drives_the_signed_rover_and_witho
             mavproxy.close()
 
 
+@pytest.mark.slow
 def test_mavproxy_without_the_key_sees_a_listening_signed_rover_and_why_then_with_it_arms(
         tmp_path):
     """The rover listens (``--gcs udpin:``) with a key and MAVProxy connects to it
@@ -117,6 +119,7 @@ FACE_EAST = ("message SET_POSITION_TARGET_LOCAL_NED 0 1 1 8 3064 0 0 0 0 0 0 0 0
 BODY_NED 0 m ahead (stay here) with yaw 90 deg (east); type_mask 3064 keeps position and yaw."""
 
 
+@pytest.mark.slow
 def test_mavproxy_fetches_params_sets_one_arms_and_drives_by_rc_velocity_and_position(
         tmp_path):
     """Turned to face east (heading 90) through MAVProxy first: its ``velocity`` and
@@ -346,6 +349,7 @@ async def _mavsdk_arm(port: int, grpc_port: int) -> bool:
         return await _armed(drone)
 
 
+@pytest.mark.slow
 def test_mavsdk_behind_mavproxy_with_the_key_arms_the_signed_rover(tmp_path):
     """MAVSDK cannot sign; MAVProxy signs what it forwards (its mavfwd_signing setting). It
     re-packs what it signs with its own system and component ids, so it is given MAVSDK's
@@ -367,6 +371,7 @@ def test_mavsdk_behind_mavproxy_with_the_key_arms_the_signed_rover(tmp_path):
             mavproxy.close()
 
 
+@pytest.mark.slow
 def test_mavsdk_connects_sets_params_arms_and_drives_manual_and_offboard(tmp_path):
     """Offboard velocity (body, then NED) and a position with a heading; the odometry and local
     position MAVSDK reports there agree with the simulator's truth (SIM_STATE, --tlog)."""
@@ -463,6 +468,7 @@ async def _mavsdk_mission_scenario(port: int, grpc_port: int) -> None:
         await drone.action.disarm()
 
 
+@pytest.mark.slow
 def test_mavsdk_uploads_a_mission_downloads_it_and_runs_it_to_the_end(tmp_path):
     """The origin is given through MAVSDK (ORIGIN_LAT/LON); the simulator's truth (--tlog)
     passes within 10 cm of every waypoint, the first one too, and ends at the last."""
@@ -495,6 +501,7 @@ def _waypoint_file(path: Path, legs: list[tuple[float, float]]) -> list[tuple[in
     return points
 
 
+@pytest.mark.slow
 def test_mavproxy_loads_a_waypoint_file_lists_it_and_clears_it(tmp_path):
     """QGC WPL 110 in a global frame (MAVProxy scales every location command's x/y by 1e7,
     which is right only for global frames), the origin given by ``param set``. Between list

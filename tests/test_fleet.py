@@ -101,6 +101,7 @@ def moved(drive: FleetDrive, phase: str) -> dict[int, float]:
     return {sysid: math.hypot(*d) for sysid, d in drive.moved[phase].items()}
 
 
+@pytest.mark.slow
 def test_each_instance_reaches_the_ground_station_through_the_router_with_its_own_id(
         fleet_run: tuple[FleetDrive, Fleet]) -> None:
     _, fleet = fleet_run
@@ -113,6 +114,7 @@ def test_each_instance_reaches_the_ground_station_through_the_router_with_its_ow
     assert fleet.port.unclaimed == 0  # nothing but the three rovers reached the station
 
 
+@pytest.mark.slow
 def test_rc_override_addressed_to_one_rover_moves_that_rover_alone(
         fleet_run: tuple[FleetDrive, Fleet]) -> None:
     drive, _ = fleet_run
@@ -125,6 +127,7 @@ def test_rc_override_addressed_to_one_rover_moves_that_rover_alone(
         assert all(d < 0.01 for d in others.values()), (phase, others)
 
 
+@pytest.mark.slow
 def test_manual_control_through_mavproxy_moves_no_rover(
         fleet_run: tuple[FleetDrive, Fleet]) -> None:
     """MAVProxy routes by ``target_system``; MANUAL_CONTROL's field is ``target``, so sticks
@@ -133,6 +136,7 @@ def test_manual_control_through_mavproxy_moves_no_rover(
     assert all(d < 0.01 for d in moved(drive, "MANUAL_CONTROL to 2").values())
 
 
+@pytest.mark.slow
 def test_two_rovers_run_one_mission_at_once_while_the_third_stands(
         fleet_run: tuple[FleetDrive, Fleet]) -> None:
     drive, _ = fleet_run

@@ -176,6 +176,7 @@ def test_hostile_sticks_in_the_lane_while_the_pilot_drives_never_move_a_wheel(
     assert drives_after(h)
 
 
+@pytest.mark.slow
 def test_the_fuzz_tool_passes_against_the_real_process_with_a_fixed_seed() -> None:
     done = subprocess.run([sys.executable, str(TOOL), "--seed", str(SEED), "--gcs-count",
                            "3000", "--fc-count", "1000", "--lane-count", "3000"],

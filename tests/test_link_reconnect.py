@@ -19,6 +19,7 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
+import pytest
 from sitl import CompanionProcess, free_port
 from support import FlightControllerEnd, PtyFlightController, at_most_every, wait_until
 from test_end_to_end import ARM, NEUTRAL, STICK_PERIOD_S, WHEELS, channels
@@ -104,6 +105,7 @@ class Pilot:
 
 
 
+@pytest.mark.slow
 def test_an_unplugged_serial_flight_controller_is_reported_once_and_reopened_on_its_path(
         tmp_path: Path) -> None:
     device = tmp_path / "ttyFC"
@@ -163,6 +165,7 @@ def companion_with_fc(fc_url: str) -> Iterator[Pilot]:
             pilot.fc.close()
 
 
+@pytest.mark.slow
 def test_a_tcp_flight_controller_that_closes_is_reported_once_and_reconnected(
         tmp_path: Path) -> None:
     server = socket.create_server(("127.0.0.1", 0))

@@ -5,6 +5,7 @@ floor."""
 from __future__ import annotations
 
 import math
+import time
 import xml.etree.ElementTree as ET
 
 import numpy as np
@@ -246,9 +247,10 @@ def test_non_finite_commands_stop_and_out_of_range_ones_are_limited():
         MujocoChassis.from_params(Params()).step(math.nan, STOP)
 
 
-def test_the_chassis_runs_at_least_3_times_faster_than_real_time():
-    factor = mujoco_chassis.real_time_factor(Params(), seconds=2.0)
-    print(f"MuJoCo chassis: {factor:.1f}x real time")
+def test_the_chassis_costs_at_most_a_third_of_a_cpu_second_per_simulated_second():
+    # its own thread's CPU time, not the wall's: the suite's other workers share the cores
+    factor = mujoco_chassis.real_time_factor(Params(), seconds=2.0, clock=time.thread_time)
+    print(f"MuJoCo chassis: {factor:.1f}x real time on one core")
     assert factor >= 3.0
 
 

@@ -118,6 +118,7 @@ def ran_past(fc: FakeFlightController, seconds: float) -> bool:
     return bool(got) and got[-1].time_s - got[0].time_s > seconds
 
 
+@pytest.mark.slow
 def test_run_says_it_waits_for_the_flight_controller_and_when_it_is_found(
         tmp_path: Path) -> None:
     """Not a terminal: no status line; --log-level WARNING hides the INFO log."""
@@ -181,6 +182,7 @@ class PtyReader:
         return code
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("quiet", [False, True])
 def test_on_a_terminal_run_prints_a_status_line_every_5_s_unless_quiet(
         quiet: bool, tmp_path: Path) -> None:

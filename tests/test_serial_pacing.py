@@ -23,6 +23,8 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
+import pytest
+
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tools"))
 
 import bench_serial
@@ -38,6 +40,7 @@ unpaced one (4095, its read buffer; ~0.35 s of the wire)."""
 DEADLINE_S = 30.0
 
 
+@pytest.mark.slow
 def test_at_57600_baud_1khz_sticks_reach_the_board_heartbeats_keep_coming_and_no_queue_builds(
         tmp_path: Path) -> None:
     result = bench_serial.run_serial(3.0, tmp_path)

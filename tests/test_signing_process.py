@@ -80,6 +80,7 @@ def test_a_signed_pymavlink_ground_station_arms_and_drives_and_unsigned_commands
         peers.close()
 
 
+@pytest.mark.slow
 def test_an_unsigned_station_on_a_signed_udpin_link_hears_a_1_hz_heartbeat_and_why_until_it_signs(
         tmp_path):
     """The companion listens (``--gcs udpin:``) with a key; a pymavlink station without it

@@ -27,6 +27,8 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+import pytest
+
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tools"))
 
 import soak
@@ -38,6 +40,7 @@ INTERVAL_S = 20.0
 NO_QUEUE_MEDIAN_US = 0.5e6 / soak.INPUT_RATE_HZ  # half an input period
 
 
+@pytest.mark.slow
 def test_a_minute_of_50_hz_sticks_keeps_memory_flat_builds_no_queue_and_overrides_never_lapse():
     lines: list[str] = []
     result = soak.run_soak(DURATION_S, INTERVAL_S, lines.append)

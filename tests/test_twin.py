@@ -29,6 +29,7 @@ from mecanum_mav.config.params import Params
 from mecanum_mav.io.tlog import parse_tlog
 from mecanum_mav.mecanum.geo import GlobalOrigin
 from mecanum_mav.mecanum.geometry import body_to_ned
+from mecanum_mav.protocol.fcsetup import SAFE_OVERRIDE_TIME_S
 from mecanum_mav.sim.groundstation import ScriptedGroundStation, UdpPort, udp_ground_station
 from mecanum_mav.sim.physics import WheelContact
 from mecanum_mav.sim.process import CliProcess, free_port
@@ -275,8 +276,11 @@ def test_a_sigterm_of_the_companion_at_1_m_s_stops_the_chassis_at_once_with_its_
     took_s = stopped.time_s - at_term.time_s
     print(f"\nSIGTERM at {at_term.forward_mps:.2f} m/s: the chassis stopped "
           f"{travel_m(at_term, stopped) * 100:.0f} cm and {took_s:.2f} s later")
-    # the neutral reached the wheels before the release: not the radio failsafe's 0.5 s
-    assert took_s < 0.35, rig.why()
+    # the neutral reached the wheels, not the radio failsafe: that releases the channels only
+    # RC_OVERRIDE_TIME (setup-fc's 0.5 s) after the last override, and the chassis then still
+    # has to slow down, so no stop by the failsafe comes this early (0.42 s was measured with
+    # the suite's four workers on two cores; the kill -9 test below measures the failsafe's).
+    assert took_s < SAFE_OVERRIDE_TIME_S, rig.why()
     assert rig.twin.stats().wheel_pulses == (1500, 1500, 1500, 1500), rig.why()
 
 

@@ -58,6 +58,7 @@ def _loopback(url: str) -> bool:
     return host in ("127.0.0.1", "localhost", "::1") or url.startswith(("data:", "blob:"))
 
 
+@pytest.mark.slow
 def test_the_served_web_viewer_loads_a_drives_recording_and_draws_its_path(tmp_path):
     if not CHROMIUM.exists():
         _need(f"no chromium at {CHROMIUM} (apt-get install chromium)")
