@@ -305,3 +305,46 @@ def test_plain_twist_from_wheel_deltas_equals_the_array_fit(deltas):
     assert isinstance(twist, Twist2d)
     expected = kin.to_twist(np.array(deltas).reshape(1, 4))[0]
     np.testing.assert_allclose(tuple(twist), expected, rtol=1e-12, atol=1e-15)
+
+
+# ------------------------------------------------------------ what the docstrings promise
+
+
+def test_the_repr_rebuilds_an_equal_kinematics_with_its_strafe_efficiency_when_not_1():
+    """``__repr__``: constructor-style, the wheel positions in metres."""
+    for kin in (MecanumKinematics.from_half_extents(0.2, 0.15),
+                MecanumKinematics.from_half_extents(0.3, 0.25, strafe_efficiency=0.8)):
+        text = repr(kin)
+        rebuilt = eval(text, {"MecanumKinematics": MecanumKinematics})
+        assert rebuilt.positions == kin.positions
+        assert rebuilt.strafe_efficiency == kin.strafe_efficiency
+        assert ("strafe_efficiency" in text) == (kin.strafe_efficiency != 1.0)
+
+
+@pytest.mark.parametrize(("method", "what"), [("to_chassis_speeds", "speeds"),
+                                              ("to_chassis_accelerations", "accelerations"),
+                                              ("to_twist", "deltas")])
+def test_a_forward_kinematics_error_names_the_quantity_it_was_given(method, what):
+    """Each forward method's ValueError says which wheel quantity was wrong (docstrings)."""
+    kin = MecanumKinematics.from_half_extents(0.2, 0.15)
+    with pytest.raises(ValueError, match=f"^non-finite wheel {what}"):
+        getattr(kin, method)([0.1, math.nan, 0.0, 0.0])
+    with pytest.raises(ValueError, match=f"^wheel {what} need a last axis of length 4"):
+        getattr(kin, method)(np.zeros((2, 3)))
+
+
+def test_wheel_and_chassis_quantities_come_back_in_float64_whatever_the_input_dtype():
+    """float32 sensor readings and integer commands are computed in float64: a float32
+    result would round each speed to 7 digits."""
+    kin = MecanumKinematics.from_half_extents(0.2, 0.15)
+    wheels32 = np.array([[0.1, 0.2, 0.3, 0.4]], dtype=np.float32)
+    chassis = kin.to_chassis_speeds(wheels32)
+    assert chassis.dtype == np.float64
+    np.testing.assert_array_equal(chassis, wheels32.astype(np.float64) @ kin.pseudo_inverse.T)
+    speeds = kin.to_wheel_speeds(np.array([1], dtype=np.int64), np.array([0], dtype=np.int64),
+                                 np.array([1], dtype=np.int64),
+                                 np.array([0.1, 0.0], dtype=np.float32))
+    assert speeds.dtype == np.float64
+    centre_x = float(np.float32(0.1))  # the float32 value, computed in float64
+    np.testing.assert_allclose(speeds, kin.to_wheel_speeds(1.0, 0.0, 1.0, (centre_x, 0.0))[None],
+                               rtol=0, atol=1e-12)
