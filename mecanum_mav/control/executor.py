@@ -23,8 +23,10 @@ Items:
   for turns of 90 degrees or more, and where it holds), and never faster than it can still
   stop at the next stop waypoint braking at ``WP_ACCEL`` over the legs in between
   (:func:`~mecanum_mav.control.pathfollow.exit_speed_ahead`).
-- ``NAV_LOITER_TIME``: drive there, hold the point for param1 seconds. In a global frame a
-  latitude and longitude of 0 mean "here".
+- ``NAV_LOITER_TIME``: drive there, hold the point for param1 seconds.
+- In a global frame a latitude and longitude of 0 (both) mean "here", for ``NAV_WAYPOINT`` and
+  ``NAV_LOITER_TIME`` alike (ArduPilot Rover's ``Location::sanitize``): the point where the
+  rover is when the item starts. In MAV_FRAME_LOCAL_NED 0/0 is the origin.
 - ``NAV_RETURN_TO_LAUNCH``: drive to home (the local origin, as HOME_POSITION reports).
 - ``CONDITION_YAW``: param1 degrees, absolute (param4 = 0) or relative to the current target
   (1); param2 the turn rate in deg/s (0: ``GUID_YAW_RATE``); param3 the direction (1
@@ -239,8 +241,7 @@ class MissionExecutor:
         for item in self.items[1:]:
             if item.command not in POSITION_COMMANDS:
                 continue
-            if (item.frame in GLOBAL_FRAMES and item.command == mavlink.MAV_CMD_NAV_LOITER_TIME
-                    and item.x == 0 and item.y == 0):
+            if item.frame in GLOBAL_FRAMES and item.x == 0 and item.y == 0:
                 continue  # "here", resolved when it starts
             try:
                 positions[item.seq] = position_ned(item, origin)

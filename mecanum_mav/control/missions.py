@@ -105,12 +105,14 @@ class MissionControl:
 
     def cmd_set_current(self, p: tuple[float, ...], now_s: float) -> Result:
         """MAV_CMD_DO_SET_MISSION_CURRENT: param1 the item (-1 the current one), param2 = 1
-        also resets the mission (DO_JUMP counters, start over)."""
-        if p[1] == 1.0:
-            self.executor.restart()
+        also resets the mission (DO_JUMP counters, start over). -1 with the reset keeps the
+        current item (MAVLink: "reset mission without changing current mission item")."""
         if not (math.isfinite(p[0]) and p[0] >= -1):
             return Result.DENIED
-        return self.set_current(self.executor.current if p[0] == -1 else int(p[0]), now_s)
+        seq = self.executor.current if p[0] == -1 else int(p[0])
+        if p[1] == 1.0:
+            self.executor.restart()
+        return self.set_current(seq, now_s)
 
     def cmd_start(self, p: tuple[float, ...], now_s: float) -> Result:
         """MAV_CMD_MISSION_START: param1 the first item (0: resume), then AUTO."""
