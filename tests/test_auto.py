@@ -29,6 +29,7 @@ from mecanum_mav.mecanum.geometry import Pose2d, wrap_pi
 from mecanum_mav.mecanum.kinematics import MecanumKinematics
 from mecanum_mav.protocol.mission import MissionItem
 from mecanum_mav.protocol.modes import Mode
+from mecanum_mav.protocol.statustext import Severity
 from mecanum_mav.sim.chassis import SimChassis
 
 HOME = local_wp(0, 0.0, 0.0)
@@ -130,7 +131,16 @@ def test_do_change_speed_sets_the_leg_speed_and_is_limited_by_guid_spd_max():
     run = Run([HOME, do(0, SPEED, 1, 5.0), local_wp(0, 3.0, 0.0)], GUID_SPD_MAX=0.6)
     run.until_done()
     assert max(run.speeds) == pytest.approx(0.6, abs=0.01)
-    assert any("limited to GUID_SPD_MAX" in t for t in run.texts())
+    said = [e for e in run.events if e.kind == "say" and "limited to GUID_SPD_MAX" in e.text]
+    assert [(e.severity, e.text) for e in said] == [
+        (Severity.WARNING, "Speed 5 limited to GUID_SPD_MAX 0.6")]
+
+
+def test_do_change_speed_to_exactly_guid_spd_max_is_not_limited_and_says_nothing():
+    run = Run([HOME, do(0, SPEED, 1, 0.6), local_wp(0, 3.0, 0.0)], GUID_SPD_MAX=0.6)
+    run.until_done()
+    assert max(run.speeds) == pytest.approx(0.6, abs=0.01)
+    assert not any("limited" in t for t in run.texts())
 
 
 def test_condition_yaw_at_the_end_turns_in_place_before_the_mission_completes():

@@ -295,9 +295,10 @@ def test_set_current_past_the_last_item_is_refused_and_the_current_item_kept():
     assert current_after(h, lambda: h.gcs.mav.mission_set_current_send(1, 1, last)) == last
     since = h.gcs.mark()
     h.gcs.mav.mission_set_current_send(1, 1, last + 1)
-    assert h.gcs.wait("STATUSTEXT", lambda m: f"no item {last + 1}" in m.text, 1.0, since)
+    refused = f"Set current item refused: no item {last + 1} (mission has {last})"
+    assert h.run_until(lambda: refused in h.gcs.texts(since), 1.0), h.gcs.texts(since)
     ack = h.gcs.command(mavlink.MAV_CMD_DO_SET_MISSION_CURRENT, last + 1)
-    assert ack is not None and ack.result != CMD_ACCEPTED
+    assert ack is not None and ack.result == mavlink.MAV_RESULT_FAILED
     assert h.core.mission.executor.current == last
     periodic = h.gcs.wait("MISSION_CURRENT", timeout_s=1.5)
     assert periodic is not None and periodic.seq == last
@@ -366,7 +367,7 @@ def test_after_the_end_set_current_chooses_where_auto_starts_again():
     run = Run([HOME, local_wp(0, 0.4, 0.0), local_wp(0, 0.4, 0.4), local_wp(0, 0.0, 0.4)])
     run.until_done(limit_s=30.0)
     run.events.clear()
-    assert run.ex.set_current(2, run.pose, run.t) is None
+    assert run.ex.set_current(2, run.pose) is None
     assert run.ex.state != mavlink.MISSION_STATE_COMPLETE
     assert run.ex.start(run.pose, run.t, None) is None
     run.until_done(limit_s=run.t + 30.0)
@@ -381,7 +382,7 @@ def test_set_current_keeps_the_do_jump_counters():
     while run.reached() != [1, 2, 3] and run.t < 30.0:
         run.step()
     assert run.ex.current == 1  # the second pass, the jump used up
-    assert run.ex.set_current(1, run.pose, run.t) is None
+    assert run.ex.set_current(1, run.pose) is None
     run.until_done(limit_s=run.t + 30.0)
     assert run.reached() == [1, 2, 3, 1, 2, 3, 4]
 
@@ -398,3 +399,114 @@ def test_do_set_mission_current_minus_1_with_reset_keeps_the_current_item():
     assert current_after(h, lambda: acks.append(h.gcs.command(
         mavlink.MAV_CMD_DO_SET_MISSION_CURRENT, -1, 0))) == 2
     assert acks[1] is not None and acks[1].result == CMD_ACCEPTED
+
+
+def test_set_current_without_a_mission_is_refused_saying_so_and_item_0_stays_current():
+    h = lockstep()
+    since = h.gcs.mark()
+    h.gcs.mav.mission_set_current_send(1, 1, 1)
+    assert h.gcs.wait("STATUSTEXT", lambda m: m.text == "Set current item refused: no mission",
+                      1.0, since)
+    for reset in (0, 1):  # DO_SET_MISSION_CURRENT, "reset mission" or not
+        ack = h.gcs.command(mavlink.MAV_CMD_DO_SET_MISSION_CURRENT, -1, reset)
+        assert ack is not None and ack.result == mavlink.MAV_RESULT_FAILED  # (MAVLink)
+    periodic = h.gcs.wait("MISSION_CURRENT", timeout_s=1.5, since=h.gcs.mark())
+    assert periodic is not None and (periodic.seq, periodic.mission_state) == (
+        0, mavlink.MISSION_STATE_NO_MISSION)
+
+
+@pytest.mark.parametrize("target", [(2, 1), (1, 5)], ids=["other system", "other component"])
+def test_set_current_addressed_to_another_vehicle_or_component_is_ignored(target):
+    h = with_line()
+    assert current_after(h, lambda: h.gcs.mav.mission_set_current_send(*target, 3)) is None
+    assert h.core.mission.executor.current == 1
+    assert current_after(h, lambda: h.gcs.mav.mission_set_current_send(0, 0, 3)) == 3  # all
+
+
+def test_set_current_from_a_ground_station_other_than_sysid_mygcs_is_ignored():
+    h = lockstep({"SYSID_MYGCS": 255})
+    assert h.gcs.upload(LINE).type == ACCEPTED
+    stranger = mavlink.MAVLink(None, srcSystem=200, srcComponent=190)
+    packet = stranger.mission_set_current_encode(1, 1, 3).pack(stranger)
+    assert current_after(h, lambda: h.inject(packet)) is None
+    assert h.core.mission.executor.current == 1
+    assert current_after(h, lambda: h.gcs.mav.mission_set_current_send(1, 1, 3)) == 3
+
+
+@pytest.mark.parametrize("param1", [-2.0, math.nan, math.inf])
+def test_do_set_mission_current_below_minus_1_or_not_finite_is_refused(param1):
+    h = with_line()
+    since = h.gcs.mark()
+    ack = h.gcs.command(mavlink.MAV_CMD_DO_SET_MISSION_CURRENT, param1, 1)
+    assert ack is not None and ack.result == mavlink.MAV_RESULT_FAILED
+    assert f"Set current item refused: no item {param1:g}" in h.gcs.texts(since)
+    assert h.core.mission.executor.current == 1
+
+
+def test_a_restart_without_a_mission_leaves_item_0_current():
+    executor = MissionExecutor(Params())
+    executor.restart()
+    assert (executor.current, executor.state) == (0, mavlink.MISSION_STATE_NO_MISSION)
+
+
+def test_do_set_mission_current_with_reset_1_starts_the_jumps_over():
+    """param2 = 1 "resets the mission" (MAVLink): DO_JUMP counters start again."""
+    items = renumber([HOME, local_wp(0, 0.3, 0.0), do(0, JUMP, 1, 1), local_wp(0, 0.0, 0.0)])
+    h = lockstep()
+    assert h.gcs.upload(items).type == ACCEPTED
+    h.gcs.arm()
+    since = h.gcs.mark()
+    assert h.gcs.set_mode(Mode.AUTO) == CMD_ACCEPTED
+    assert h.run_until(lambda: h.core.vehicle.mode is Mode.HOLD, 30.0), "mission not finished"
+    assert [m.seq for m in h.gcs.received("MISSION_ITEM_REACHED", since)] == [1, 2, 1, 2, 3]
+    for reset, again in ((0, [1, 2, 3]), (1, [1, 2, 1, 2, 3])):  # (0: the jump stays used)
+        ack = h.gcs.command(mavlink.MAV_CMD_DO_SET_MISSION_CURRENT, 1, reset)
+        assert ack is not None and ack.result == CMD_ACCEPTED
+        since = h.gcs.mark()
+        assert h.gcs.set_mode(Mode.AUTO) == CMD_ACCEPTED
+        assert h.run_until(lambda: h.core.vehicle.mode is Mode.HOLD, 30.0), reset
+        assert [m.seq for m in h.gcs.received("MISSION_ITEM_REACHED", since)] == again
+
+
+def test_auto_again_after_the_end_reports_the_mission_active_not_complete():
+    h = with_line()
+    h.gcs.arm()
+    assert h.gcs.set_mode(Mode.AUTO) == CMD_ACCEPTED
+    assert h.run_until(lambda: h.core.vehicle.mode is Mode.HOLD, 30.0), "mission not finished"
+    done = h.gcs.wait("MISSION_CURRENT", timeout_s=1.5, since=h.gcs.mark())
+    assert done is not None and done.mission_state == mavlink.MISSION_STATE_COMPLETE
+    assert h.gcs.set_mode(Mode.AUTO) == CMD_ACCEPTED
+    again = h.gcs.wait("MISSION_CURRENT", timeout_s=1.5, since=h.gcs.mark())
+    assert again is not None and (again.seq, again.mission_state) == (
+        1, mavlink.MISSION_STATE_ACTIVE)
+
+
+def test_mission_start_param1_chooses_the_first_item_and_0_resumes():
+    """MAV_CMD_MISSION_START param1 "first_item: the first mission item to run" (MAVLink);
+    0 keeps the current item."""
+    h = with_line()
+    h.gcs.arm()
+    assert current_after(h, lambda: h.gcs.mav.mission_set_current_send(1, 1, 3)) == 3
+    since = h.gcs.mark()
+    ack = h.gcs.command(mavlink.MAV_CMD_MISSION_START, 1, 0)
+    assert ack is not None and ack.result == CMD_ACCEPTED
+    assert h.gcs.wait("STATUSTEXT", lambda m: "Mission started at item 1" in m.text, 1.0, since)
+    assert h.gcs.set_mode(Mode.HOLD) == CMD_ACCEPTED
+    assert current_after(h, lambda: h.gcs.mav.mission_set_current_send(1, 1, 2)) == 2
+    since = h.gcs.mark()
+    ack = h.gcs.command(mavlink.MAV_CMD_MISSION_START, 0, 0)
+    assert ack is not None and ack.result == CMD_ACCEPTED
+    assert h.gcs.wait("STATUSTEXT", lambda m: "Mission resumed at item 2" in m.text, 1.0, since)
+
+
+def test_mission_start_past_the_last_item_or_while_auto_cannot_start_is_refused():
+    h = with_line()
+    h.gcs.arm()
+    ack = h.gcs.command(mavlink.MAV_CMD_MISSION_START, len(LINE), 0)
+    assert ack is not None and ack.result != CMD_ACCEPTED
+    assert h.core.vehicle.mode is not Mode.AUTO
+    empty = lockstep()
+    empty.gcs.arm()
+    ack = empty.gcs.command(mavlink.MAV_CMD_MISSION_START, 0, 0)
+    assert ack is not None and ack.result != CMD_ACCEPTED  # no mission: AUTO refused
+    assert empty.core.vehicle.mode is not Mode.AUTO

@@ -326,3 +326,90 @@ def test_a_full_command_launch_on_friction_0_4_slips_and_a_steady_cruise_does_no
     contacts = chassis.wheel_contacts()
     assert not any(c.slipping for c in contacts)
     assert max(c.slip_mps for c in contacts) < mujoco_chassis.SLIP_MPS
+
+
+def contact_truth(chassis) -> tuple[list[float], list[float], list[int]]:
+    """Each wheel's normal force (N) and fastest contact point over the floor (m/s), and its
+    number of rollers touching, computed apart from the chassis: the force of every
+    roller-floor contact, and the floor-plane speed of the roller's material point at the
+    contact from its body Jacobian (MuJoCo's mj_jac)."""
+    model, data = chassis.model, chassis.data
+    floor = model.geom("floor").id
+    normal, slip, touching = [0.0] * 4, [0.0] * 4, [0] * 4
+    force = np.zeros(6)
+    jacp = np.zeros((3, model.nv))
+    for i in range(data.ncon):
+        contact = data.contact[i]
+        geoms = {int(contact.geom1), int(contact.geom2)}
+        if floor not in geoms or len(geoms) != 2:
+            continue
+        (roller,) = geoms - {floor}
+        body = int(model.geom_bodyid[roller])
+        name = model.body(body).name  # a roller's body: roller_<wheel><k>
+        wheel = next((k for k, w in enumerate(("fl", "fr", "rl", "rr"))
+                      if name.lower().startswith(f"roller_{w}")), None)
+        if wheel is None:
+            continue
+        mujoco.mj_contactForce(model, data, i, force)
+        normal[wheel] += force[0]
+        mujoco.mj_jac(model, data, jacp, None, contact.pos, body)
+        v = jacp @ data.qvel
+        slip[wheel] = max(slip[wheel], math.hypot(v[0], v[1]))
+        touching[wheel] += 1
+    return normal, slip, touching
+
+
+def test_each_wheels_contact_is_the_sum_of_its_rollers_forces_and_their_fastest_point():
+    # The docstring's rule (normal force summed over its rollers touching the floor, slip the
+    # fastest of its contact points over the floor), against MuJoCo's own Jacobian, every
+    # step of a drive that strafes, turns and brakes on a slippery floor.
+    chassis = MujocoChassis.from_params(params(SIM_FRICTION=0.4))
+    p = Params()
+    legs = [wheel_commands(p, 0.6, 0.4, 0.8), (1.0, -1.0, -1.0, 1.0), STOP]
+    two_rollers = slipped = 0
+    for commands in legs:
+        for _ in range(40):
+            chassis.step(DT, commands)
+            # (mj_step leaves velocities a step newer than the contacts and the Jacobian's
+            # positions; mj_forward makes them of one instant, as after the step's start)
+            mujoco.mj_forward(chassis.model, chassis.data)
+            normal, slip, touching = contact_truth(chassis)
+            contacts = chassis.wheel_contacts()
+            assert [c.normal_n for c in contacts] == pytest.approx(normal, rel=1e-9, abs=1e-9)
+            assert [c.slip_mps for c in contacts] == pytest.approx(slip, rel=1e-6, abs=1e-9)
+            assert [c.slipping for c in contacts] == [s > mujoco_chassis.SLIP_MPS for s in slip]
+            two_rollers += any(n > 1 for n in touching)
+            slipped += any(c.slipping for c in contacts)
+    assert two_rollers and slipped  # (the drive had the cases the rule is about)
+
+
+def test_the_real_time_factor_is_simulated_seconds_over_the_clocks_seconds():
+    ticks = iter([100.0, 100.5])  # the clock before and after: half a second
+    assert mujoco_chassis.real_time_factor(Params(), seconds=2.0,
+                                           clock=lambda: next(ticks)) == pytest.approx(4.0)
+    frozen = iter([7.0, 7.0])  # a clock too coarse to see it: as fast as can be told
+    assert mujoco_chassis.real_time_factor(Params(), seconds=0.1,
+                                           clock=lambda: next(frozen)) == math.inf
+
+
+def test_a_new_chassis_already_rests_on_its_wheels_at_its_pose():
+    # The constructor lets it settle on the floor before the first step: the wheels carry its
+    # weight and the first second at rest moves it by less than a millimetre.
+    p = Params()
+    start = Pose2d(2.0, -1.0, 3.0)
+    chassis = MujocoChassis.from_params(p, start)
+    assert sum(c.normal_n for c in chassis.wheel_contacts()) == pytest.approx(
+        p["SIM_MASS"] * 9.81, rel=0.02)
+    assert tuple(chassis.pose) == pytest.approx(tuple(start), abs=1e-9)
+    run(chassis, 1.0, STOP)
+    x, y, yaw = chassis.pose
+    assert math.hypot(x - start.x_m, y - start.y_m) < 1e-3 and abs(yaw - 3.0) < 1e-3
+
+
+
+@pytest.mark.parametrize("yaw", [math.pi, -math.pi, 3 * math.pi, 2.5])
+def test_the_heading_is_reported_in_minus_pi_to_pi(yaw):
+    chassis = MujocoChassis.from_params(Params(), Pose2d(0.0, 0.0, yaw))
+    reported = chassis.pose.yaw_rad
+    assert -math.pi <= reported < math.pi
+    assert math.remainder(reported - yaw, 2 * math.pi) == pytest.approx(0.0, abs=1e-9)

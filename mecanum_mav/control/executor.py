@@ -205,20 +205,24 @@ class MissionExecutor:
             return _ACTIVE
         return _PAUSED if self.started else _NOT_STARTED
 
-    def set_current(self, seq: int, pose: Pose2d, now_s: float) -> str | None:
-        """MISSION_SET_CURRENT / DO_SET_MISSION_CURRENT; the reason if refused.
+    def set_current(self, seq: int, pose: Pose2d, *, reset: bool = False) -> str | None:
+        """MISSION_SET_CURRENT / DO_SET_MISSION_CURRENT; the reason if refused (then nothing
+        changes).
 
         Item 0 (home) means item 1. While running, the rover goes to the new item from where
-        it is.
+        it is. ``reset`` first starts the mission over (:meth:`restart`: DO_JUMP counters and
+        the end forgotten).
         """
         if not self.has_mission:
             return "no mission"
         if not 0 <= seq < len(self.items):
             return f"no item {seq} (mission has {len(self.items) - 1})"
+        if reset:
+            self.restart()
         self.current = max(seq, 1)
         self.complete = False
         if self.running:
-            self._begin(self.current, pose, now_s, from_point=None)
+            self._begin(self.current, pose, from_point=None)
         else:
             self._emit("current", self.current)
         return None
@@ -271,7 +275,7 @@ class MissionExecutor:
         self._hold = (pose.x_m, pose.y_m)
         self._emit("say", 0, f"Mission {'resumed' if resumed else 'started'} at item "
                    f"{self.current}")
-        self._begin(self.current, pose, now_s, from_point=None)
+        self._begin(self.current, pose, from_point=None)
         return None
 
     def pause(self) -> None:
@@ -298,7 +302,7 @@ class MissionExecutor:
         step = self._step
         if self.running and step is not None and self._done(step, pose, here, now_s,
                                                             velocity_ned, dt):
-            self._finish_item(step, pose, now_s, velocity_ned)
+            self._finish_item(step, pose, velocity_ned)
             step = self._step
         if not self.running or step is None:
             return self._setpoint(None, self._hold, pose, now_s)
@@ -349,14 +353,14 @@ class MissionExecutor:
 
     # ------------------------------------------------------------------ items
 
-    def _finish_item(self, step: _Step, pose: Pose2d, now_s: float,
+    def _finish_item(self, step: _Step, pose: Pose2d,
                      velocity_ned: Vec = (0.0, 0.0)) -> None:
         self._emit("reached", step.seq)
         self._hold = step.target
-        self._begin(step.seq + 1, pose, now_s, from_point=step.target,
+        self._begin(step.seq + 1, pose, from_point=step.target,
                     velocity_ned=velocity_ned)
 
-    def _begin(self, seq: int, pose: Pose2d, now_s: float, *, from_point: Vec | None,
+    def _begin(self, seq: int, pose: Pose2d, *, from_point: Vec | None,
                velocity_ned: Vec = (0.0, 0.0)) -> None:
         """Make item ``seq`` current, carrying out DO items on the way to a navigation item."""
         here = (pose.x_m, pose.y_m)

@@ -106,13 +106,14 @@ class MissionControl:
     def cmd_set_current(self, p: tuple[float, ...], now_s: float) -> Result:
         """MAV_CMD_DO_SET_MISSION_CURRENT: param1 the item (-1 the current one), param2 = 1
         also resets the mission (DO_JUMP counters, start over). -1 with the reset keeps the
-        current item (MAVLink: "reset mission without changing current mission item")."""
-        if not (math.isfinite(p[0]) and p[0] >= -1):
-            return Result.DENIED
-        seq = self.executor.current if p[0] == -1 else int(p[0])
-        if p[1] == 1.0:
-            self.executor.restart()
-        return self.set_current(seq, now_s)
+        current item (MAVLink: "reset mission without changing current mission item"). An item
+        out of range, or no mission, is FAILED (MAVLink) with a STATUSTEXT, and changes
+        nothing."""
+        if math.isfinite(p[0]) and p[0] >= -1:
+            seq = self.executor.current if p[0] == -1 else int(p[0])
+            return self.set_current(seq, now_s, reset=p[1] == 1.0)
+        self.refuse(Refusal.MISSION, f"Set current item refused: no item {p[0]:g}")
+        return Result.FAILED
 
     def cmd_start(self, p: tuple[float, ...], now_s: float) -> Result:
         """MAV_CMD_MISSION_START: param1 the first item (0: resume), then AUTO."""
@@ -122,12 +123,14 @@ class MissionControl:
         accepted = self.vehicle.request_mode(Mode.AUTO, now_s).accepted
         return Result.ACCEPTED if accepted else Result.DENIED
 
-    def set_current(self, seq: int, now_s: float) -> Result:
-        """Make item ``seq`` current (a running mission drives there from where it is)."""
-        reason = self.executor.set_current(seq, self.pose(), now_s)
+    def set_current(self, seq: int, now_s: float, *, reset: bool = False) -> Result:
+        """Make item ``seq`` current (a running mission drives there from where it is);
+        ``reset`` starts the mission over first. Refused (FAILED, a STATUSTEXT, nothing
+        changed) without a mission or with ``seq`` out of range."""
+        reason = self.executor.set_current(seq, self.pose(), reset=reset)
         if reason is not None:
             self.refuse(Refusal.MISSION, f"Set current item refused: {reason}")
-            return Result.DENIED
+            return Result.FAILED
         self.take_executor_events(now_s)
         return Result.ACCEPTED
 

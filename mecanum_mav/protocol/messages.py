@@ -45,6 +45,7 @@ class Result(IntEnum):
     ACCEPTED = mavlink.MAV_RESULT_ACCEPTED
     DENIED = mavlink.MAV_RESULT_DENIED
     UNSUPPORTED = mavlink.MAV_RESULT_UNSUPPORTED
+    FAILED = mavlink.MAV_RESULT_FAILED
 
 
 class Received(Protocol):

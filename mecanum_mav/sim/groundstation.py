@@ -107,6 +107,22 @@ class ScriptedGroundStation:
         """The messages of ``kind`` received from index ``since`` on."""
         return [m for m in self.messages[since:] if m.get_type() == kind]
 
+    def texts(self, since: int = 0) -> list[str]:
+        """The STATUSTEXTs received from index ``since`` on, a long text's chunks joined (MAVLink
+        2: the chunks of one text share a non-zero ``id``), in the order their first chunk
+        came."""
+        texts: list[str] = []
+        chunks: dict[int, int] = {}  # a chunked text's id -> its index in texts
+        for msg in self.received("STATUSTEXT", since):
+            text_id = getattr(msg, "id", 0)
+            if text_id and text_id in chunks:
+                texts[chunks[text_id]] += msg.text
+                continue
+            if text_id:
+                chunks[text_id] = len(texts)
+            texts.append(msg.text)
+        return texts
+
     def wait(self, kind: str, predicate: Predicate = _any, timeout_s: float = 3.0,
              since: int | None = None) -> Any | None:
         """The first message of ``kind`` matching ``predicate`` from index ``since`` (default:
