@@ -14,11 +14,13 @@ baud; a pty's 20 KB, ~4 s) would otherwise be a standing queue. RC_CHANNELS_OVER
 board sees have no gaps); everything else queues in order, at most the transport's
 :attr:`StreamLink.queue_limit` bytes; a packet that does not fit is dropped and counted as a
 send error. Overrides and queued packets take turns, so a 1 kHz override stream never starves
-the heartbeat. A loop waits for :attr:`~mecanum_mav.io.links.base.Link.next_send_s` (the
+the heartbeat. The last words at shutdown (``send_rc_override(..., replace=False)``: neutral,
+then the release) go before anything else that waits, in the order given, and none replaces
+another. A loop waits for :attr:`~mecanum_mav.io.links.base.Link.next_send_s` (the
 pacing timer) and calls :func:`~mecanum_mav.io.links.base.follow` once per pass, which
 flushes and watches the descriptor for writing while the kernel refuses more (``EAGAIN``).
 :meth:`StreamLink.close` with a linger hands over what is still waiting, paced, before it
-closes.
+closes: the last words whatever the wire needs for them, the rest for at most the linger.
 
 Stream links that break come back by themselves. A serial device that vanishes (USB
 unplugged, board rebooting: reads and writes fail with EIO/ENXIO), a ``tcp:`` connection the
@@ -51,12 +53,16 @@ from mecanum_mav.io.links.base import MAX_READS, REOPEN_PERIOD_S, Link, LinkDown
 
 log = logging.getLogger("mecanum_mav.io.links")
 
-__all__ = ["PACING_LEAD_S", "StreamLink"]
+__all__ = ["LAST_WORDS_MAX_S", "PACING_LEAD_S", "StreamLink"]
 
 PACING_LEAD_S = 0.002
 """A stream link hands the kernel the next packet only when what the kernel holds already
 would be on the wire within this time (seconds): its standing queue is at most this plus
 one packet."""
+LAST_WORDS_MAX_S = 2.0
+""":meth:`StreamLink.close` waits at most this long (seconds) for the wire to carry the last
+words at shutdown (neutral, then the release: at 2400 baud three overrides are 0.6 s), however
+short its linger; a device that takes nothing for that long is given up."""
 AGAIN = (BlockingIOError, InterruptedError)
 """The kernel takes or has nothing now: try again later."""
 
@@ -89,6 +95,7 @@ class StreamLink(Link):
         """Bytes queued at most besides the newest override; more is dropped."""
         self._head = b""  # the rest of a packet the kernel took part of: goes on first
         self._override: tuple[int, int, list[int]] | None = None  # newest, not yet packed
+        self._last_words: deque[tuple[int, int, list[int]]] = deque()  # go first, in order
         self._queue: deque[bytes] = deque()  # everything else, in order
         self._queued = 0  # bytes in _queue
         self._override_turn = True  # overrides and queued packets take turns
@@ -202,10 +209,10 @@ class StreamLink(Link):
         when handed over; never raises.
 
         *Newest wins* (``replace``): an override still waiting in the link (not yet handed to
-        the kernel) is replaced by this one, unpacked. With ``replace=False`` it supersedes
-        the waiting one and is queued in order behind what else waits, and a later override
-        does not replace it (the last words at shutdown: neutral, then release, all of them
-        reach the board)."""
+        the kernel) is replaced by this one, unpacked. With ``replace=False`` (the last
+        words at shutdown: neutral, then release) it supersedes the waiting one and goes
+        before everything else that waits, after the last words sent before it; a later
+        override does not replace it, and :meth:`close` waits for the wire to carry it."""
         try:
             self._check_open()
         except LinkDownError:
@@ -216,9 +223,10 @@ class StreamLink(Link):
             self._override = None
         if replace:
             self._override = (target_system, target_component, channels)
-            self.flush()
-            return
-        self._send_queued(self._pack_override(target_system, target_component, channels))
+        else:
+            self._last_words.append((target_system, target_component, channels))
+            self.sent += 1
+        self.flush()
 
     def takes_packet(self) -> bool:
         """Whether a packet given to :meth:`send_packet` now goes to the kernel at once: the
@@ -229,7 +237,7 @@ class StreamLink(Link):
 
     def _idle_and_open(self) -> bool:
         """Nothing waits in the link and it can write now."""
-        if self._head or self._override is not None or self._queue:
+        if self.pending:
             return False
         try:
             self._check_open()
@@ -284,13 +292,15 @@ class StreamLink(Link):
     @property
     def pending(self) -> bool:
         """Whether anything waits in the link to be handed to the kernel."""
-        return bool(self._head) or self._override is not None or bool(self._queue)
+        return (bool(self._head) or bool(self._last_words) or self._override is not None
+                or bool(self._queue))
 
     def flush(self) -> None:
         """Hand the kernel what waits, as pacing lets it (module description): the rest
-        of a packet first, then overrides and queued packets taking turns; sets
+        of a packet first, then the last words, then overrides and queued packets taking
+        turns; sets
         :attr:`next_send_s`. Never blocks or raises (a break puts the link down)."""
-        if not (self._head or self._override is not None or self._queue):
+        if not self.pending:
             self.next_send_s = math.inf
             return
         if self.down_reason is not None:
@@ -301,7 +311,7 @@ class StreamLink(Link):
             if self._head and not self._hand_over(self._head, now):
                 self.next_send_s = math.inf  # writable, or reopened, wakes it
                 return
-            if self._override is None and not self._queue:
+            if not self.pending:
                 self.next_send_s = math.inf
                 return
             wait_s = self._backlog_s(now)
@@ -311,6 +321,8 @@ class StreamLink(Link):
             self._head = self._next_packet()
 
     def _next_packet(self) -> bytes:
+        if self._last_words:  # packed now: the board sees the sequence numbers in order
+            return self._pack_override(*self._last_words.popleft())
         override = self._override
         if override is not None and (self._override_turn or not self._queue):
             self._override = None
@@ -340,8 +352,10 @@ class StreamLink(Link):
 
     def _drop_pending(self) -> None:
         """The link broke: what waits in it is lost (counted in :attr:`unsent`)."""
-        self.unsent += len(self._queue) + (self._override is not None) + bool(self._head)
+        self.unsent += (len(self._queue) + len(self._last_words) + (self._override is not None)
+                        + bool(self._head))
         self._queue.clear()
+        self._last_words.clear()
         self._queued = 0
         self._override, self._head, self._blocked = None, b"", False
         self.next_send_s = math.inf
@@ -392,7 +406,9 @@ class StreamLink(Link):
 
         With ``linger_s`` what was written last reaches the peer and is read before the link
         goes: what still waits in the link is handed over first, paced as always, for at most
-        ``linger_s``; then the transport makes sure its output is out (:meth:`_flush_out`).
+        ``linger_s`` (the last words, whatever the wire needs, at most
+        :data:`LAST_WORDS_MAX_S`); then the transport makes sure its output is out
+        (:meth:`_flush_out`).
         A peer that sees the connection end while the last bytes are still in its buffers may
         drop them: measured with ArduPilot SITL, the companion's channel release sent right
         before ``close()`` never took effect.
@@ -405,14 +421,19 @@ class StreamLink(Link):
         super().close()
 
     def _hand_over_rest(self, linger_s: float) -> None:
-        """Before closing: flush until nothing waits, the link broke, or ``linger_s`` has
-        passed, on the link's clock (which paces) or in real time (which the waits take)."""
-        deadline = self.clock() + linger_s
-        real_deadline = time.monotonic() + linger_s
+        """Before closing: flush until nothing waits or the link broke; the last words (and
+        a packet begun) for as long as the wire needs, at most :data:`LAST_WORDS_MAX_S`, the
+        rest for at most ``linger_s``; on the link's clock (which paces) or in real time
+        (which the waits take), whichever passes first."""
+        start, real_start = self.clock(), time.monotonic()
         while self.pending and self.down_reason is None:
             self.flush()
             now = self.clock()
-            if not self.pending or now >= deadline or time.monotonic() >= real_deadline:
+            if not self.pending:
+                return
+            limit = LAST_WORDS_MAX_S if (self._head or self._last_words) else linger_s
+            deadline = start + limit
+            if now >= deadline or time.monotonic() - real_start >= limit:
                 return
             if self.wants_write:
                 select.select([], [self._port_fd], [], deadline - now)
