@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import math
 import os
@@ -184,6 +185,12 @@ def test_a_float_bound_that_float32_cannot_carry_is_rejected():
 def test_a_schema_listing_a_name_twice_is_rejected():
     with pytest.raises(ValueError, match="MIX_ALGO is listed twice"):
         _index([SPECS["MIX_ALGO"], SPECS["INP_EXPO"], SPECS["MIX_ALGO"]])
+
+
+def test_a_schema_entry_whose_group_has_no_title_is_rejected():
+    untitled = dataclasses.replace(SPECS["MIX_ALGO"], name="ZZZ_ALGO")
+    with pytest.raises(ValueError, match="ZZZ_ALGO: group ZZZ has no title"):
+        _index([SPECS["MIX_ALGO"], untitled])
 
 
 def test_parameter_specs_are_hashable_and_their_labels_read_only():

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import importlib
+import importlib.util
 import re
 from pathlib import Path
 
@@ -20,6 +21,23 @@ def test_the_parameter_reference_table_is_the_schema():
     names = [row.split("`")[1] for row in table.splitlines() if row.startswith("| `")]
     assert names == [spec.name for spec in SCHEMA]
     assert "docs/reference/parameters.md" in (ROOT / "README.md").read_text()
+
+
+def test_the_schema_its_module_builds_at_import_is_the_reference_table():
+    """The schema is built when its module is imported (each wheel's entries by a function,
+    every entry checked then): built again, as a fresh module, it is the table users read.
+    (Code that runs at import is otherwise invisible to mutmut: its workers import the
+    package before a test starts.)"""
+    spec = importlib.util.find_spec("mecanum_mav.config.schema")
+    assert spec is not None and spec.loader is not None
+    fresh = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(fresh)
+    text = (ROOT / "docs" / "reference" / "parameters.md").read_text()
+    table = text.split("<!-- params:begin -->\n", 1)[1].split("<!-- params:end -->", 1)[0]
+    assert markdown_table(fresh.SCHEMA).strip() == table.strip()
+    assert list(fresh.SPECS) == [s.name for s in SCHEMA]
+    assert [(s.name, s.kind, s.reboot_required, s.values) for s in fresh.SCHEMA] == [
+        (s.name, s.kind, s.reboot_required, s.values) for s in SCHEMA]
 
 
 def test_ci_runs_exactly_the_readme_test_command():

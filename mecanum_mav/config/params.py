@@ -26,7 +26,7 @@ Usage (through the documented facade :mod:`mecanum_mav.params`)::
 from __future__ import annotations
 
 import difflib
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterator, Mapping, Sequence
 
 from mecanum_mav.config.rules import (
     MODE_NUMBERS,
@@ -196,13 +196,14 @@ def parse_assignment(text: str) -> tuple[str, Value]:
     return name, get_spec(name).parse(value)
 
 
-def markdown_table() -> str:
-    """The parameter table of docs/reference/parameters.md, generated from :data:`SCHEMA`."""
+def markdown_table(schema: Sequence[ParamSpec] = SCHEMA) -> str:
+    """The parameter table of docs/reference/parameters.md, generated from ``schema``
+    (:data:`SCHEMA`)."""
     rows = [
         "| Name | Default | Range / values | Units | Description |",
         "| --- | --- | --- | --- | --- |",
     ]
-    for s in SCHEMA:
+    for s in schema:
         default = s.format(s.default)
         if s.values is not None:
             default += f" ({s.values[int(s.default)]})"
