@@ -99,10 +99,8 @@ def _mode_name(msg: Any) -> str:
             return Mode(msg.custom_mode).name
         except ValueError:
             pass
-    try:
-        return str(mavutil.mode_string_v10(msg))
-    except Exception:  # pymavlink's tables may not know the type
-        return f"mode {msg.custom_mode}"
+    # (a type or number pymavlink's tables do not know: "Mode(N)"; it raises on none)
+    return str(mavutil.mode_string_v10(msg))
 
 
 def _mode_spans(beats: list[tuple[float, str, bool]], causes: Sequence[float],

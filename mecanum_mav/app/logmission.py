@@ -126,12 +126,11 @@ def planned_positions(items: Iterable[MissionItem], origin: GlobalOrigin | None
         if item.command == _RTL:
             out.append((item.seq, 0.0, 0.0))
         elif item.command in _NAV_COMMANDS:
-            try:
+            try:  # (integer positions: always finite)
                 n, e = position_ned(item, origin)
             except ValueError:
                 continue
-            if finite(n, e):
-                out.append((item.seq, n, e))
+            out.append((item.seq, n, e))
     return out
 
 

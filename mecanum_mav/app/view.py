@@ -167,7 +167,7 @@ def serve_rrd(rrd: Path | None, web_port: int, *, native: bool,
         url = viewer_url(web_port, grpc_port)
     try:
         _wait_listening(grpc_port, process, timeout_s)
-    except RuntimeError:
+    except BaseException:  # (a Ctrl-C too: the viewer is in a session of its own)
         process.kill()
         process.wait()
         raise
@@ -179,10 +179,14 @@ def open_viewer(recording: Any, web_port: int, save: Path | None) -> Viewer:
     and its sinks: the viewer, and ``save`` (an ``.rrd`` file) when given."""
     rr = rerun_module()
     viewer = serve_rrd(None, web_port, native=has_display())
-    sinks: list[Any] = [rr.GrpcSink(viewer.grpc_url)]
-    if save is not None:
-        sinks.append(rr.FileSink(str(save)))
-    recording.set_sinks(*sinks)
+    try:
+        sinks: list[Any] = [rr.GrpcSink(viewer.grpc_url)]
+        if save is not None:
+            sinks.append(rr.FileSink(str(save)))
+        recording.set_sinks(*sinks)  # (RuntimeError: ``save`` cannot be created)
+    except BaseException:
+        viewer.close()
+        raise
     return viewer
 
 
@@ -263,9 +267,6 @@ def _messages(connect: str, wait_s: float = _WAIT_S
 def merged(connects: Sequence[str]) -> Generator[list[tuple[float, Any]], None, None]:
     """:func:`_messages` of each of ``connects`` in turn (each waiting its share of
     :data:`_WAIT_S`), a batch of each round's messages in time order, forever."""
-    if len(connects) == 1:
-        yield from _messages(connects[0])
-        return
     sources = [_messages(c, _WAIT_S / len(connects)) for c in connects]
     try:
         while True:
@@ -306,14 +307,14 @@ def run_view(connect: str | Sequence[str], params: Params, *, save: Path | None 
         return 2
     mapping = ViewMapping(params)
     recording = rr.RecordingStream(APPLICATION_ID)
-    try:
-        viewer = open_viewer(recording, web_port, save)
-    except (RuntimeError, OSError) as exc:
-        print(f"mecanum-mav view: {exc}", file=sys.stderr)
-        return 2
     with contextlib.ExitStack() as stack:
+        _sigterm_interrupts(stack)  # (from the start: a viewer being started is stopped too)
+        try:
+            viewer = open_viewer(recording, web_port, save)
+        except (RuntimeError, OSError) as exc:
+            print(f"mecanum-mav view: {exc}", file=sys.stderr)
+            return 2
         stack.callback(viewer.close)
-        _sigterm_interrupts(stack)
         mapping.start(recording)
         where = viewer.url or "the native viewer"
         print(f"mecanum-mav view: {connect} -> {where}"
@@ -322,8 +323,8 @@ def run_view(connect: str | Sequence[str], params: Params, *, save: Path | None 
             batches = merged(connects)
             stack.callback(batches.close)
             next_flush = time.monotonic()
-            for batch in batches:
-                mapping.feed_all(batch)
+            while True:  # (the batches never end)
+                mapping.feed_all(next(batches))
                 now = time.monotonic()
                 if now >= next_flush:
                     mapping.flush(recording)
