@@ -13,6 +13,7 @@ CPU is tools/bench_link_down.py's figure.
 from __future__ import annotations
 
 import contextlib
+import errno
 import socket
 import time
 from collections.abc import Callable, Iterator
@@ -26,7 +27,7 @@ from test_end_to_end import ARM, NEUTRAL, STICK_PERIOD_S, WHEELS, channels
 
 from mecanum_mav.app.companion import Companion
 from mecanum_mav.config.params import Params
-from mecanum_mav.io.links import PEER_TIMEOUT_S, Link, mavlink
+from mecanum_mav.io.links import PEER_TIMEOUT_S, Link, mavlink, open_link
 from mecanum_mav.protocol.rcoverride import override_fields
 from mecanum_mav.sim.groundstation import ScriptedGroundStation, udp_ground_station
 
@@ -262,3 +263,42 @@ def test_a_ground_station_restarting_on_a_new_port_is_heard_and_answered_at_once
         companion.close()
         for gcs_port in stations:
             gcs_port.close()
+
+
+class _UnresolvableConnect(socket.socket):
+    """A socket whose connect finds its host name no longer resolves (an mDNS name after the
+    network dropped): ``connect_ex`` raises instead of returning an error code."""
+
+    def connect_ex(self, address: object) -> int:
+        raise socket.gaierror(socket.EAI_NONAME, "Name or service not known")
+
+
+@pytest.mark.parametrize("failure", ["name", "files"])
+def test_a_tcp_link_whose_reconnect_cannot_resolve_or_open_a_socket_stays_down_and_tries_again(
+        failure: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Reconnecting never raises into the loop: a name that does not resolve, or a process out
+    of descriptors, is a failed attempt like a refused one."""
+    from mecanum_mav.io.links import tcp
+
+    with socket.socket() as server:
+        server.bind(("127.0.0.1", 0))
+        server.listen(1)
+        link = open_link(f"tcp:127.0.0.1:{server.getsockname()[1]}", source_system=255,
+                         source_component=190, name="fc")
+        try:
+            board, _ = server.accept()
+            board.close()  # the board goes away: the link breaks on its next read
+            assert wait_until(lambda: link.read() == [] and not link.up, 2.0)
+            if failure == "name":
+                monkeypatch.setattr(tcp.socket, "socket", _UnresolvableConnect)
+            else:
+                def out_of_files(*args: object) -> socket.socket:
+                    raise OSError(errno.EMFILE, "Too many open files")
+                monkeypatch.setattr(tcp.socket, "socket", out_of_files)
+            assert link.reopen(link.next_reopen_s) is False
+            assert not link.up
+            monkeypatch.undo()
+            assert wait_until(lambda: link.reopen(link.next_reopen_s), 2.0)  # (and it can)
+            assert link.up
+        finally:
+            link.close()

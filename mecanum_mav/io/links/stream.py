@@ -300,10 +300,7 @@ class StreamLink(Link):
         of a packet first, then the last words, then overrides and queued packets taking
         turns; sets
         :attr:`next_send_s`. Never blocks or raises (a break puts the link down)."""
-        if not self.pending:
-            self.next_send_s = math.inf
-            return
-        if self.down_reason is not None:
+        if not self.pending:  # (a link that is down has nothing waiting: _drop_pending)
             self.next_send_s = math.inf
             return
         now = self.clock()
@@ -365,9 +362,8 @@ class StreamLink(Link):
     def _went_down(self, reason: str, detail: object = "") -> None:
         """The link broke: mark it down (the shell reports it once) and stop using it; its
         port is closed now (a USB serial node still held open keeps its name from the next
-        plug) and opened again from :attr:`next_reopen_s` on."""
-        if self.down_reason is not None:
-            return
+        plug) and opened again from :attr:`next_reopen_s` on. Called only while it is up (a
+        read or write that failed; neither is tried while it is down)."""
         self._mark_down(reason, detail)
         with contextlib.suppress(OSError):
             self.conn.port.close()

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import contextlib
 import errno
+import logging
 import selectors
 import socket
 import time
@@ -26,6 +27,8 @@ from typing import Any, ClassVar
 from mecanum_mav.io.links.base import READ_CHUNK, LinkDownError
 from mecanum_mav.io.links.stream import StreamLink, queued_bytes
 from mecanum_mav.protocol.dialect import mavutil
+
+log = logging.getLogger("mecanum_mav.io.links")
 
 __all__ = ["TCP_CONNECT_TIMEOUT_S", "TCP_POLL_S", "TCP_QUEUE_BYTES", "TCP_UNSENT_LIMIT",
            "TcpLink", "TcpServerLink"]
@@ -103,9 +106,17 @@ class TcpLink(_Tcp):
             sock.close()
             sock = self._connecting = None
         if sock is None:
-            sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+            try:  # (a name that no longer resolves raises; so does a process out of files)
+                sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+            except OSError as exc:
+                log.debug("%s: reconnecting failed: %s", self.name, exc)
+                return False
             sock.setblocking(False)
-            code = sock.connect_ex(self.conn.destination_addr)
+            try:
+                code = sock.connect_ex(self.conn.destination_addr)
+            except OSError as exc:
+                log.debug("%s: reconnecting failed: %s", self.name, exc)
+                code = -1
             if code not in (0, errno.EINPROGRESS):
                 sock.close()
                 return False
@@ -154,9 +165,8 @@ class TcpServerLink(_Tcp):
             raise LinkDownError("no client connected")  # nobody to send to yet
 
     def _went_down(self, reason: str, detail: object = "") -> None:
-        """The client left: back to listening, the next client brings the link up."""
-        if self.down_reason is not None:
-            return
+        """The client left: back to listening, the next client brings the link up (called
+        only while it is up, as the stream link's)."""
         self._mark_down(reason, detail)
         conn = self.conn
         with contextlib.suppress(OSError):

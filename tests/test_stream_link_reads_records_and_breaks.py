@@ -1,0 +1,191 @@
+"""Stream links (mecanum_mav/io/links/stream.py) at their edges, on real TCP sockets and a
+pty: a read takes at most ``max_reads`` chunks, a tlog records what is read and what the stick
+lane sends, a signing link signs from the newest verified timestamp it read, a lane packet
+whose write finds the link broken is lost and counted, and the last words at close wait for
+a board whose buffer is full until it reads again."""
+
+from __future__ import annotations
+
+import array
+import fcntl
+import os
+import select
+import socket
+import termios
+import threading
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+from support import RawPty, mavlink_sender, override_channels, wait_until
+from test_links import FakeClock
+
+from mecanum_mav.io.links import Link, mavlink, mavutil, open_link
+from mecanum_mav.io.links.base import READ_CHUNK
+from mecanum_mav.io.links.stream import LAST_WORDS_MAX_S
+from mecanum_mav.protocol.signing import TICKS_PER_S, ticks_from_unix
+
+KEY = bytes(range(32))
+NEUTRAL, RELEASE = [1500] * 4 + [65535] * 4 + [0] * 10, [0] * 4 + [65535] * 4 + [0] * 10
+
+
+@contextmanager
+def tcp_pair(signing_key: bytes | None = None,
+             clock: Any = time.monotonic) -> Iterator[tuple[Link, socket.socket]]:
+    """A ``tcp:`` link and the flight controller's end of its connection (blocking, 5 s)."""
+    server = socket.create_server(("127.0.0.1", 0))
+    host, port = server.getsockname()
+    link = open_link(f"tcp:{host}:{port}", source_system=255, source_component=190,
+                     name="fc", signing_key=signing_key, clock=clock)
+    peer, _ = server.accept()
+    peer.settimeout(5.0)
+    try:
+        yield link, peer
+    finally:
+        link.close()
+        peer.close()
+        server.close()
+
+
+def waiting_bytes(fd: int) -> int:
+    count = array.array("i", [0])
+    fcntl.ioctl(fd, termios.FIONREAD, count, True)
+    return count[0]
+
+
+def board_sender() -> Any:
+    return mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
+
+
+def heartbeat(mav: Any, custom_mode: int = 0) -> bytes:
+    return bytes(mav.heartbeat_encode(10, 3, 0, custom_mode, 3).pack(mav))
+
+
+def test_a_stream_read_takes_at_most_max_reads_chunks_and_leaves_the_rest_for_the_next():
+    with tcp_pair() as (link, peer):
+        board = board_sender()
+        packet = heartbeat(board)
+        count = 2 * READ_CHUNK // len(packet)  # two chunks' worth
+        peer.sendall(b"".join(heartbeat(board, i) for i in range(count)))
+        assert wait_until(lambda: waiting_bytes(link.fileno()) == count * len(packet), 5.0,
+                          pump=lambda s: select.select([link.fileno()], [], [], s))
+        first = link.read(max_reads=1)
+        assert len(first) == READ_CHUNK // len(packet)  # the whole packets of one chunk
+        rest = link.read()
+        assert [m.custom_mode for m in first + rest] == list(range(count))  # all, in order
+
+
+def test_a_recording_stream_link_records_what_it_reads_and_what_the_stick_lane_sends(
+        tmp_path: Path):
+    tlog = tmp_path / "fc.tlog"
+    with tcp_pair() as (link, peer), tlog.open("wb") as out:
+        link.record_to(out)
+        peer.sendall(heartbeat(board_sender()))
+        got: list[Any] = []
+        assert wait_until(lambda: got.extend(link.read()) or got, 5.0,
+                          pump=lambda s: select.select([link.fileno()], [], [], s))
+        lane = mavlink_sender()
+        stick = bytes(lane.rc_channels_override_encode(1, 1, *NEUTRAL).pack(lane))
+        assert link.takes_packet()
+        link.send_packet(stick)
+        assert peer.recv(1024) == stick
+    log = mavutil.mavlink_connection(str(tlog))
+    recorded = []
+    while (msg := log.recv_match()) is not None:
+        recorded.append((msg.get_type(), msg.get_srcSystem()))
+    assert recorded == [("HEARTBEAT", 1), ("RC_CHANNELS_OVERRIDE", 255)]
+
+
+def test_a_signing_stream_link_signs_no_earlier_than_the_newest_verified_packet_it_read():
+    """As on a datagram link (test_links.py): ArduPilot drops a stream signed more than a
+    minute behind its own timestamp, so the link takes the peer's verified one."""
+    ahead = ticks_from_unix(time.time()) + 600 * TICKS_PER_S
+    with tcp_pair(signing_key=KEY) as (link, peer):
+        board = mavlink_sender(KEY, sysid=1, compid=1, link_id=1, timestamp=ahead)
+        peer.sendall(heartbeat(board))
+        got: list[Any] = []
+        assert wait_until(lambda: got.extend(link.read()) or got, 5.0,
+                          pump=lambda s: select.select([link.fileno()], [], [], s))
+        link.send(mavlink.MAVLink_heartbeat_message(6, 8, 0, 0, 0, 3))
+        sent = peer.recv(1024)
+        stamp = int.from_bytes(sent[-12:-6], "little")
+        assert ahead <= stamp < ahead + TICKS_PER_S, (stamp - ahead)
+
+
+def test_a_stick_lane_packet_whose_write_finds_the_connection_reset_is_lost_and_counted():
+    with tcp_pair() as (link, peer):
+        peer.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, b"\x01\x00\x00\x00\x00\x00\x00\x00")
+        peer.close()  # a reset, not an orderly end
+        assert select.select([link.fileno()], [], [], 5.0)[0], "the reset never arrived"
+        lane = mavlink_sender()
+        stick = bytes(lane.rc_channels_override_encode(1, 1, *NEUTRAL).pack(lane))
+        sent, unsent = link.sent, link.unsent
+        assert link.takes_packet()  # (the link does not know yet)
+        link.send_packet(stick)
+        assert link.down_reason == "connection lost"
+        assert (link.sent, link.unsent) == (sent, unsent + 1)
+
+
+def test_reopening_a_stream_link_that_is_up_says_so_and_keeps_its_connection():
+    clock = FakeClock()
+    with tcp_pair(clock=clock) as (link, peer):
+        clock.now += 10.0
+        assert link.reopen(clock.now)
+        link.send(mavlink.MAVLink_heartbeat_message(6, 8, 0, 0, 0, 3))
+        assert [m.get_type() for m in mavlink.MAVLink(None).parse_buffer(peer.recv(1024))] == [
+            "HEARTBEAT"]
+
+
+def test_the_last_words_reach_a_serial_board_whose_buffer_was_full_once_it_reads_again():
+    """A board that stops reading for a moment (busy, its USB buffer full) fills the tty: the
+    kernel takes nothing more. Closing then waits for the device to take the last words
+    (neutral, then the release), longer than the close's linger."""
+    pty = RawPty()
+    link = open_link(f"{pty.path},921600", source_system=255, source_component=190,
+                     name="fc")
+    try:
+        deadline = time.monotonic() + 10.0
+        while not link.wants_write and time.monotonic() < deadline:  # the board reads nothing
+            link.mav.statustext_send(6, b"telemetry for a board that does not read")
+            if link.next_send_s < deadline:  # (paced to 921600 baud)
+                time.sleep(max(0.0, link.next_send_s - time.monotonic()))
+                link.flush()
+        assert link.wants_write, "the pty never filled"
+        link.send_rc_override(1, 1, NEUTRAL, replace=False)
+        link.send_rc_override(1, 1, RELEASE, replace=False)
+        received = bytearray()
+        board_back = threading.Event()
+
+        def board() -> None:
+            board_back.wait(5.0)
+            end = time.monotonic() + 5.0
+            while time.monotonic() < end:
+                if select.select([pty.master], [], [], 0.05)[0]:
+                    try:
+                        received.extend(os.read(pty.master, 65536))
+                    except OSError:
+                        return
+                elif closed.is_set():
+                    return
+
+        closed = threading.Event()
+        reader = threading.Thread(target=board, daemon=True)
+        reader.start()
+        timer = threading.Timer(0.2, board_back.set)  # the board reads again 0.2 s later
+        timer.start()
+        start = time.monotonic()
+        link.close(linger_s=0.05)
+        took = time.monotonic() - start
+        closed.set()
+        reader.join(6.0)
+        parser = mavlink.MAVLink(None)
+        parser.robust_parsing = True
+        overrides = [override_channels(m) for m in parser.parse_buffer(bytes(received)) or ()
+                     if m.get_type() == "RC_CHANNELS_OVERRIDE"]
+        assert overrides == [NEUTRAL, RELEASE]
+        assert took < LAST_WORDS_MAX_S + 0.5
+    finally:
+        link.close()
+        pty.close()
