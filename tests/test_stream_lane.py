@@ -175,7 +175,8 @@ def test_after_the_pilots_last_stick_in_its_lane_the_refresh_and_the_input_timeo
                        pump_s=0.001)
         assert len(answered) >= 40, len(answered)  # (the passes were sticks alone)
         fc.beat_period_s = math.inf  # the board falls silent too
-        last = time.monotonic()
+        last = time.monotonic()  # the last stick: the input timeout runs from here on
+        gcs.sticks(1000)
         forward, neutral = [2000] * 4, [1500] * 4
         seen: list[tuple[float, list[int]]] = []
 
@@ -188,7 +189,7 @@ def test_after_the_pilots_last_stick_in_its_lane_the_refresh_and_the_input_timeo
 
         assert wait_until(went_neutral, 2.0), seen[-3:]
         first_neutral = next(t for t, wheels in seen if wheels == neutral)
-        assert 0.3 <= first_neutral < 0.45, first_neutral
+        assert 0.3 <= first_neutral < 0.55, first_neutral  # (a loaded machine: +0.25 s)
         refreshed = [t for t, wheels in seen if wheels == forward and t > 0.05]
         assert len(refreshed) >= 3  # OUT_RATE 20 Hz until the timeout
 
