@@ -121,9 +121,10 @@ def _arguments(action: argparse.Action) -> str:
         return f"[{metavar} ...]"
     if nargs == argparse.ONE_OR_MORE:
         return f"{metavar} [{metavar} ...]"
-    if isinstance(nargs, int):
-        return " ".join([metavar] * nargs)
-    return metavar  # PARSER, REMAINDER: not used by this command line
+    if isinstance(nargs, int):  # (a tuple metavar names each one)
+        names = action.metavar if isinstance(action.metavar, tuple) else [metavar] * nargs
+        return " ".join(names)
+    return "..."  # REMAINDER (PARSER is the sub-commands' action, not shown)
 
 
 def _usage_part(action: argparse.Action) -> str:
@@ -152,7 +153,7 @@ def _usage(prog: str, actions: Sequence[argparse.Action], tail: str = "") -> str
 
 def _help(action: argparse.Action, prog: str) -> str:
     """The action's help with argparse's ``%(default)s``-style fields filled in."""
-    if not action.help or action.help == argparse.SUPPRESS:
+    if not action.help:  # (a hidden one, argparse.SUPPRESS, is not shown at all)
         return ""
     fields = dict(vars(action), prog=prog)
     for name, value in list(fields.items()):
@@ -175,8 +176,6 @@ def _default(action: argparse.Action) -> str:
 def _options_table(actions: Sequence[argparse.Action], prog: str) -> list[str]:
     rows = ["| option | default | description |", "| --- | --- | --- |"]
     for action in actions:
-        if action.help == argparse.SUPPRESS:
-            continue
         arguments = _arguments(action)
         names = ", ".join(action.option_strings) if action.option_strings else ""
         spelled = " ".join(p for p in (names, arguments) if p)
@@ -211,7 +210,8 @@ def _section(title: str, description: str | None, prog: str,
     lines = [f"## {title}", ""]
     if description:
         lines += [_paragraph(description), ""]
-    visible = [a for a in actions if not isinstance(a, argparse._SubParsersAction)]
+    visible = [a for a in actions if not isinstance(a, argparse._SubParsersAction)
+               and a.help != argparse.SUPPRESS]  # (hidden from --help, usage and all)
     lines += ["```text", _usage(prog, visible, tail), "```", ""]
     lines += [*_options_table(visible, prog), ""]
     return lines

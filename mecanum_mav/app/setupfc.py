@@ -24,10 +24,11 @@ be safe once rebooted (``--reboot``, or power-cycle it).
 
 from __future__ import annotations
 
+import contextlib
 import selectors
 import sys
 import time
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from typing import Any, NamedTuple, TextIO
 
 from mecanum_mav.config.params import Params
@@ -52,6 +53,8 @@ HEARTBEAT_TIMEOUT_S = 10.0
 WRITE_DEADLINE_S = 10.0
 REBOOT_TIMEOUT_S = 60.0
 """How long a rebooting board may take to come back."""
+ACK_TIMEOUT_S = 1.0
+"""How long a COMMAND_LONG waits for its COMMAND_ACK before it is sent again."""
 EXIT_REBOOT_PENDING = 3
 
 
@@ -80,12 +83,18 @@ class FcSession:
         self._selector.close()
         self.link.close(linger_s=0.2)
 
+    def _send(self, send: Callable[..., object], *args: Any) -> None:
+        """``send(*args)``, a message to the board; one the link cannot take now (it went
+        down, the board rebooting, or its queue is full) is lost: each caller asks again."""
+        with contextlib.suppress(OSError):  # (LinkDownError, BlockingIOError, no route)
+            send(*args)
+
     def _receive(self, timeout_s: float) -> list[Any]:
         """What the flight controller sent within ``timeout_s`` (our HEARTBEAT goes out at
         1 Hz meanwhile; a link that went down is reopened)."""
         now = time.monotonic()
         if now >= self._next_beat_s and self.link.up:
-            send_gcs_heartbeat(self.link.mav)
+            self._send(send_gcs_heartbeat, self.link.mav)
             self._next_beat_s = now + 1.0
         if not self.link.up:
             self.link.reopen(now)
@@ -96,11 +105,8 @@ class FcSession:
             return []
         if not self._selector.select(max(0.0, wake_s)):
             return []
-        try:
-            got = self.link.read()
-        except OSError:  # went down (the board rebooted): reopened on the next pass
-            return []
-        return [m for m in got if m.get_srcSystem() == self.target[0]]
+        # (read never raises: a link that broke is down, and reopened on the next pass)
+        return [m for m in self.link.read() if m.get_srcSystem() == self.target[0]]
 
     def wait_heartbeat(self, timeout_s: float = HEARTBEAT_TIMEOUT_S) -> bool:
         """Wait for the flight controller's HEARTBEAT (sending ours at 1 Hz meanwhile)."""
@@ -115,7 +121,8 @@ class FcSession:
         reader = ParamReader(groups, time.monotonic(), optional=OPTIONAL_NAMES)
         while not reader.over:
             for name in reader.requests(time.monotonic()):
-                self.link.mav.param_request_read_send(*self.target, name.encode(), -1)
+                self._send(self.link.mav.param_request_read_send, *self.target, name.encode(),
+                           -1)
             wait_s = reader.next_due_s() - time.monotonic()
             for msg in self._receive(max(0.0, min(wait_s, 0.2))):
                 if msg.get_type() == "PARAM_VALUE":
@@ -140,8 +147,8 @@ class FcSession:
             while pending and len(sent) < WINDOW:
                 name = pending.pop(0)
                 kind = self.types.get(name, mavlink.MAV_PARAM_TYPE_REAL32)
-                self.link.mav.param_set_send(*self.target, name.encode(),
-                                             float(settings[name]), kind)
+                self._send(self.link.mav.param_set_send, *self.target, name.encode(),
+                           float(settings[name]), kind)
                 sent[name] = now
             for msg in self._receive(0.1):
                 name = msg.param_id.rstrip("\x00") if msg.get_type() == "PARAM_VALUE" else ""
@@ -158,9 +165,9 @@ class FcSession:
         next_ask = 0.0
         while (now := time.monotonic()) < deadline:
             if now >= next_ask:
-                self.link.mav.command_long_send(
-                    *self.target, mavlink.MAV_CMD_REQUEST_MESSAGE, 0,
-                    mavlink.MAVLINK_MSG_ID_SYSTEM_TIME, 0, 0, 0, 0, 0, 0)
+                self._send(self.link.mav.command_long_send,
+                           *self.target, mavlink.MAV_CMD_REQUEST_MESSAGE, 0,
+                           mavlink.MAVLINK_MSG_ID_SYSTEM_TIME, 0, 0, 0, 0, 0, 0)
                 next_ask = now + 1.0
             for msg in self._receive(min(0.2, deadline - now)):
                 if msg.get_type() == "SYSTEM_TIME":
@@ -188,8 +195,8 @@ class FcSession:
         """COMMAND_LONG ``command``, sent up to three times; the COMMAND_ACK's result."""
         args = [*params, *[0.0] * (7 - len(params))]
         for _ in range(3):
-            self.link.mav.command_long_send(*self.target, command, 0, *args)
-            deadline = time.monotonic() + 1.0
+            self._send(self.link.mav.command_long_send, *self.target, command, 0, *args)
+            deadline = time.monotonic() + ACK_TIMEOUT_S
             while (now := time.monotonic()) < deadline:
                 for msg in self._receive(deadline - now):
                     if msg.get_type() == "COMMAND_ACK" and msg.command == command:
@@ -286,7 +293,7 @@ def run_setup(url: str, params: Params, *, apply: bool, reboot: bool = False,
         out.write(f"mecanum-mav setup-fc: waiting for the flight controller's HEARTBEAT on "
                   f"{url}\n")
         out.flush()
-        if not session.wait_heartbeat():
+        if not session.wait_heartbeat(HEARTBEAT_TIMEOUT_S):
             print(f"mecanum-mav setup-fc: no HEARTBEAT from system {session.target[0]} on "
                   f"{url}", file=sys.stderr)
             return 2
@@ -299,7 +306,7 @@ def run_setup(url: str, params: Params, *, apply: bool, reboot: bool = False,
         if reboot:
             out.write("\nrebooting the flight controller ...\n")
             out.flush()
-            problem = session.reboot()
+            problem = session.reboot(REBOOT_TIMEOUT_S)
             if problem is not None:
                 print(f"mecanum-mav setup-fc: reboot: {problem}", file=sys.stderr)
                 return 2

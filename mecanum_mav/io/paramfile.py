@@ -203,7 +203,7 @@ def save_keeping_layout(params: Mapping[str, Value], path: str | os.PathLike[str
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
-        prog="python -m mecanum_mav.config.params", description="Generate files from the schema."
+        prog="python -m mecanum_mav.params", description="Generate files from the schema."
     )
     parser.add_argument("--table", action="store_true", help="print the parameter reference table")
     parser.add_argument("--write-defaults", metavar="PATH", help="write the defaults file")
@@ -215,7 +215,3 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not (args.table or args.write_defaults):
         parser.print_help()
     return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())
