@@ -6,8 +6,10 @@ import importlib
 import importlib.util
 import re
 from pathlib import Path
+from types import ModuleType
 
 from mecanum_mav.config.params import SCHEMA, markdown_table
+from mecanum_mav.config.rules import RULES
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -23,19 +25,30 @@ def test_the_parameter_reference_table_is_the_schema():
     assert "docs/reference/parameters.md" in (ROOT / "README.md").read_text()
 
 
+def fresh_module(name: str) -> ModuleType:
+    """Module ``name`` executed anew (its import-time code run now), apart from the one
+    imported."""
+    spec = importlib.util.find_spec(name)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
 def test_the_schema_its_module_builds_at_import_is_the_reference_table():
     """The schema is built when its module is imported (each wheel's entries by a function,
     every entry checked then): built again, as a fresh module, it is the table users read.
     (Code that runs at import is otherwise invisible to mutmut: its workers import the
     package before a test starts.)"""
-    spec = importlib.util.find_spec("mecanum_mav.config.schema")
-    assert spec is not None and spec.loader is not None
-    fresh = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(fresh)
+    fresh = fresh_module("mecanum_mav.config.schema")
     text = (ROOT / "docs" / "reference" / "parameters.md").read_text()
     table = text.split("<!-- params:begin -->\n", 1)[1].split("<!-- params:end -->", 1)[0]
     assert markdown_table(fresh.SCHEMA).strip() == table.strip()
+    assert {s.name: s for s in fresh.SCHEMA} == fresh.SPECS
     assert list(fresh.SPECS) == [s.name for s in SCHEMA]
+    rules = fresh_module("mecanum_mav.config.rules")  # its rules checked against the schema
+    assert [type(rule).__name__ for rule in rules.RULES] == [
+        type(rule).__name__ for rule in RULES]
     assert [(s.name, s.kind, s.reboot_required, s.values) for s in fresh.SCHEMA] == [
         (s.name, s.kind, s.reboot_required, s.values) for s in SCHEMA]
 
