@@ -291,14 +291,6 @@ class Twin(Started):
         """The bridge's counters (frames, dropped, repeated, busy time)."""
         return self._record().stats()
 
-    def real_time_factor(self) -> float:
-        """Physics seconds per wall second since the first frame (NaN before two)."""
-        return self.stats().real_time_factor
-
-    def dropped_frames(self) -> int:
-        """Frame counts the firmware skipped (0 in a healthy lockstep)."""
-        return self.stats().dropped
-
 
 def describe(stats: BridgeStats) -> str:
     """One line of the bridge's figures, for the twin command and the tests' output."""

@@ -449,8 +449,8 @@ class BridgeProcess:
                 self._proc.wait(timeout=5)
             except subprocess.TimeoutExpired:
                 kill_group(self._proc)
-            if self._proc.stdout is not None:
-                self._proc.stdout.close()
+            assert self._proc.stdout is not None  # (stdout=PIPE)
+            self._proc.stdout.close()
         shutil.rmtree(self._dir, ignore_errors=True)  # (the record stays mapped here)
 
 

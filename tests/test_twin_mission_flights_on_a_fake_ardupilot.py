@@ -1,0 +1,551 @@
+"""The twin's flights and probes (mecanum_mav/sim/twinmission.py) against a fake ArduPilot
+Rover: what the ground station does when the firmware (or the companion) arms, refuses,
+completes or stays silent, and how the flight is graded against the truth.
+
+The fake (:class:`FakeArduPilot`) answers as ArduPilot Rover does on its SERIAL1: HEARTBEAT
+with its mode, COMMAND_ACK, PreArm STATUSTEXT, HOME_POSITION where it was armed, the mission
+protocol, AUTO driving to each waypoint (MISSION_ITEM_REACHED, then "Mission Complete", staying
+in AUTO), MANUAL driving from MANUAL_CONTROL, ATTITUDE, EKF_STATUS_REPORT and its EKF's
+LOCAL_POSITION_NED (about an origin of its own). Its chassis is its truth (the bridge's
+record on the twin). It runs on a real UDP socket in a thread (:class:`FirmwareOnUdp`:
+wall-clock time, where the module waits on ``time.monotonic()``), or behind a virtual port in
+virtual time (:class:`VirtualPort`) where the module's waits are seconds long (no heartbeat
+for 10 s, HOLD refused for 2 s)."""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import re
+import select
+import socket
+import threading
+import time
+from collections.abc import Iterator
+from typing import Any
+
+import pytest
+
+from mecanum_mav.mecanum.geo import GlobalOrigin
+from mecanum_mav.protocol.dialect import mavlink
+from mecanum_mav.protocol.modes import Mode
+from mecanum_mav.sim import twinmission as tm
+from mecanum_mav.sim.groundstation import ScriptedGroundStation
+from mecanum_mav.sim.missionrun import MissionRun
+from mecanum_mav.sim.process import free_port
+from mecanum_mav.sim.twinbridge import TruthSample
+
+REF = GlobalOrigin.from_degrees(-35.363262, 149.165237)
+"""Where the fake's chassis frame (north 0, east 0) is on the earth (SITL's home)."""
+POINTS = [(0.6, 0.0), (0.6, 0.6)]
+"""A short mission: 0.6 m north, then 0.6 m east (a corner where ArduPilot stops)."""
+YAWS: list[float | None] = [None, None]
+PREARM = "PreArm: GPS 1: Bad fix"
+EKF_ORIGIN = (-5.0, 4.0)
+"""Where the fake's EKF has its origin, in the chassis frame (where GPS first came)."""
+ALWAYS = 1_000_000
+"""Refusals left: all of them."""
+
+
+# ---------------------------------------------------------------------------- the fake
+
+class FakeArduPilot:
+    """ArduPilot Rover as its ground station sees it (module docstring): :meth:`handle` what
+    the ground station sent, :meth:`tick` as time passes; both return the packets to send.
+    The attributes after the pose are its behaviour; change them before the flight."""
+
+    def __init__(self, now_s: float, north: float = 0.0, east: float = 0.0,
+                 yaw_deg: float = 0.0) -> None:
+        self.lock = threading.Lock()
+        self._mav = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
+        self._other = mavlink.MAVLink(None, srcSystem=2, srcComponent=1)
+        self._t0 = now_s
+        self.north, self.east, self.yaw = north, east, math.radians(yaw_deg)
+        self.samples = [TruthSample(now_s, 0.0, north, east, self.yaw, 0.0, 0.0)]
+        self.received: list[Any] = []
+        """Everything the ground station sent."""
+        self.mode = Mode.HOLD
+        self.armed = False
+        self.silent = False
+        self.prearm_failure: str | None = None
+        self.refusals: dict[int, int] = {}
+        """Mode -> how many more DO_SET_MODE to it are refused."""
+        self.has_home = True
+        self.home = _origin_at(north, east)
+        self.mission_result = mavlink.MAV_MISSION_ACCEPTED
+        self.set_home_result = mavlink.MAV_RESULT_ACCEPTED
+        self.speed_mps = 2.0
+        self.pause_s = 0.1
+        """At each waypoint it stops this long (a pivot) before the next."""
+        self.positioned_at = -math.inf
+        """From then on its EKF has an absolute position (uses GPS)."""
+        self.heading_error_deg = (12.0, 1.5)
+        """Its heading minus the truth: before, and once positioned."""
+        self.other_attitude = False
+        """Also ATTITUDE from another system (2), its yaw all over the place."""
+        self.items: list[Any] = []
+        self._upload: list[Any] = []
+        self._target = 0
+        self._pause_until = -math.inf
+        self.sticks = (0, 0, 0, 0)
+        self._last_s = now_s
+        self._due = {"beat": now_s, "attitude": now_s, "ekf": now_s, "position": now_s}
+
+    # -------------------------------------------------------------- what the GCS sent
+
+    def handle(self, msg: Any, now_s: float) -> list[bytes]:
+        self.received.append(msg)
+        if self.silent:
+            return []
+        kind = msg.get_type()
+        if kind == "COMMAND_LONG":
+            return self._command(msg)
+        if kind == "MISSION_COUNT":
+            if self.mission_result != mavlink.MAV_MISSION_ACCEPTED:
+                return [self._pack(self._mav.mission_ack_encode(255, 190, self.mission_result))]
+            self._upload = [None] * msg.count
+            return [self._pack(self._mav.mission_request_int_encode(255, 190, 0))]
+        if kind == "MISSION_ITEM_INT" and msg.seq < len(self._upload):
+            self._upload[msg.seq] = msg
+            missing = [k for k, item in enumerate(self._upload) if item is None]
+            if missing:
+                return [self._pack(self._mav.mission_request_int_encode(255, 190, missing[0]))]
+            self.items = list(self._upload)
+            return [self._pack(self._mav.mission_ack_encode(
+                255, 190, mavlink.MAV_MISSION_ACCEPTED))]
+        if kind == "MANUAL_CONTROL":
+            self.sticks = (msg.x, msg.y, msg.z, msg.r)
+        return []
+
+    def _command(self, msg: Any) -> list[bytes]:
+        out: list[bytes] = []
+        cmd, result = msg.command, mavlink.MAV_RESULT_ACCEPTED
+        if cmd == mavlink.MAV_CMD_COMPONENT_ARM_DISARM and msg.param1 == 1:
+            if self.prearm_failure is not None:
+                out.append(self._pack(self._mav.statustext_encode(
+                    mavlink.MAV_SEVERITY_CRITICAL, self.prearm_failure.encode())))
+                result = mavlink.MAV_RESULT_FAILED
+            else:
+                self.armed = True
+                self.home = _origin_at(self.north, self.east)  # home where it is armed
+        elif cmd == mavlink.MAV_CMD_COMPONENT_ARM_DISARM:
+            self.armed = False
+        elif cmd == mavlink.MAV_CMD_DO_SET_MODE:
+            mode = int(msg.param2)
+            if self.refusals.get(mode, 0) > 0:
+                self.refusals[mode] -= 1
+                result = mavlink.MAV_RESULT_FAILED
+            else:
+                self.mode = Mode(mode)
+                self._target = 0
+        elif cmd == mavlink.MAV_CMD_REQUEST_MESSAGE:
+            if int(msg.param1) == mavlink.MAVLINK_MSG_ID_HOME_POSITION and self.has_home:
+                h = self.home
+                out.append(self._pack(self._mav.home_position_encode(
+                    h.lat_e7, h.lon_e7, h.alt_mm, 0, 0, 0, [1, 0, 0, 0], 0, 0, 0)))
+        elif cmd == mavlink.MAV_CMD_DO_SET_HOME:
+            result = self.set_home_result
+        return [self._pack(self._mav.command_ack_encode(cmd, result)), *out]
+
+    # -------------------------------------------------------------- as time passes
+
+    def tick(self, now_s: float) -> list[bytes]:
+        dt, self._last_s = now_s - self._last_s, now_s
+        out: list[bytes] = []
+        if self.armed and self.mode == Mode.AUTO:
+            out += self._drive_auto(now_s, dt)
+        elif self.armed and self.mode == Mode.MANUAL:
+            x, y, _, r = self.sticks
+            forward, right = x / 1000, y / 1000
+            self.north += (forward * math.cos(self.yaw) - right * math.sin(self.yaw)) * dt
+            self.east += (forward * math.sin(self.yaw) + right * math.cos(self.yaw)) * dt
+            self.yaw = _wrap(self.yaw + r / 1000 * dt)
+        self.samples.append(TruthSample(now_s, now_s - self._t0, self.north, self.east,
+                                        self.yaw, 0.0, 0.0))
+        if self.silent:
+            return []
+        return out + self._streams(now_s)
+
+    def _drive_auto(self, now_s: float, dt: float) -> list[bytes]:
+        waypoints = self.items[1:]
+        if self._target >= len(waypoints) or now_s < self._pause_until:
+            return []
+        item = waypoints[self._target]
+        goal = REF.to_local(item.x, item.y)
+        dn, de = goal[0] - self.north, goal[1] - self.east
+        left = math.hypot(dn, de)
+        step = self.speed_mps * dt
+        if left > step:
+            self.north += dn / left * step
+            self.east += de / left * step
+            self.yaw = math.atan2(de, dn)
+            return []
+        self.north, self.east = goal
+        self._target += 1
+        self._pause_until = now_s + self.pause_s
+        out = [self._pack(self._mav.mission_item_reached_encode(item.seq))]
+        if self._target == len(waypoints):
+            out.append(self._pack(self._mav.statustext_encode(
+                mavlink.MAV_SEVERITY_INFO, tm.ARDUPILOT_MISSION_COMPLETE.encode())))
+        return out
+
+    def _streams(self, now_s: float) -> list[bytes]:
+        out: list[bytes] = []
+        boot_ms = int((now_s - self._t0) * 1000)
+        positioned = now_s >= self.positioned_at
+        if self._is_due("beat", now_s, 0.1):
+            base = mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | (
+                mavlink.MAV_MODE_FLAG_SAFETY_ARMED if self.armed else 0)
+            out.append(self._pack(self._mav.heartbeat_encode(
+                mavlink.MAV_TYPE_GROUND_ROVER, mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA, base,
+                int(self.mode), mavlink.MAV_STATE_ACTIVE)))
+        if self._is_due("attitude", now_s, 0.05):
+            error = math.radians(self.heading_error_deg[1 if positioned else 0])
+            out.append(self._pack(self._mav.attitude_encode(
+                boot_ms, 0, 0, _wrap(self.yaw + error), 0, 0, 0)))
+            if self.other_attitude:
+                wild = 1.0 if boot_ms % 100 < 50 else -2.0
+                out.append(self._other.attitude_encode(boot_ms, 0, 0, wild, 0, 0, 0)
+                           .pack(self._other))
+        if self._is_due("ekf", now_s, 0.1):
+            flags = mavlink.EKF_ATTITUDE | mavlink.EKF_POS_HORIZ_ABS | (
+                0 if positioned else mavlink.EKF_CONST_POS_MODE)
+            out.append(self._pack(self._mav.ekf_status_report_encode(flags, 0, 0, 0, 0, 0)))
+        if positioned and self._is_due("position", now_s, 0.1):
+            out.append(self._pack(self._mav.local_position_ned_encode(
+                boot_ms, self.north - EKF_ORIGIN[0], self.east - EKF_ORIGIN[1], 0, 0, 0, 0)))
+        return out
+
+    def _is_due(self, what: str, now_s: float, period_s: float) -> bool:
+        if now_s < self._due[what]:
+            return False
+        self._due[what] = now_s + period_s
+        return True
+
+    def _pack(self, msg: Any) -> bytes:
+        return bytes(msg.pack(self._mav))
+
+    # -------------------------------------------------------------- for the tests
+
+    def modes_asked(self) -> list[int]:
+        return [int(m.param2) for m in self.received if m.get_type() == "COMMAND_LONG"
+                and m.command == mavlink.MAV_CMD_DO_SET_MODE]
+
+    def uploads(self) -> int:
+        return sum(m.get_type() == "MISSION_COUNT" for m in self.received)
+
+
+def _origin_at(north: float, east: float) -> GlobalOrigin:
+    lat, lon = REF.to_global(north, east)
+    return GlobalOrigin(lat, lon)
+
+
+def _wrap(angle: float) -> float:
+    return (angle + math.pi) % (2 * math.pi) - math.pi
+
+
+class FakeTwin:
+    """What the module asks of a twin: its URLs and the truth (the fake's chassis)."""
+
+    def __init__(self, fake: FakeArduPilot, firmware_url: str = "") -> None:
+        self.fake = fake
+        self.firmware_url = firmware_url
+        self.gcs_url = ""
+
+    def truth(self) -> list[TruthSample]:
+        with self.fake.lock:
+            return list(self.fake.samples)
+
+    def truth_now(self) -> TruthSample:
+        with self.fake.lock:
+            return self.fake.samples[-1]
+
+
+class FirmwareOnUdp:
+    """The fake on a real UDP socket, served by a thread: it sends to the port the ground
+    station listens on (``url``, as the firmware's SERIAL1 is a UDP client)."""
+
+    def __init__(self, fake: FakeArduPilot) -> None:
+        self.fake = fake
+        self.gcs_port = free_port(socket.SOCK_DGRAM)
+        self.url = f"udpin:127.0.0.1:{self.gcs_port}"
+        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.sock.bind(("127.0.0.1", 0))
+        self._parser = mavlink.MAVLink(None)
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._serve, daemon=True)
+        self._thread.start()
+
+    def _serve(self) -> None:
+        while not self._stop.is_set():
+            readable = select.select([self.sock], [], [], 0.005)[0]
+            now = time.monotonic()
+            out: list[bytes] = []
+            with self.fake.lock:
+                if readable:
+                    for msg in self._parser.parse_buffer(self.sock.recv(65536)) or []:
+                        out += self.fake.handle(msg, now)
+                out += self.fake.tick(now)
+            for packet in out:
+                with contextlib.suppress(OSError):
+                    self.sock.sendto(packet, ("127.0.0.1", self.gcs_port))
+
+    def close(self) -> None:
+        self._stop.set()
+        self._thread.join(timeout=5)
+        self.sock.close()
+
+
+class VirtualPort:
+    """The fake behind a ground station's port in virtual time (10 ms a tick)."""
+
+    TICK_S = 0.01
+
+    def __init__(self, fake: FakeArduPilot, start_s: float) -> None:
+        self.fake = fake
+        self.t = start_s
+        self.mav = mavlink.MAVLink(self, srcSystem=255, srcComponent=190)
+        self._to_fake = bytearray()
+        self._fake_reads = mavlink.MAVLink(None)
+        self._gcs_reads = mavlink.MAVLink(None)
+        self.closed = False
+
+    def write(self, data: bytes) -> None:  # (the ground station's MAVLink sends here)
+        self._to_fake += data
+
+    def now(self) -> float:
+        return self.t
+
+    def pump(self, timeout_s: float) -> list[Any]:
+        out = self._exchange()
+        end = self.t + max(timeout_s, 0.0)
+        while not out and self.t < end:
+            self.t = min(end, self.t + self.TICK_S)
+            out = self.fake.tick(self.t) + self._exchange()
+        return [m for packet in out for m in self._gcs_reads.parse_buffer(packet) or []]
+
+    def _exchange(self) -> list[bytes]:
+        data, self._to_fake = bytes(self._to_fake), bytearray()
+        msgs = (self._fake_reads.parse_buffer(data) or []) if data else []
+        return [packet for msg in msgs for packet in self.fake.handle(msg, self.t)]
+
+    def close(self) -> None:
+        self.closed = True
+
+
+@pytest.fixture
+def firmware() -> Iterator[FirmwareOnUdp]:
+    """The fake ArduPilot on UDP, standing at (2, 3) facing north."""
+    served = FirmwareOnUdp(FakeArduPilot(time.monotonic(), 2.0, 3.0))
+    try:
+        yield served
+    finally:
+        served.close()
+
+
+def on_udp(served: FirmwareOnUdp) -> FakeTwin:
+    return FakeTwin(served.fake, served.url)
+
+
+def virtual(fake: FakeArduPilot) -> tuple[ScriptedGroundStation, VirtualPort]:
+    """A ground station on the fake in virtual time."""
+    port = VirtualPort(fake, fake.samples[0].wall_s)
+    return ScriptedGroundStation(port), port
+
+
+def firmware_in_virtual_time(monkeypatch: pytest.MonkeyPatch, fake: FakeArduPilot
+                             ) -> VirtualPort:
+    """The module's ground station on the firmware (``udp_ground_station``) is one on the
+    fake in virtual time; its port."""
+    gcs, port = virtual(fake)
+    monkeypatch.setattr(tm, "udp_ground_station", lambda url: (gcs, port))
+    return port
+
+
+def arrivals_m(run: MissionRun) -> list[float]:
+    return [leg.arrival_error_m for leg in run.legs]
+
+
+# ---------------------------------------------------------------------------- ArduPilot's AUTO
+
+def test_ardupilots_flight_is_graded_from_where_it_stood_at_auto_its_estimate_from_there_too(
+        firmware):
+    run, failure = tm.fly_firmware(on_udp(firmware), POINTS, YAWS, 0.0, 10.0)
+    assert failure is None
+    # the waypoints, uploaded about the home where it was armed, are where it stopped
+    assert arrivals_m(run) == [pytest.approx(0.0, abs=0.02)] * 2
+    assert run.true_path[-1][:2] == pytest.approx((0.6, 0.6), abs=0.02)
+    # its EKF's origin is 7 m south and 1 m west of the start: the estimate is shifted
+    assert run.final_estimate == pytest.approx(run.final_truth, abs=0.02)
+
+
+def test_auto_refused_while_the_ekf_has_no_position_is_asked_again_and_the_flight_ends_disarmed(
+        firmware):
+    fake = firmware.fake
+    with fake.lock:
+        fake.refusals[Mode.AUTO] = 2
+    _, failure = tm.fly_firmware(on_udp(firmware), POINTS, YAWS, 0.0, 10.0)
+    assert failure is None
+    assert fake.modes_asked() == [Mode.AUTO] * 3 + [Mode.HOLD]  # HOLD at "Mission Complete"
+    assert fake.mode == Mode.HOLD and not fake.armed
+
+
+def test_arming_refused_fails_the_flight_with_the_last_prearm_message_and_uploads_nothing(
+        firmware, monkeypatch):
+    monkeypatch.setattr(tm, "ARM_TIMEOUT_S", 0.5)
+    fake = firmware.fake
+    with fake.lock:
+        fake.prearm_failure = PREARM
+        fake.positioned_at = math.inf  # (no GPS: no estimate either)
+    run, failure = tm.fly_firmware(on_udp(firmware), POINTS, YAWS, 0.0, 10.0)
+    assert failure == f"arming refused: {PREARM}"
+    assert fake.uploads() == 0 and run.legs == [] and run.final_estimate is None
+
+
+def test_a_refused_upload_fails_the_flight_and_leaves_the_firmware_in_hold_disarmed(firmware):
+    fake = firmware.fake
+    with fake.lock:
+        fake.mission_result = mavlink.MAV_MISSION_NO_SPACE
+        fake.mode = Mode.AUTO  # (still in AUTO from before)
+    _, failure = tm.fly_firmware(on_udp(firmware), POINTS, YAWS, 0.0, 10.0)
+    assert failure == f"mission upload refused (MISSION_ACK {mavlink.MAV_MISSION_NO_SPACE})"
+    assert fake.mode == Mode.HOLD and not fake.armed
+
+
+def test_auto_refused_for_the_whole_wait_fails_the_flight_naming_the_ekf(firmware, monkeypatch):
+    monkeypatch.setattr(tm, "ARM_TIMEOUT_S", 0.3)
+    with firmware.fake.lock:
+        firmware.fake.refusals[Mode.AUTO] = ALWAYS
+    _, failure = tm.fly_firmware(on_udp(firmware), POINTS, YAWS, 0.0, 10.0)
+    assert failure == "AUTO refused for 0.3 s (no EKF position?)"
+    assert not firmware.fake.armed
+
+
+def test_a_mission_not_complete_in_time_fails_and_stops_the_firmware_in_hold(firmware):
+    fake = firmware.fake
+    with fake.lock:
+        fake.speed_mps = 0.5  # 1.2 m: 2.4 s, more than it has
+    run, failure = tm.fly_firmware(on_udp(firmware), POINTS, YAWS, 0.0, 0.4)
+    assert failure == "the mission did not finish in time"
+    assert run.legs == []
+    assert fake.modes_asked()[-1] == Mode.HOLD and fake.mode == Mode.HOLD and not fake.armed
+
+
+def test_a_firmware_without_a_home_fails_the_flight_for_want_of_a_gps_fix(firmware, monkeypatch):
+    monkeypatch.setattr(tm, "HOME_TIMEOUT_S", 0.2)
+    with firmware.fake.lock:
+        firmware.fake.has_home = False
+    with pytest.raises(RuntimeError, match=r"the firmware has no home \(no GPS fix\?\)"):
+        tm.fly_firmware(on_udp(firmware), POINTS, YAWS, 0.0, 10.0)
+    assert firmware.fake.uploads() == 0
+
+
+def test_hold_refused_at_the_missions_end_is_the_flights_failure_its_legs_graded(monkeypatch):
+    fake = FakeArduPilot(time.monotonic())
+    fake.refusals[Mode.HOLD] = ALWAYS
+    firmware_in_virtual_time(monkeypatch, fake)
+    run, failure = tm.fly_firmware(FakeTwin(fake), POINTS, YAWS, 0.0, 10.0)
+    assert failure == "HOLD refused at the mission's end"
+    assert arrivals_m(run) == [pytest.approx(0.0, abs=0.01)] * 2  # (1e-7 degrees: 1 cm)
+
+
+def test_a_firmware_never_heard_fails_at_once_and_its_ground_station_is_closed(monkeypatch):
+    fake = FakeArduPilot(time.monotonic())
+    fake.silent = True
+    port = firmware_in_virtual_time(monkeypatch, fake)
+    with pytest.raises(RuntimeError, match="no heartbeat from the firmware"):
+        tm.fly_firmware(FakeTwin(fake), POINTS, YAWS, 0.0, 10.0)
+    assert port.closed and fake.received == []
+
+
+def test_an_estimate_shifted_without_any_estimate_stays_without_one():
+    run = MissionRun([], [(0.0, 0.0)])
+    tm.shift_estimate(run, (5.0, -4.0))
+    assert run.final_estimate is None and run.odometry_path == []
+
+
+# ---------------------------------------------------------------------------- the companion
+
+def test_a_companion_flight_without_its_heartbeat_fails_and_keeps_the_ground_station_given():
+    fake = FakeArduPilot(time.monotonic())
+    fake.silent = True
+    gcs, port = virtual(fake)
+    run, failure = tm.fly_companion(FakeTwin(fake), POINTS, YAWS, 0.0, 10.0, gcs=gcs)
+    assert failure == "no heartbeat from the vehicle"
+    assert run.legs == [] and not port.closed
+
+
+def test_a_companion_refusing_set_home_fails_the_flight_before_any_upload():
+    fake = FakeArduPilot(time.monotonic())
+    fake.set_home_result = mavlink.MAV_RESULT_DENIED
+    gcs, port = virtual(fake)
+    run, failure = tm.fly_companion(FakeTwin(fake), POINTS, YAWS, 0.0, 10.0, gcs=gcs)
+    assert failure == f"set home refused ({mavlink.MAV_RESULT_DENIED})"
+    assert fake.uploads() == 0 and run.legs == [] and not port.closed
+
+
+# ---------------------------------------------------------------------------- the heading
+
+def test_the_heading_settles_only_once_the_ekf_uses_gps_and_only_the_firmwares_attitude_counts(
+        firmware, monkeypatch):
+    monkeypatch.setattr(tm, "SETTLED_FOR_S", 0.5)
+    fake = firmware.fake
+    with fake.lock:
+        fake.positioned_at = time.monotonic() + 0.4
+        fake.heading_error_deg = (1.4, 1.5)  # steady before too: that must not count
+        fake.other_attitude = True  # another system's wild ATTITUDE: that must not either
+    took_s, error_deg = tm.wait_heading_settled(on_udp(firmware), timeout_s=5.0)
+    assert error_deg == pytest.approx(1.5, abs=0.01)
+    # positioned 0.4 s after the call, then SETTLED_FOR_S less 0.2 s of the band (less the
+    # ground station's start, which hears the firmware within 0.1 s)
+    assert took_s > 0.5
+
+
+def test_a_heading_never_settled_says_the_last_difference_and_that_the_ekf_has_no_position(
+        firmware):
+    with firmware.fake.lock:
+        firmware.fake.positioned_at = math.inf
+    with pytest.raises(RuntimeError, match=r"did not settle within 0\.4 s \(last \+12\.0 deg "
+                                           r"from the truth; EKF position none\)"):
+        tm.wait_heading_settled(on_udp(firmware), timeout_s=0.4)
+
+
+# ---------------------------------------------------------------------------- MANUAL
+
+def test_the_manual_probe_reports_each_steps_motion_in_the_body_frame_at_its_start():
+    served = FirmwareOnUdp(FakeArduPilot(time.monotonic(), yaw_deg=90.0))  # facing east
+    try:
+        forward, rotate = tm.manual_probe(
+            on_udp(served), [("forward", 500, 0, 0, 0), ("rotate", 0, 0, 0, 500)], hold_s=0.25)
+    finally:
+        served.close()
+    # 0.5 m/s for about 0.25 s (the threads' scheduling aside), east: forward in the body
+    # frame, not right
+    assert 0.06 < forward.forward_m < 0.2 and abs(forward.right_m) < 0.005
+    assert abs(forward.turn_deg) < 0.1
+    # 0.5 rad/s clockwise for about 0.25 s, on the spot
+    assert 3.5 < rotate.turn_deg < 12.0
+    assert abs(rotate.forward_m) < 0.005 and abs(rotate.right_m) < 0.005
+    assert served.fake.mode == Mode.MANUAL and not served.fake.armed  # disarmed after
+
+
+@pytest.mark.parametrize(("refuse", "reason"), [("mode", "MANUAL refused"),
+                                                ("arming", f"arming refused: {PREARM}")])
+def test_the_manual_probe_stops_at_a_refused_mode_or_arming_with_the_reason(
+        firmware, monkeypatch, refuse, reason):
+    monkeypatch.setattr(tm, "ARM_TIMEOUT_S", 0.3)
+    fake = firmware.fake
+    with fake.lock:
+        if refuse == "mode":
+            fake.refusals[Mode.MANUAL] = ALWAYS
+        else:
+            fake.prearm_failure = PREARM
+    with pytest.raises(RuntimeError, match=f"^{re.escape(reason)}$"):
+        tm.manual_probe(on_udp(firmware), [("forward", 500, 0, 0, 0)], hold_s=0.1)
+    assert not any(m.get_type() == "MANUAL_CONTROL" for m in fake.received)
+
+
+def test_a_manual_step_is_described_in_centimetres_and_degrees():
+    step = tm.ManualStep("strafe", 0, 500, 0, 0, 0.012, 0.456, -3.26)
+    assert step.describe() == ("strafe   x     0 y   500 z     0 r     0: forward     1.2 cm, "
+                               "right    45.6 cm, turned    -3.3 deg")
