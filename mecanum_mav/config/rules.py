@@ -162,6 +162,12 @@ def consistency_problems(values: Mapping[str, Value]) -> list[Problem]:
     return [problem for rule in RULES for problem in rule.problems(values)]
 
 
-_DEFAULT_PROBLEMS = consistency_problems({s.name: s.default for s in SCHEMA})
-if _DEFAULT_PROBLEMS:
-    raise ValueError(f"parameter schema: defaults break a rule: {_DEFAULT_PROBLEMS[0][0]}")
+def _check_defaults(rules: Sequence[Rule]) -> None:
+    """Raise when the schema's defaults break one of ``rules`` (naming the first problem)."""
+    defaults = {s.name: s.default for s in SCHEMA}
+    problems = [problem for rule in rules for problem in rule.problems(defaults)]
+    if problems:
+        raise ValueError(f"parameter schema: defaults break a rule: {problems[0][0]}")
+
+
+_check_defaults(RULES)

@@ -71,12 +71,6 @@ class FcSetupCheck:
             return math.inf
         return reader.started_s if reader.over else reader.next_due_s()  # (over: decide now)
 
-    def summary(self) -> str:
-        """A few words for a status line: ``FC setup safe``, ``FC setup reading 12/39`` ..."""
-        if self.state is FcCheckState.READING and self._reader is not None:
-            return f"FC setup reading {self._reader.answered}/{len(self._groups)}"
-        return f"FC setup {self.state.value}"
-
     def start(self, params: Params, now_s: float) -> list[str]:
         """Read the board (the link came up, or a reason to read again); the parameter names
         to ask for now."""

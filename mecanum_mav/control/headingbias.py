@@ -159,9 +159,9 @@ class HeadingBias:
 
     def follow(self, odom_north_m: float, odom_east_m: float) -> None:
         """The odometry's position was moved (its track turned by a new correction): steps
-        are measured from here."""
-        if self._odometry is not None:
-            self._odometry = (odom_north_m, odom_east_m)
+        are measured from here. (Before the first position, or after a restart, it changes
+        nothing: the next position starts the window.)"""
+        self._odometry = (odom_north_m, odom_east_m)
 
     @property
     def settled(self) -> bool:

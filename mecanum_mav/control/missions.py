@@ -159,7 +159,7 @@ class MissionControl:
                 self.link.reached_send(event.seq)
             elif event.kind == "say":
                 self.say(event.severity, event.text)
-            elif event.kind == "finished":
+            else:  # "finished" (the executor's fourth and last kind)
                 self.vehicle.request_mode(Mode.HOLD, now_s)
 
     def _take_protocol_events(self, now_s: float) -> None:

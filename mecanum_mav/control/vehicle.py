@@ -43,9 +43,6 @@ from mecanum_mav.protocol.statustext import Severity
 
 __all__ = ["Decision", "Event", "Mode", "ModeHooks", "Severity", "Vehicle"]
 
-AVAILABLE_MODES: frozenset[Mode] = frozenset(Mode)
-"""Modes this build can enter; asking for another is DENIED with a reason."""
-
 _AUTONOMOUS = (Mode.GUIDED, Mode.AUTO)
 
 
@@ -205,15 +202,14 @@ class Vehicle:
         return Decision(True)
 
     def request_mode(self, mode_number: int, now_s: float) -> Decision:
-        """Switch to a Rover mode number; unknown and unavailable modes are refused, and so is
-        a mode whose controller cannot start (:meth:`ModeHooks.refuse_entry`, e.g. AUTO
-        without a mission). The hooks see every change, failsafe switches included."""
+        """Switch to a Rover mode number; a number that is not one of :class:`Mode` (each of
+        which it can enter) is refused, and so is a mode whose controller cannot start
+        (:meth:`ModeHooks.refuse_entry`, e.g. AUTO without a mission). The hooks see every
+        change, failsafe switches included."""
         try:
             mode = Mode(mode_number)
         except ValueError:
             return self._refuse(f"Mode {mode_number} unknown", Refusal.MODE)
-        if mode not in AVAILABLE_MODES:
-            return self._refuse(f"Mode {mode.name} not available", Refusal.MODE)
         if mode is self.mode:
             return Decision(True)
         if self.hooks is not None:

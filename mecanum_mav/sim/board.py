@@ -72,7 +72,13 @@ from mecanum_mav.protocol.fcsetup import safe_settings
 from mecanum_mav.protocol.modes import Mode
 from mecanum_mav.protocol.rcoverride import CHANNELS, LEAVE, RELEASE, field_action
 from mecanum_mav.sim.chassis import ORIGIN_POSE
-from mecanum_mav.sim.physics import CONTACTS_PERIOD_S, DEFAULT_PHYSICS, contacts_of, make_chassis
+from mecanum_mav.sim.physics import (
+    CONTACTS_PERIOD_S,
+    DEFAULT_PHYSICS,
+    Contacts,
+    contacts_of,
+    make_chassis,
+)
 from mecanum_mav.sim.truthsender import CONTACT_NAMES, send_contacts, send_sim_state
 
 __all__ = ["CONTACT_NAMES", "ORIGIN", "RcOverrides", "SimBoard", "SimState", "board_parameters"]
@@ -236,9 +242,10 @@ class SimBoard:
         position_hz = float(params["SIM_POS_RATE"])
         if position_hz > 0.0:
             self._telemetry.append((_Every(1.0 / position_hz, now_s), self._local_position))
-        self._contacts = contacts_of(self.chassis)
-        if self._contacts is not None:
-            self._telemetry.append((_Every(CONTACTS_PERIOD_S, now_s), self._wheel_contacts))
+        contacts = contacts_of(self.chassis)
+        if contacts is not None:
+            self._telemetry.append((_Every(CONTACTS_PERIOD_S, now_s),
+                                    self._contacts_sender(contacts)))
 
     # ------------------------------------------------------------------ time
 
@@ -401,10 +408,14 @@ class SimBoard:
         mav.rc_channels_send((self._boot_us(now_s) // 1000) & 0xFFFFFFFF, len(receiver),
                              *pulses, self.rssi)
 
-    def _wheel_contacts(self, mav: Any, now_s: float) -> None:
-        """DEBUG_VECT per wheel: its contact (see the module docstring)."""
-        if self._contacts is not None:
-            send_contacts(mav, self._boot_us(now_s), self._contacts())
+    def _contacts_sender(self, contacts: Contacts) -> Callable[[Any, float], None]:
+        """The telemetry that sends DEBUG_VECT per wheel: its contact as ``contacts`` reads
+        it (see the module docstring)."""
+
+        def send(mav: Any, now_s: float) -> None:
+            send_contacts(mav, self._boot_us(now_s), contacts())
+
+        return send
 
     def _sim_state(self, mav: Any, now_s: float) -> None:
         """SIM_STATE: the true pose and velocity (see the module docstring); level, no
