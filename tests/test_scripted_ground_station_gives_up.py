@@ -156,3 +156,16 @@ def test_a_shared_ground_station_socket_drops_what_a_system_without_a_view_sent(
             assert port.unclaimed == 1
         finally:
             port.close()
+
+
+def test_a_wait_in_virtual_time_ends_at_its_deadline_when_the_steps_sum_a_hair_short_of_it():
+    """2 ms steps summed from 1.508 s reach 3.5079999999998 s, not 3.508: a wait of 2 s still
+    ends (it once stepped no more and looped forever)."""
+    from mecanum_mav.config.params import Params
+    from mecanum_mav.sim.lockstep import Lockstep
+
+    h = Lockstep(Params())
+    h.run_for(1.508)
+    start = h.now_s
+    assert h.gcs.wait("STATUSTEXT", lambda m: False, 2.0) is None
+    assert h.now_s - start == pytest.approx(2.0, abs=1e-6)
