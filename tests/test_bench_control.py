@@ -269,3 +269,29 @@ def test_a_mission_that_does_not_finish_is_a_row_that_says_where_it_stopped(monk
     first = row.verdicts()[0]
     assert (first.name, first.met) == ("finished", False)
     assert "DID NOT FINISH" in bench_control.table_row(row)
+
+
+def test_a_stop_waypoints_report_read_late_measures_the_arrival_where_the_rover_stopped():
+    """The rover stops at the corner (1, 0) and drives 0.4 m along its next leg before the
+    ground station reads the corner's MISSION_ITEM_REACHED (a busy machine): the arrival is
+    where it stopped, and the metres of the next leg are not this leg's cross-track."""
+    reached = msg("MISSION_ITEM_REACHED", seq=2)
+    steps = [(0.1 * k, (0.1 * k, 0.0, 0.0), []) for k in range(11)]  # reaches (1, 0)
+    steps += [(1.0 + 0.1 * k, (1.0, 0.1 * k, 0.0), []) for k in range(1, 5)]  # 0.4 m east
+    steps.append((1.5, (1.0, 0.45, 0.0), [reached]))  # read only now
+    steps += [(1.5 + 0.1 * k, (1.0, 0.45 + 0.1 * k, 0.0), []) for k in range(1, 6)]
+    watch, _ = figures_of(steps, [(1.0, 0.0), (1.0, 1.0)])
+    leg = watch.run.legs[0]
+    assert leg.arrival_error_m == pytest.approx(0.0, abs=1e-9)
+    assert leg.max_cross_track_m == pytest.approx(0.0, abs=1e-9)
+
+
+def test_an_overshoot_past_a_stop_waypoint_still_counts_against_its_leg():
+    """Straight on past the corner is not the next leg: the arrival is read where it is."""
+    reached = msg("MISSION_ITEM_REACHED", seq=2)
+    steps = [(0.1 * k, (0.1 * k, 0.0, 0.0), []) for k in range(13)]  # to (1.2, 0): 0.2 over
+    steps.append((1.3, (1.2, 0.0, 0.0), [reached]))
+    watch, _ = figures_of(steps, [(1.0, 0.0), (1.0, 1.0)])
+    leg = watch.run.legs[0]
+    assert leg.arrival_error_m == pytest.approx(0.2)
+    assert leg.max_cross_track_m == pytest.approx(0.2)

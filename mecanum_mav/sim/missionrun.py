@@ -22,6 +22,12 @@ end. The watch (:class:`MissionWatch`, one look at a time) records into a :class
   round at 60 degrees/s), and what the rover does then is its next leg's. From that crossing
   the cross-track is measured to the next leg (a straight line on through the waypoint is not
   a leg overshot);
+- a waypoint the rover stops at (a corner of 90 degrees or more) is arrived at where the rover
+  came closest to it, once it drives off along its next leg (farther than
+  :data:`DEPART_M` from that point and nearer the next leg than its own) before its
+  MISSION_ITEM_REACHED is read: a ground station that reads the report late (a busy
+  machine) would otherwise measure the next leg's first metres as this one's error. From
+  there too the cross-track is measured to the next leg;
 - the odometry the companion reports (LOCAL_POSITION_NED) and, with the last one, the truth at
   the moment it arrived (for the odometry's drift).
 
@@ -44,12 +50,16 @@ from mecanum_mav.protocol.modes import Mode
 from mecanum_mav.sim.board import SimState
 from mecanum_mav.sim.groundstation import ScriptedGroundStation
 
-__all__ = ["MISSION_COMPLETE", "WATCH_PERIOD_S", "LegReport", "MissionRun", "MissionWatch",
-           "OnLeg", "Waypoint", "fly", "ignore_leg", "passed_at_speed", "waypoint_mission"]
+__all__ = ["DEPART_M", "MISSION_COMPLETE", "WATCH_PERIOD_S", "LegReport", "MissionRun",
+           "MissionWatch", "OnLeg", "Waypoint", "fly", "ignore_leg", "passed_at_speed",
+           "waypoint_mission"]
 
 Vec = tuple[float, float]
 WATCH_PERIOD_S = 0.02
 """The ground station looks at the rover at least this often while the mission runs."""
+DEPART_M = 0.02
+"""A rover this much farther (m) from a waypoint it stopped at than its closest approach, and
+nearer the next leg than its own, has driven off along the next leg."""
 MISSION_COMPLETE = "Mission complete"
 """The companion's STATUSTEXT as the mission ends (the HOLD after it shows in the next 1 Hz
 HEARTBEAT: the mission's time ends at the text)."""
@@ -229,6 +239,7 @@ class MissionWatch:
                         for k in range(len(self.waypoints))]  # each waypoint passed at speed?
         self._crossed: Pose2d | None = None  # where the rover crossed the current waypoint's
         self._next_cross = 0.0  # line (passed at speed), and the next leg's cross-track since
+        self._closest: tuple[float, Pose2d] | None = None  # a stop's closest approach so far
         self._last: Pose2d | None = None  # the pose at the look before
 
     def look(self, now_s: float, pose: Pose2d, messages: Sequence[Any]) -> bool:
@@ -272,6 +283,8 @@ class MissionWatch:
         the line through a waypoint it passes at speed), kept as the leg's largest."""
         planned, here = self.run.planned, (pose.x_m, pose.y_m)
         leg = Leg(planned[k], planned[k + 1])
+        if self._crossed is None and not self._passed[k] and k + 2 < len(planned):
+            self._departure(leg, Leg(planned[k + 1], planned[k + 2]), pose)
         if self._crossed is None and self._last is not None and self._passed[k]:
             along, _ = leg.errors(here)
             if along >= leg.length_m:
@@ -290,6 +303,17 @@ class MissionWatch:
         self._leg_cross = max(self._leg_cross, cross)
         return cross
 
+    def _departure(self, leg: Leg, next_leg: Leg, pose: Pose2d) -> None:
+        """At a waypoint the rover stops at: keep its closest approach; once it drove off
+        along ``next_leg``, that is where it arrived (module description)."""
+        here = (pose.x_m, pose.y_m)
+        distance = math.dist(here, leg.end_ned)
+        if self._closest is None or distance < self._closest[0]:
+            self._closest = (distance, pose)
+        elif (distance > self._closest[0] + DEPART_M
+              and next_leg.distance_m(here) < leg.distance_m(here)):
+            self._crossed = self._closest[1]
+
     def _reached(self, k: int, now_s: float, pose: Pose2d) -> None:
         wp, planned = self.waypoints[k], self.run.planned
         at = self._crossed or pose  # arrived where it crossed, if before the report
@@ -300,4 +324,4 @@ class MissionWatch:
                                        math.dist((at.x_m, at.y_m), wp.point), heading))
         self.on_leg(len(self.run.legs), self.run.legs[-1])
         self._leg_start_s, self._leg_cross = now_s, self._next_cross
-        self._crossed, self._next_cross = None, 0.0
+        self._crossed, self._next_cross, self._closest = None, 0.0, None
