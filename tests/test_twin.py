@@ -29,7 +29,9 @@ from mecanum_mav.config.params import Params
 from mecanum_mav.io.tlog import parse_tlog
 from mecanum_mav.mecanum.geo import GlobalOrigin
 from mecanum_mav.mecanum.geometry import body_to_ned
+from mecanum_mav.protocol.dialect import mavlink
 from mecanum_mav.protocol.fcsetup import SAFE_OVERRIDE_TIME_S
+from mecanum_mav.protocol.modes import Mode
 from mecanum_mav.sim.groundstation import ScriptedGroundStation, UdpPort, udp_ground_station
 from mecanum_mav.sim.physics import WheelContact
 from mecanum_mav.sim.process import CliProcess, free_port
@@ -74,7 +76,14 @@ class Rig:
 
     def drive(self, x: int, until: Callable[[TruthSample], bool],
               timeout_s: float) -> TruthSample | None:
-        """Stream MANUAL_CONTROL x forward at 20 Hz until ``until(truth)``; that truth."""
+        """In MANUAL, stream MANUAL_CONTROL x forward at 20 Hz until ``until(truth)``; that
+        truth. (The module's tests share the rig and nothing sends the ground station's
+        HEARTBEAT between them: a test that ran longer than FS_GCS_TMO leaves the companion
+        in the failsafe's HOLD, as a silent ground station should. The pilot takes MANUAL
+        back first.)"""
+        assert self.gcs.set_mode(Mode.MANUAL, timeout_s=3.0) == mavlink.MAV_RESULT_ACCEPTED, \
+            self.why()
+
         def pump(wait_s: float) -> None:
             self.gcs.sticks(x, 0, 0)
             self.gcs.pump(wait_s)
