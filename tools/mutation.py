@@ -22,6 +22,7 @@ What
 Usage
     python tools/mutation.py mecanum                # run one package's mutants, report
     python tools/mutation.py mecanum config -j 2    # several, two at a time
+    python tools/mutation.py app.view io.links.tcp  # some modules
     python tools/mutation.py all                    # every package (hours on 2 cores)
     python tools/mutation.py --report-only all      # the report from the results so far
     python tools/mutation.py mecanum --survivors    # and the survivors' diffs
@@ -171,13 +172,21 @@ def stale_equivalents(equivalents: list[Equivalent],
     return stale
 
 
-def tally(results: dict[str, dict[str, int | None]], packages: set[str],
+def selected(module: str, targets: set[str]) -> bool:
+    """Whether ``module`` (``mecanum_mav.app.view``) is one of ``targets``: packages
+    (``app``) or modules (``app.view``; a subpackage ``io.links`` takes its modules)."""
+    name = module.removeprefix(PACKAGE + ".")
+    return package_of(module) in targets or any(
+        name == t or name.startswith(t + ".") for t in targets)
+
+
+def tally(results: dict[str, dict[str, int | None]], targets: set[str],
           equivalents: list[Equivalent]) -> list[ModuleTally]:
-    """One tally per module of ``packages``."""
+    """One tally per module of ``targets`` (:func:`selected`)."""
     equivalent_names = {e.name for e in equivalents}
     tallies = []
     for module, codes in results.items():
-        if package_of(module) not in packages or not codes:
+        if not selected(module, targets) or not codes:
             continue
         t = ModuleTally(module)
         for name, code in codes.items():
@@ -221,13 +230,13 @@ def report(tallies: list[ModuleTally]) -> tuple[str, bool]:
     return "\n".join(lines) + "\n", all_met
 
 
-def survivors(results: dict[str, dict[str, int | None]], packages: set[str],
+def survivors(results: dict[str, dict[str, int | None]], targets: set[str],
               equivalents: list[Equivalent]) -> str:
     """Each survivor's diff, by module (Markdown)."""
     equivalent_names = {e.name for e in equivalents}
     out = []
     for module, codes in sorted(results.items()):
-        if package_of(module) not in packages:
+        if not selected(module, targets):
             continue
         for name, code in codes.items():
             if verdict(code) in SURVIVED and name not in equivalent_names:
@@ -236,9 +245,9 @@ def survivors(results: dict[str, dict[str, int | None]], packages: set[str],
     return "\n".join(out)
 
 
-def run_mutmut(packages: list[str], jobs: int) -> int:
-    """``mutmut run`` on the packages' mutants (names ``mecanum_mav.<package>.*``)."""
-    globs = [f"{PACKAGE}.{p}.*" for p in packages]
+def run_mutmut(targets: list[str], jobs: int) -> int:
+    """``mutmut run`` on the targets' mutants (names ``mecanum_mav.<target>.*``)."""
+    globs = [f"{PACKAGE}.{t}.*" for t in targets]
     return subprocess.call(["mutmut", "run", "--max-children", str(jobs), *globs], cwd=ROOT)
 
 
@@ -247,10 +256,17 @@ def all_packages() -> list[str]:
                   if p.is_dir() and (p / "__init__.py").exists())
 
 
+def exists(target: str) -> bool:
+    """Whether ``target`` (``app`` or ``app.view``) is a package or module of the package."""
+    path = ROOT / PACKAGE / Path(*target.split("."))
+    return path.with_suffix(".py").is_file() or (path / "__init__.py").is_file()
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("packages", nargs="+",
-                        help="packages under mecanum_mav/ (mecanum, config, ...) or 'all'")
+                        help="packages under mecanum_mav/ (mecanum, config, ...), modules "
+                        "(app.view, io.links.tcp) or 'all'")
     parser.add_argument("-j", "--jobs", type=int, default=os.cpu_count() or 2,
                         help="mutants run at once (default: one per core)")
     parser.add_argument("--report-only", action="store_true",
@@ -259,11 +275,10 @@ def main(argv: list[str] | None = None) -> int:
                         help="also write each survivor's diff to mutants/survivors.md")
     args = parser.parse_args(argv)
 
-    known = all_packages()
-    packages = known if "all" in args.packages else args.packages
-    unknown = sorted(set(packages) - set(known))
+    packages = all_packages() if "all" in args.packages else args.packages
+    unknown = sorted(t for t in packages if not exists(t))
     if unknown:
-        parser.error(f"no package {', '.join(unknown)} in {PACKAGE}/ ({', '.join(known)})")
+        parser.error(f"no package or module {', '.join(unknown)} in {PACKAGE}/")
     os.chdir(ROOT)  # mutmut reads its configuration and results from here
     if not args.report_only and run_mutmut(packages, args.jobs) != 0:
         print("mutation: mutmut failed (its output above)", file=sys.stderr)
