@@ -26,7 +26,8 @@ ODOMETRY or MISSION_CURRENT, else of the most vehicle HEARTBEATs):
 - modes: the vehicle's HEARTBEAT (``custom_mode`` and the armed flag); a change is placed at
   the accepted mode or arming command (COMMAND_ACK), failsafe or reached item that caused it
   since the heartbeat before, else at the heartbeat that first shows it.
-- events: STATUSTEXT, a long text's chunks joined (:mod:`~mecanum_mav.app.logstatus`).
+- events: STATUSTEXT, a long text's chunks joined
+  (:class:`~mecanum_mav.protocol.statustext.StatusChunks`).
   Failsafes: :func:`is_failsafe`.
 - progress: MISSION_CURRENT and MISSION_ITEM_REACHED (a reached item makes the next one
   current at once); legs and their cross-track:
@@ -67,13 +68,14 @@ from mecanum_mav.app.logsenders import (
     sent_by,
     vehicle_of,
 )
-from mecanum_mav.app.logstatus import StatusChunks, is_failsafe
+from mecanum_mav.app.logstatus import is_failsafe
 from mecanum_mav.config.params import Params
 from mecanum_mav.config.views import RcInputConfig
 from mecanum_mav.control.sticks import InputError, RcStickState
 from mecanum_mav.io.tlog import TlogEntry
 from mecanum_mav.protocol.dialect import mavlink, mavutil
 from mecanum_mav.protocol.modes import Mode
+from mecanum_mav.protocol.statustext import StatusChunks
 
 __all__ = ["INPUT_TIMEOUT_S", "OVERRIDE_TIMEOUT_S", "RC_STICKS", "LegStat", "LogAnalysis",
            "ModeSpan", "StatusEvent", "analyse", "is_failsafe", "override_from_pilot"]

@@ -104,10 +104,10 @@ def _parse_line(
 ) -> dict[str, object]:
     if line.lstrip().startswith("{"):
         try:
-            fields = json.loads(line)  # (a JSON text that starts with "{" is an object)
+            fields: dict[str, object] = json.loads(line)  # ("{" begins an object or fails)
         except json.JSONDecodeError as exc:
             raise CommandError(f"bad JSON: {exc.msg} at column {exc.colno}") from None
-        return dict(fields)
+        return fields
     values = next(csv.reader([line]))
     keys = header or list(default_keys)
     if len(values) > len(keys):

@@ -71,7 +71,7 @@ from mecanum_mav.app.logsenders import (
     Senders,
     override_from_pilot,
 )
-from mecanum_mav.app.logstatus import StatusChunks, is_failsafe
+from mecanum_mav.app.logstatus import is_failsafe
 from mecanum_mav.app.logview import NO_OVERRIDE
 from mecanum_mav.app.rerunlayout import APPLICATION_ID, TIMELINE, blueprint, rerun_module
 from mecanum_mav.config.params import ParamError, Params
@@ -82,6 +82,7 @@ from mecanum_mav.mecanum.wheels import WHEEL_KEYS
 from mecanum_mav.protocol.dialect import mavlink
 from mecanum_mav.protocol.mission import MissionItem, item_from_fields
 from mecanum_mav.protocol.modes import Mode
+from mecanum_mav.protocol.statustext import StatusChunks
 from mecanum_mav.sim.truthsender import CONTACT_NAMES, TRUTH_SOURCE
 
 if TYPE_CHECKING:

@@ -157,15 +157,16 @@ def _check_rules(rules: Sequence[Rule]) -> None:
 _check_rules(RULES)
 
 
-def consistency_problems(values: Mapping[str, Value]) -> list[Problem]:
-    """Violations of :data:`RULES` in ``values`` (every schema name present), in rule order."""
-    return [problem for rule in RULES for problem in rule.problems(values)]
+def consistency_problems(values: Mapping[str, Value],
+                         rules: Sequence[Rule] = RULES) -> list[Problem]:
+    """Violations of ``rules`` (:data:`RULES`) in ``values`` (every schema name present), in
+    rule order."""
+    return [problem for rule in rules for problem in rule.problems(values)]
 
 
 def _check_defaults(rules: Sequence[Rule]) -> None:
     """Raise when the schema's defaults break one of ``rules`` (naming the first problem)."""
-    defaults = {s.name: s.default for s in SCHEMA}
-    problems = [problem for rule in rules for problem in rule.problems(defaults)]
+    problems = consistency_problems({s.name: s.default for s in SCHEMA}, rules)
     if problems:
         raise ValueError(f"parameter schema: defaults break a rule: {problems[0][0]}")
 

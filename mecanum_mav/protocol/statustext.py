@@ -6,6 +6,7 @@ extension fields): each carries a 50-byte chunk, the same non-zero ``id`` and ``
 0, 1, 2, ...; a text that fits goes out whole with ``id`` 0 ("the only chunk"). The messages
 are pymavlink message objects, built without a link: whoever owns a link sends them
 (``link.mav.send(msg)``) with its own sequence number, source ids and signing.
+:class:`StatusChunks` joins received chunks back into texts.
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ from typing import Any, Final
 
 from mecanum_mav.protocol.dialect import mavlink
 
-__all__ = ["STATUSTEXT_LEN", "Severity", "statustext_messages"]
+__all__ = ["STATUSTEXT_LEN", "Severity", "StatusChunks", "statustext_messages"]
 
 _STATUSTEXT = mavlink.MAVLink_statustext_message
 
@@ -70,3 +71,42 @@ def statustext_messages(
         _STATUSTEXT(int(severity), data[start:start + STATUSTEXT_LEN], ident, seq)
         for seq, start in enumerate(range(0, len(data), STATUSTEXT_LEN))
     ]
+
+
+class StatusChunks:
+    """Joins the chunks of long STATUSTEXTs as they are received (what
+    :func:`statustext_messages` splits): per sender and ``id``, at the first chunk's time.
+
+    A chunk (MAVLink 2 ``id`` != 0, ``chunk_seq`` 0, 1, ...) opens or continues the text of
+    its sender and ``id``; a chunk whose text is shorter than :data:`STATUSTEXT_LEN` bytes
+    (NUL-terminated) ends it, and so does a chunk_seq already held (the ``id`` reused for a new
+    text). Texts still open at the end are given as they are (:meth:`flush`).
+    """
+
+    def __init__(self) -> None:
+        self._open: dict[tuple[int, int, int], tuple[float, int, dict[int, str]]] = {}
+
+    def add(self, t: float, msg: Any) -> list[tuple[float, int, str]]:
+        """The (time, severity, text) completed by one STATUSTEXT at ``t``."""
+        text = str(msg.text).split("\x00", 1)[0]
+        ident = getattr(msg, "id", 0) or 0
+        if not ident:
+            return [(t, msg.severity, text)]
+        key = (msg.get_srcSystem(), msg.get_srcComponent(), ident)
+        seq = getattr(msg, "chunk_seq", 0) or 0
+        done = []
+        if key in self._open and seq in self._open[key][2]:
+            done.append(self._close(key))
+        chunks = self._open.setdefault(key, (t, msg.severity, {}))[2]
+        chunks[seq] = text
+        if len(text.encode("utf-8", "replace")) < STATUSTEXT_LEN:
+            done.append(self._close(key))
+        return done
+
+    def flush(self) -> list[tuple[float, int, str]]:
+        """The texts still open (their last chunk not in the log)."""
+        return [self._close(key) for key in list(self._open)]
+
+    def _close(self, key: tuple[int, int, int]) -> tuple[float, int, str]:
+        t, severity, chunks = self._open.pop(key)
+        return t, severity, "".join(chunks[seq] for seq in sorted(chunks))

@@ -20,13 +20,17 @@ from mecanum_mav.protocol.dialect import mavlink
 from mecanum_mav.protocol.heartbeat import send_gcs_heartbeat
 from mecanum_mav.protocol.mission import MissionItem, float_xy, item_from_fields
 from mecanum_mav.protocol.modes import Mode
+from mecanum_mav.protocol.statustext import StatusChunks
 
-__all__ = ["GCS_COMPID", "GCS_SYSID", "Port", "ScriptedGroundStation", "SharedUdpPort",
-           "UdpPort", "VehiclePort", "fleet_ground_station"]
+__all__ = ["CLOCK_EPSILON_S", "GCS_COMPID", "GCS_SYSID", "Port", "ScriptedGroundStation",
+           "SharedUdpPort", "UdpPort", "VehiclePort", "fleet_ground_station"]
 
 GCS_SYSID = 255
 GCS_COMPID: int = mavlink.MAV_COMP_ID_MISSIONPLANNER
 HEARTBEAT_PERIOD_S = 1.0
+CLOCK_EPSILON_S = 1e-9
+"""Times closer than this (s) are one instant: a virtual clock's sums of steps end a hair
+short of a deadline (the lockstep harness steps by the same rule)."""
 MISSION_TIMEOUT_S = 1.5
 """The mission protocol's default timeout: silence this long restarts an upload."""
 
@@ -108,20 +112,13 @@ class ScriptedGroundStation:
         return [m for m in self.messages[since:] if m.get_type() == kind]
 
     def texts(self, since: int = 0) -> list[str]:
-        """The STATUSTEXTs received from index ``since`` on, a long text's chunks joined (MAVLink
-        2: the chunks of one text share a non-zero ``id``), in the order their first chunk
-        came."""
-        texts: list[str] = []
-        chunks: dict[int, int] = {}  # a chunked text's id -> its index in texts
-        for msg in self.received("STATUSTEXT", since):
-            text_id = getattr(msg, "id", 0)
-            if text_id and text_id in chunks:
-                texts[chunks[text_id]] += msg.text
-                continue
-            if text_id:
-                chunks[text_id] = len(texts)
-            texts.append(msg.text)
-        return texts
+        """The STATUSTEXTs received from index ``since`` on, a long text's chunks joined
+        (:class:`~mecanum_mav.protocol.statustext.StatusChunks`), as each completed; texts
+        whose last chunk has not come yet last."""
+        chunks = StatusChunks()
+        done = [text for msg in self.received("STATUSTEXT", since)
+                for _, _, text in chunks.add(0.0, msg)]
+        return done + [text for _, _, text in chunks.flush()]
 
     def wait(self, kind: str, predicate: Predicate = _any, timeout_s: float = 3.0,
              since: int | None = None) -> Any | None:
@@ -136,7 +133,7 @@ class ScriptedGroundStation:
                 if msg.get_type() == kind and predicate(msg):
                     return msg
             remaining = deadline - self.port.now()
-            if remaining <= 1e-9:  # (a virtual clock's sums of steps end a hair short of it)
+            if remaining <= CLOCK_EPSILON_S:  # (a hair short of it is the deadline)
                 if index < len(self.messages) or self.pump(0.0):
                     continue  # arrived by the deadline: look at it first
                 return None
@@ -164,7 +161,7 @@ class ScriptedGroundStation:
                 return
             retry_s = self.port.now() + 0.2
             # wait out the interval, not the first message (to within a virtual clock's rounding)
-            while self.port.now() < retry_s - 1e-9:
+            while self.port.now() < retry_s - CLOCK_EPSILON_S:
                 self.pump(retry_s - self.port.now())
         raise RuntimeError("the vehicle never accepted arming")
 
@@ -349,7 +346,7 @@ class SharedUdpPort:
                     self.unclaimed += 1
                 else:
                     other.append(msg)
-            if remaining <= 0.0:
+            if remaining <= CLOCK_EPSILON_S:  # (a hair short of it is the deadline)
                 break
         taken = box[:]
         box.clear()

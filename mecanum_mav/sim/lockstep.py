@@ -43,7 +43,12 @@ from mecanum_mav.protocol.mission import MissionItem
 from mecanum_mav.protocol.outbox import MessageOutbox
 from mecanum_mav.runtime.loop import ControlLoop, link_counts
 from mecanum_mav.sim.board import SimBoard, SimState
-from mecanum_mav.sim.groundstation import GCS_COMPID, GCS_SYSID, ScriptedGroundStation
+from mecanum_mav.sim.groundstation import (
+    CLOCK_EPSILON_S,
+    GCS_COMPID,
+    GCS_SYSID,
+    ScriptedGroundStation,
+)
 from mecanum_mav.sim.physics import DEFAULT_PHYSICS
 from mecanum_mav.sim.wires import (
     SIGNING_START_TICKS,
@@ -90,7 +95,7 @@ class _GcsPort:
         h = self._harness
         end = h.now_s + timeout_s
         count = len(h.gcs.messages)
-        while len(h.gcs.messages) == count and h.now_s < end - 1e-12:
+        while len(h.gcs.messages) == count and h.now_s < end - CLOCK_EPSILON_S:
             h.step()
         return []
 
@@ -189,7 +194,7 @@ class Lockstep:
     def run_for(self, seconds: float) -> None:
         """Step for ``seconds`` of virtual time."""
         end = self.now_s + seconds
-        while self.now_s < end - 1e-12:
+        while self.now_s < end - CLOCK_EPSILON_S:
             self.step()
 
     def run_until(self, predicate: Callable[[], T], timeout_s: float) -> T | None:
@@ -200,7 +205,7 @@ class Lockstep:
             result = predicate()
             if result:
                 return result
-            if self.now_s >= end - 1e-12:
+            if self.now_s >= end - CLOCK_EPSILON_S:
                 return None
             self.step()
 
@@ -210,7 +215,7 @@ class Lockstep:
         next_s = [self.now_s]
 
         def tick(now_s: float) -> None:
-            if now_s >= next_s[0] - 1e-12:
+            if now_s >= next_s[0] - CLOCK_EPSILON_S:
                 action(now_s)
                 next_s[0] += period_s
 

@@ -298,18 +298,18 @@ class StreamLink(Link):
     def flush(self) -> None:
         """Hand the kernel what waits, as pacing lets it (module description): the rest
         of a packet first, then the last words, then overrides and queued packets taking
-        turns; sets
-        :attr:`next_send_s`. Never blocks or raises (a break puts the link down)."""
-        if not self.pending:  # (a link that is down has nothing waiting: _drop_pending)
-            self.next_send_s = math.inf
+        turns; sets :attr:`next_send_s`. Never blocks or raises (a break puts the link
+        down). (Every override sent comes through here: :attr:`pending` is spelled out.)"""
+        if not (self._head or self._last_words or self._override is not None or self._queue):
+            self.next_send_s = math.inf  # (a link that is down has nothing waiting)
             return
         now = self.clock()
         while True:
             if self._head and not self._hand_over(self._head, now):
                 self.next_send_s = math.inf  # writable, or reopened, wakes it
                 return
-            if not self.pending:
-                self.next_send_s = math.inf
+            if not (self._last_words or self._override is not None or self._queue):
+                self.next_send_s = math.inf  # (the head is out)
                 return
             wait_s = self._backlog_s(now)
             if wait_s > 0.0:
