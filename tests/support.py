@@ -16,8 +16,9 @@ waiting on a condition with a deadline.
   loopback, pumped together.
 - :class:`ClosedOnExit`: a helper with a ``close()`` is a context manager that closes it.
 - :func:`status_texts`, :func:`override_channels`, :func:`mavlink_sender`,
+  :class:`Sender` (messages as one sender packs them, decoded as received),
   :func:`write_key_file`, :func:`junk_packets`, and on sockets :func:`deliver` and
-  :func:`read_for`.
+  :func:`read_for`; :func:`child_processes` (this process's children).
 
 Sockets bind port 0 on 127.0.0.1; every wait has a deadline (no blind sleeps).
 """
@@ -139,6 +140,35 @@ def mavlink_sender(key: bytes | None = None, *, sysid: int = 255, compid: int = 
         mav.signing.link_id = link_id
         mav.signing.timestamp = ticks_from_unix(time.time()) if timestamp is None else timestamp
     return mav
+
+
+class Sender:
+    """Messages as one MAVLink sender (system, component) packs them, decoded as received:
+    ``Sender(1, 1)("heartbeat", ...)`` is the HEARTBEAT a ground station reads."""
+
+    def __init__(self, sysid: int, compid: int) -> None:
+        self.mav = mavlink_sender(sysid=sysid, compid=compid)
+
+    def __call__(self, build: str, *args: Any, **fields: Any) -> Any:
+        data = getattr(self.mav, f"{build}_encode")(*args, **fields).pack(self.mav)
+        self.mav.seq = (self.mav.seq + 1) % 256
+        return mavlink.MAVLink(None).decode(bytearray(data))
+
+
+def child_processes() -> set[int]:
+    """The process ids whose parent is this process (Linux /proc)."""
+    mine = os.getpid()
+    found = set()
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            stat = (entry / "stat").read_text()
+        except OSError:
+            continue  # (ended meanwhile)
+        if int(stat.rsplit(")", 1)[1].split()[1]) == mine:
+            found.add(int(entry.name))
+    return found
 
 
 def lane_answers(link: Link) -> list[bytes]:

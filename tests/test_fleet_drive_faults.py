@@ -9,7 +9,6 @@ only thing that matters to the drive's checks. tests/test_fleet.py drives real o
 from __future__ import annotations
 
 import io
-import os
 import sys
 import threading
 from pathlib import Path
@@ -17,6 +16,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from support import child_processes
 
 from mecanum_mav.app.fleet import Fleet, FleetDrive, drive_fleet, plot_fleet
 from mecanum_mav.io.links import mavlink
@@ -111,33 +111,18 @@ def test_without_mavproxy_a_fleet_says_how_to_install_it(
         Fleet(1, tmp_path)
 
 
-def _children() -> set[int]:
-    """The processes whose parent is this one (Linux /proc)."""
-    mine = os.getpid()
-    found = set()
-    for entry in Path("/proc").iterdir():
-        if entry.name.isdigit():
-            try:
-                stat = (entry / "stat").read_text()
-            except OSError:
-                continue
-            if int(stat.rsplit(")", 1)[1].split()[1]) == mine:
-                found.add(int(entry.name))
-    return found
-
-
 def test_a_fleet_that_fails_to_start_stops_what_it_had_started(tmp_path: Path) -> None:
     # The router starts first; the first rover's log cannot be opened (a folder is in the
     # way): the error comes out and the router is stopped, nothing is left running.
     (tmp_path / "instance0.log").mkdir()
-    before = _children()
+    before = child_processes()
     try:
         with pytest.raises(IsADirectoryError):
             Fleet(1, tmp_path)
     except FileNotFoundError:
         pytest.skip("MAVProxy is not installed (pip install '.[test]')")
     assert (tmp_path / "router.log").exists()  # it had started
-    assert _children() == before
+    assert child_processes() == before
 
 
 # --------------------------------------------------------------------------- the picture

@@ -9,6 +9,7 @@ import math
 from typing import Any
 
 import pytest
+from support import Sender
 
 from mecanum_mav.app.loganalysis import analyse
 from mecanum_mav.app.logmission import log_origin, mission_items, planned_positions
@@ -21,18 +22,6 @@ from mecanum_mav.protocol.modes import Mode
 NAN = math.nan
 START_S = 1_800_000_000.0
 ZURICH = GlobalOrigin(473_977_420, 85_455_940)
-
-
-class Sender:
-    """Messages as one MAVLink sender (system, component) packs them, decoded as received."""
-
-    def __init__(self, sysid: int, compid: int) -> None:
-        self.mav = mavlink.MAVLink(None, srcSystem=sysid, srcComponent=compid)
-
-    def __call__(self, build: str, *args: Any, **fields: Any) -> Any:
-        data = getattr(self.mav, f"{build}_encode")(*args, **fields).pack(self.mav)
-        self.mav.seq = (self.mav.seq + 1) % 256
-        return mavlink.MAVLink(None).decode(bytearray(data))
 
 
 ROVER = Sender(1, 1)

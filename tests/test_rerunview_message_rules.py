@@ -14,6 +14,7 @@ import pytest
 
 rr = pytest.importorskip("rerun", reason="the view extra (rerun-sdk) is not installed")
 from rerun.chunk import RrdReader  # noqa: E402
+from support import Sender  # noqa: E402
 
 from mecanum_mav.app.rerunview import ViewMapping, to_map  # noqa: E402
 from mecanum_mav.mecanum.geo import GlobalOrigin  # noqa: E402
@@ -24,18 +25,6 @@ from mecanum_mav.sim.truthsender import TRUTH_SOURCE  # noqa: E402
 
 NAN = math.nan
 Rows = dict[str, list[dict[str, Any]]]
-
-
-class Sender:
-    """Messages as one MAVLink sender (system, component) packs them, decoded as received."""
-
-    def __init__(self, sysid: int, compid: int) -> None:
-        self.mav = mavlink.MAVLink(None, srcSystem=sysid, srcComponent=compid)
-
-    def __call__(self, build: str, *args: Any, **fields: Any) -> Any:
-        data = getattr(self.mav, f"{build}_encode")(*args, **fields).pack(self.mav)
-        self.mav.seq = (self.mav.seq + 1) % 256
-        return mavlink.MAVLink(None).decode(bytearray(data))
 
 
 COMPANION = Sender(1, 1)

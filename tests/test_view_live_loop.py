@@ -23,6 +23,8 @@ import pytest
 
 pytest.importorskip("rerun", reason="the view extra (rerun-sdk) is not installed")
 
+from support import child_processes
+
 from mecanum_mav.app.rerunview import ViewMapping
 from mecanum_mav.app.view import TlogFollower, gc_paused, merged, run_view
 from mecanum_mav.config.params import Params
@@ -45,21 +47,6 @@ def _tlog(path: Path, count: int = 3) -> Path:
     path.write_bytes(b"".join(tlog_record(BASE_US + k * 100_000, _heartbeat(mav))
                               for k in range(count)))
     return path
-
-
-def _children() -> set[int]:
-    """The processes whose parent is this one (Linux /proc)."""
-    mine = os.getpid()
-    found = set()
-    for entry in Path("/proc").iterdir():
-        if entry.name.isdigit():
-            try:
-                stat = (entry / "stat").read_text()
-            except OSError:
-                continue
-            if int(stat.rsplit(")", 1)[1].split()[1]) == mine:
-                found.add(int(entry.name))
-    return found
 
 
 def _web_port(out: str) -> int:
@@ -98,13 +85,13 @@ def test_view_saving_into_a_missing_folder_exits_2_and_leaves_no_viewer_running(
         tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     # 'view --save' to a path that cannot be created: the web viewer already started is
     # stopped (it runs in a session of its own: nothing else would stop it).
-    before = _children()
+    before = child_processes()
     save = tmp_path / "missing" / "view.rrd"
     status = run_view(str(_tlog(tmp_path / "a.tlog")), Params(), save=save, web_port=0,
                       out=io.StringIO())
     assert status == 2
     assert str(save) in capsys.readouterr().err
-    assert _children() == before
+    assert child_processes() == before
 
 
 def test_view_on_a_port_another_program_holds_exits_2_naming_the_link(
@@ -115,11 +102,11 @@ def test_view_on_a_port_another_program_holds_exits_2_naming_the_link(
         holder.bind(("127.0.0.1", 0))
         url = f"udpin:127.0.0.1:{holder.getsockname()[1]}"
         out = io.StringIO()
-        before = _children()
+        before = child_processes()
         assert run_view(url, Params(), web_port=0, out=out) == 2
     assert capsys.readouterr().err.startswith(f"mecanum-mav view: {url}: ")
     assert not _serving(_web_port(out.getvalue()))
-    assert _children() == before
+    assert child_processes() == before
 
 
 # --------------------------------------------------------------------------- how it ends

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import io
 import json
-import os
 import select
 import signal
 import socket
@@ -22,7 +21,7 @@ import pytest
 
 pytest.importorskip("rerun", reason="the view extra (rerun-sdk) is not installed")
 
-from support import wait_until
+from support import child_processes, wait_until
 
 from mecanum_mav.app.cli import build_parser
 from mecanum_mav.app.view import (
@@ -51,22 +50,6 @@ with socket.socket() as s:
 """
 """A native viewer that records its command line, listens on ``--port`` and closes its
 window once someone has connected."""
-
-
-def _children() -> set[int]:
-    """The processes whose parent is this one (Linux /proc)."""
-    mine = os.getpid()
-    found = set()
-    for entry in Path("/proc").iterdir():
-        if not entry.name.isdigit():
-            continue
-        try:
-            stat = (entry / "stat").read_text()
-        except OSError:
-            continue
-        if int(stat.rsplit(")", 1)[1].split()[1]) == mine:
-            found.add(int(entry.name))
-    return found
 
 
 def _program(path: Path, text: str) -> Path:
@@ -139,10 +122,10 @@ def test_a_viewer_that_never_listens_is_stopped_and_reported(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     program = _program(tmp_path / "rerun", "#!/bin/sh\nexec sleep 30\n")
     monkeypatch.setenv("RERUN_CLI_PATH", str(program))
-    before = _children()
+    before = child_processes()
     with pytest.raises(RuntimeError, match=r"did not listen on port \d+ in 0.3 s"):
         serve_rrd(None, 0, native=False, timeout_s=0.3)
-    assert _children() == before  # killed and reaped: nothing left behind
+    assert child_processes() == before  # killed and reaped: nothing left behind
 
 
 def _sleeper() -> subprocess.Popen[bytes]:
