@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import io
 import json
+import os
 import select
 import signal
 import socket
@@ -199,3 +200,45 @@ def test_sim_view_follows_the_given_tlog_with_the_rovers_params_and_stop_view_en
         if process.poll() is None:
             process.kill()
             process.wait()
+
+
+FAKE_WEB_VIEWER = """#!{python} -S
+import socket, sys, time
+args = sys.argv[1:]
+with socket.socket() as s:
+    s.bind(("127.0.0.1", int(args[args.index("--port") + 1])))
+    s.listen()
+    time.sleep(60)
+"""
+"""A web viewer that listens on ``--port`` and serves until it is stopped."""
+
+
+def _ended(pid: int) -> bool:
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] == "Z"
+    except OSError:
+        return True
+
+
+def test_a_view_killed_before_it_could_stop_its_web_viewer_leaves_no_server_behind(
+        tmp_path: Path) -> None:
+    # kill -9 of the process that started the web viewer (stop_view's last resort, a killed
+    # sim): the viewer, in a session of its own, ends with it.
+    viewer = _program(tmp_path / "rerun", FAKE_WEB_VIEWER.format(python=sys.executable))
+    starter = subprocess.Popen(
+        [sys.executable, "-c", "import sys, time\n"
+         "from mecanum_mav.app.view import serve_rrd\n"
+         "print(serve_rrd(None, 0, native=False).process.pid, flush=True)\n"
+         "time.sleep(60)\n"],
+        stdout=subprocess.PIPE, env={**os.environ, "RERUN_CLI_PATH": str(viewer)})
+    try:
+        assert starter.stdout is not None
+        pid = int(starter.stdout.readline())
+        assert not _ended(pid)
+        starter.kill()
+        starter.wait()
+        assert wait_until(lambda: _ended(pid), 5.0), "the web viewer outlived its view"
+    finally:
+        starter.kill()
+        starter.wait()
+        starter.stdout.close()  # type: ignore[union-attr]

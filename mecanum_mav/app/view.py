@@ -24,6 +24,7 @@ from __future__ import annotations
 import contextlib
 import heapq
 import os
+import signal
 import socket
 import subprocess
 import sys
@@ -40,7 +41,7 @@ from mecanum_mav.app.rerunview import APPLICATION_ID, ViewMapping, rerun_module
 from mecanum_mav.config.params import Params
 from mecanum_mav.io.tlog import STAMP_LEN, TlogEntry, parse_tlog
 from mecanum_mav.protocol.dialect import mavutil
-from mecanum_mav.sim.process import free_port
+from mecanum_mav.sim.process import dies_with_this_thread, free_port
 
 __all__ = ["DEFAULT_CONNECT", "DEFAULT_WEB_PORT", "FLUSH_PERIOD_S", "TlogFollower", "Viewer",
            "follow_in_viewer", "gc_paused", "has_display", "merged", "open_viewer", "run_view",
@@ -149,7 +150,10 @@ def serve_rrd(rrd: Path | None, web_port: int, *, native: bool,
     ``web_port`` (0: any free port), showing ``rrd`` (None: what is sent to its
     ``grpc_url``), in a session of its own (a Ctrl-C meant for us leaves it: the native
     window stays open, the web one is stopped by :meth:`Viewer.close` once all is sent).
-    Raises RuntimeError when it does not start."""
+    The web viewer also ends with the thread that started it
+    (:func:`~mecanum_mav.sim.process.dies_with_this_thread`): a view killed before it could
+    close it (``kill -9``, :func:`stop_view`'s last resort) leaves no server behind. Raises
+    RuntimeError when it does not start."""
     rerun_module()
     grpc_port = free_port(socket.SOCK_STREAM)
     quiet = subprocess.DEVNULL
@@ -163,7 +167,8 @@ def serve_rrd(rrd: Path | None, web_port: int, *, native: bool,
         args = _rerun_cli("--serve-web", "--bind", "127.0.0.1", "--port", str(grpc_port),
                           "--web-viewer-port", str(web_port), *([str(rrd)] if rrd else []))
         process = subprocess.Popen(args, stdin=quiet, stdout=quiet, env=_quiet_env(),
-                                   start_new_session=True)
+                                   start_new_session=True,
+                                   preexec_fn=dies_with_this_thread(signal.SIGTERM))
         url = viewer_url(web_port, grpc_port)
     try:
         _wait_listening(grpc_port, process, timeout_s)
@@ -283,7 +288,6 @@ def _interrupt(signum: int, frame: Any) -> None:
 def _sigterm_interrupts(stack: contextlib.ExitStack) -> None:
     """SIGTERM ends the view as Ctrl-C does (its web viewer stopped, nothing left behind),
     until ``stack`` closes; in the main thread only (where signals are handled)."""
-    import signal
     import threading
 
     if threading.current_thread() is threading.main_thread():
@@ -406,9 +410,8 @@ def follow_in_viewer(tlog: Path | None, params_path: Path | None, assignments: l
 
 def stop_view(process: subprocess.Popen[bytes], timeout_s: float = 10.0) -> None:
     """Stop a ``view`` process as Ctrl-C does (it sends what it has and stops its web
-    viewer), killed if it has not ended after ``timeout_s``."""
-    import signal
-
+    viewer), killed if it has not ended after ``timeout_s`` (its web viewer then ends with
+    it, :func:`serve_rrd`)."""
     if process.poll() is None:
         process.send_signal(signal.SIGINT)
     try:
