@@ -60,9 +60,10 @@ READY_TIMEOUT_S = 60.0
 """How long the firmware may take to boot, and setup-fc to set it up."""
 NO_RECEIVER = {"SIM_RC_FAIL": 1.0}
 """The simulated hardware of a board whose only RC input is the companion: no receiver."""
-COMPANION_GRACE_S = 2.0
-"""Where a ground station already listens, the twin only checks that long that the companion
-stays up."""
+COMPANION_RUNNING = "mecanum-mav: rover system"
+"""How the companion's output begins once both its links are open: where a ground station
+already listens, the twin waits for this line (or the companion's end) instead of a
+HEARTBEAT."""
 SETUP_OK = "the flight controller is set up safely"
 """What setup-fc says when the board is safe."""
 
@@ -171,7 +172,7 @@ class Twin(Started):
         if self._wait_on_gcs:
             self._wait_heartbeat(self.gcs_url, timeout_s, "the companion")
         else:  # (a ground station listens there: it sees the companion come up)
-            self._wait_alive(COMPANION_GRACE_S)
+            self._wait_running(timeout_s)
 
     def _param_args(self) -> list[str]:
         """``--set NAME=VALUE`` for every parameter not at its default."""
@@ -211,11 +212,16 @@ class Twin(Started):
             conn.close()
         raise TwinError(f"no HEARTBEAT from {who} within {timeout_s:g} s\n{self.why()}")
 
-    def _wait_alive(self, seconds: float) -> None:
-        """Check every 0.1 s for ``seconds`` that nothing died."""
-        deadline = time.monotonic() + seconds
-        while time.monotonic() < deadline:
+    def _wait_running(self, timeout_s: float) -> None:
+        """Check every 0.1 s that nothing died until the companion says it runs
+        (:data:`COMPANION_RUNNING`: its links are open), at most ``timeout_s``."""
+        assert self.companion is not None
+        deadline = time.monotonic() + timeout_s
+        while COMPANION_RUNNING not in self.companion.log(tail=1 << 20):  # (from its start)
             self._check_alive()
+            if time.monotonic() >= deadline:
+                raise TwinError(f"the companion did not start within {timeout_s:g} s\n"
+                                f"{self.why()}")
             time.sleep(0.1)
         self._check_alive()
 
