@@ -45,10 +45,11 @@ class CommandError(ValueError):
 # --------------------------------------------------------------------------- mixing a command
 
 
-def _number(fields: dict[str, object], key: str, default: float | None = None) -> float | None:
+def _number(fields: dict[str, object], key: str) -> float:
+    """Field ``key`` as a finite number; 0 when it is missing or empty."""
     raw = fields.get(key)
     if raw is None or raw == "":
-        return default
+        return 0.0
     try:
         value = float(raw)  # type: ignore[arg-type]  # any object: TypeError is caught
     except (TypeError, ValueError):
@@ -62,7 +63,7 @@ def stick_from_fields(fields: dict[str, object]) -> tuple[float, float, float, f
     """``(x, y, rotation, heading_deg)`` from a command given in Cartesian or polar form.
 
     Polar fields (``magnitude``, ``direction_deg``) become ``x = m cos d``, ``y = m sin d``;
-    missing Cartesian fields are 0. Mixing both forms in one command is an error.
+    missing fields are 0. Mixing both forms in one command is an error.
     """
     unknown = sorted(set(fields) - set(CSV_COLUMNS))
     if unknown:
@@ -72,15 +73,12 @@ def stick_from_fields(fields: dict[str, object]) -> tuple[float, float, float, f
     cartesian = any(fields.get(k) not in (None, "") for k in ("x", "y"))
     if polar and cartesian:
         raise CommandError("give x/y or magnitude/direction_deg, not both")
-    rotation = _number(fields, "rotation", 0.0)
-    heading = _number(fields, "heading_deg", 0.0)
     if polar:
-        m = _number(fields, "magnitude", 0.0)
-        d = math.radians(_number(fields, "direction_deg", 0.0) or 0.0)
-        x, y = (m or 0.0) * math.cos(d), (m or 0.0) * math.sin(d)
+        m, d = _number(fields, "magnitude"), math.radians(_number(fields, "direction_deg"))
+        x, y = m * math.cos(d), m * math.sin(d)
     else:
-        x, y = _number(fields, "x", 0.0) or 0.0, _number(fields, "y", 0.0) or 0.0
-    return x, y, rotation or 0.0, heading or 0.0
+        x, y = _number(fields, "x"), _number(fields, "y")
+    return x, y, _number(fields, "rotation"), _number(fields, "heading_deg")
 
 
 def mix_fields(
@@ -102,7 +100,7 @@ def mix_fields(
 def _parse_line(
     line: str, header: list[str] | None, default_keys: Sequence[str]
 ) -> dict[str, object]:
-    if line.lstrip().startswith("{"):
+    if line.startswith("{"):  # (the batch strips each line)
         try:
             fields: dict[str, object] = json.loads(line)  # ("{" begins an object or fails)
         except json.JSONDecodeError as exc:
@@ -118,7 +116,7 @@ def _parse_line(
 
 
 def _is_header(line: str) -> bool:
-    first = next(csv.reader([line]), [""])[0].strip()
+    first = next(csv.reader([line]))[0].strip()  # (a line that is not blank: a row)
     return first in CSV_COLUMNS
 
 
@@ -142,7 +140,7 @@ def run_batch(
         "magnitude", "direction_deg", "rotation", "heading_deg")
     header: list[str] | None = None
     writer = csv.writer(out, lineterminator="\n")
-    failures = 0
+    failed = False
     for number, raw in enumerate(lines, start=1):
         line = raw.strip()
         if not line or line.startswith("#"):
@@ -160,7 +158,7 @@ def run_batch(
             used, wheels, pwm = mix_fields(_parse_line(line, header, default_keys), params, algo,
                                            priority)
         except CommandError as exc:
-            failures += 1
+            failed = True
             err.write(f"line {number}: {exc}\n")
             if as_json:
                 out.write(json.dumps({"line": number, "error": str(exc)}) + "\n")
@@ -171,7 +169,7 @@ def run_batch(
             out.write(json.dumps({"algorithm": used, "wheels": wheels, "pwm": list(pwm)}) + "\n")
         else:
             writer.writerow([*wheels, *pwm, ""])
-    return 1 if failures else 0
+    return 1 if failed else 0
 
 
 # --------------------------------------------------------------------------- the command
