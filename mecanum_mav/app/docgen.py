@@ -152,18 +152,11 @@ def _usage(prog: str, actions: Sequence[argparse.Action], tail: str = "") -> str
 
 
 def _help(action: argparse.Action, prog: str) -> str:
-    """The action's help with argparse's ``%(default)s``-style fields filled in."""
+    """The action's help as ``--help`` shows it: argparse's own filling-in of
+    ``%(default)s``, ``%(choices)s``, ``%(type)s``, ``%(prog)s`` ..."""
     if not action.help:  # (a hidden one, argparse.SUPPRESS, is not shown at all)
         return ""
-    fields = dict(vars(action), prog=prog)
-    for name, value in list(fields.items()):
-        if value is argparse.SUPPRESS:
-            del fields[name]
-        elif hasattr(value, "__name__"):
-            fields[name] = value.__name__
-    if fields.get("choices") is not None:
-        fields["choices"] = ", ".join(str(c) for c in fields["choices"])
-    return str(action.help) % fields
+    return argparse.HelpFormatter(prog)._expand_help(action)
 
 
 def _default(action: argparse.Action) -> str:
