@@ -55,6 +55,10 @@ def serve(params: Params, gcs_url: str, fc_url: str, param_path: Path | None,
             print(f"mecanum-mav: {exc}", file=sys.stderr)
             return 2
         stack.callback(companion.close)
+        # From here a SIGINT or SIGTERM, however many, ends the loop in order (neutral,
+        # release) and waits for the links to linger: none cuts the shutdown short. (Before
+        # the line below says it runs: a signal the moment it is read must not exit 130.)
+        termination.running(companion.stop)
         signed = " (signed)" if keys[0] is not None else ""
         fc_signed = " (signed)" if keys[1] is not None else ""
         print(f"mecanum-mav: rover system {params['SYSID_THISMAV']} on {gcs_url}{signed}, "
@@ -69,9 +73,6 @@ def serve(params: Params, gcs_url: str, fc_url: str, param_path: Path | None,
         progress.started()
         companion.set_timer(progress.tick)
 
-        # From here a SIGINT or SIGTERM, however many, ends the loop in order (neutral,
-        # release) and waits for the links to linger: none cuts the shutdown short.
-        termination.running(companion.stop)
         with on_signals((signal.SIGUSR1,), print_status):
             companion.run()
         print_status()
