@@ -12,7 +12,7 @@ import pytest
 from support import Sender
 
 from mecanum_mav.app.loganalysis import analyse
-from mecanum_mav.app.logmission import log_origin, mission_items, planned_positions
+from mecanum_mav.app.logmission import log_origin, mission_items, planned_positions, sim_latlon
 from mecanum_mav.io.tlog import TlogEntry
 from mecanum_mav.mecanum.geo import GlobalOrigin
 from mecanum_mav.protocol.dialect import mavlink
@@ -195,3 +195,141 @@ def test_a_global_position_at_0_0_is_no_fix_and_left_out_of_the_path() -> None:
     ((t, north, east),) = result.path
     assert (t, north, east) == (pytest.approx(0.2), pytest.approx(2.0, abs=0.02),
                                 pytest.approx(1.0, abs=0.02))
+
+
+# --------------------------------------------------------------------------- whose messages
+
+OTHER = Sender(7, 1)  # another vehicle on the same link (a second rover, a drone)
+
+
+def _local_of(sender: Sender, north: float, east: float) -> Any:
+    return sender("local_position_ned", 0, north, east, 0.0, 0.0, 0.0, 0.0)
+
+
+def _global_of(sender: Sender, lat_e7: int, lon_e7: int) -> Any:
+    return sender("global_position_int", 0, lat_e7, lon_e7, 0, 0, 0, 0, 0, 0)
+
+
+def test_another_systems_positions_are_neither_the_vehicles_path_nor_its_origin() -> None:
+    # The rover's ODOMETRY names it the vehicle; the other system's positions, local and
+    # global, come first and must not place the origin nor join the path.
+    lat, lon = ZURICH.to_global(12.0, -7.0)
+    far_lat, far_lon = ZURICH.to_global(900.0, 900.0)
+    odometry = ROVER("odometry", 0, mavlink.MAV_FRAME_LOCAL_NED, mavlink.MAV_FRAME_BODY_FRD,
+                     12.0, -7.0, 0.0, [1.0, 0.0, 0.0, 0.0], 0.0, 0.0, 0.0, 0.0, 0.0, 0.0,
+                     [NAN] * 21, [NAN] * 21, 0, mavlink.MAV_ESTIMATOR_TYPE_NAIVE, 100)
+    entries = _log((0.0, _local_of(OTHER, 300.0, 300.0)),
+                   (0.0, _global_of(OTHER, far_lat, far_lon)),
+                   (0.1, odometry), (0.2, _global(lat, lon)),
+                   (0.3, _global_of(OTHER, far_lat, far_lon)))
+    result = analyse(entries)
+    assert result.vehicle == (1, 1)
+    assert result.origin is not None
+    assert result.origin.to_local(lat, lon) == (pytest.approx(12.0, abs=0.02),
+                                                pytest.approx(-7.0, abs=0.02))
+    assert result.path_source == "ODOMETRY"
+    assert result.path == [(pytest.approx(0.1), 12.0, -7.0)]
+
+
+def test_another_systems_global_positions_are_not_the_vehicles_path() -> None:
+    lat, lon = ZURICH.to_global(2.0, 1.0)
+    far_lat, far_lon = ZURICH.to_global(900.0, 900.0)
+    entries = _log((0.0, ROVER("gps_global_origin", ZURICH.lat_e7, ZURICH.lon_e7, 0)),
+                   (0.0, _rover_heartbeat()), (0.1, _global_of(OTHER, far_lat, far_lon)),
+                   (0.2, _global(lat, lon)))
+    result = analyse(entries)
+    assert result.vehicle == (1, 1)
+    assert [t for t, _, _ in result.path] == [pytest.approx(0.2)]
+
+
+def test_a_disarmed_vehicle_is_disarmed_in_the_modes_and_arming_starts_a_span() -> None:
+    def beat(armed: bool) -> Any:
+        flags = mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | (
+            mavlink.MAV_MODE_FLAG_SAFETY_ARMED if armed else 0)
+        return ROVER("heartbeat", mavlink.MAV_TYPE_GROUND_ROVER,
+                     mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA, flags, int(Mode.MANUAL), 4)
+
+    result = analyse(_log((0.0, beat(False)), (1.0, beat(False)), (2.0, beat(True))))
+    assert [(span.start_s, span.armed) for span in result.modes] == [(0.0, False), (2.0, True)]
+
+
+def test_a_mode_change_starts_at_the_accepted_command_not_at_the_heartbeat_that_shows_it() -> None:
+    # MAV_CMD_DO_SET_MODE accepted at 1.3 s; the vehicle's next heartbeat (2 s) is in AUTO:
+    # AUTO began when the command was accepted.
+    ack = ROVER("command_ack", mavlink.MAV_CMD_DO_SET_MODE, mavlink.MAV_RESULT_ACCEPTED)
+    result = analyse(_log((0.0, _rover_heartbeat(Mode.MANUAL)), (1.0, _rover_heartbeat()),
+                          (1.3, ack), (2.0, _rover_heartbeat(Mode.AUTO))))
+    assert [(span.mode, span.start_s) for span in result.modes] == [
+        ("MANUAL", 0.0), ("AUTO", pytest.approx(1.3))]
+
+
+def test_manual_control_axes_are_read_per_mille_and_an_invalid_axis_is_nan() -> None:
+    # MANUAL_CONTROL: x, y, r in -1000..1000; INT16_MAX marks an axis invalid.
+    stick = GCS("manual_control", 1, 250, -500, 0, 32767, 0)
+    ((t, x, y, r),) = analyse(_log((0.0, stick))).sticks
+    assert (t, x, y) == (0.0, 0.25, -0.5)
+    assert math.isnan(r)
+
+
+def test_each_pilots_overrides_are_read_as_sticks_of_their_own() -> None:
+    # Two ground stations override by turns: 255/0 pushes channel 3 (forward), 254/0
+    # channel 1 (yaw); neither's stick carries the other's channel.
+    def rc(sender: Sender, chan1: int, chan3: int) -> Any:
+        return sender("rc_channels_override", 1, 1, chan1, 65535, chan3, 65535, 65535,
+                      65535, 65535, 65535)
+
+    first, second = Sender(255, 0), Sender(254, 0)
+    entries = _log((0.0, _rover_heartbeat()), (0.1, rc(first, 65535, 1700)),
+                   (0.2, rc(second, 1700, 65535)))
+    result = analyse(entries)
+    assert result.pilot_sticks["255/0"] == [(pytest.approx(0.1), pytest.approx(0.4), 0.0, 0.0)]
+    assert result.pilot_sticks["254/0"] == [(pytest.approx(0.2), 0.0, 0.0, pytest.approx(0.4))]
+    assert result.pilot_overrides["255/0"] == [
+        (pytest.approx(0.1), [65535, 65535, 1700, *[65535] * 5, *[0] * 10])]
+
+
+def test_ardupilots_simstate_is_the_true_path() -> None:
+    lat, lon = ZURICH.to_global(3.0, -4.0)
+    simstate = ROVER("simstate", 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, lat, lon)
+    result = analyse(_log((0.0, ROVER("gps_global_origin", ZURICH.lat_e7, ZURICH.lon_e7, 0)),
+                          (0.5, simstate)))
+    ((t, north, east),) = result.true_path
+    assert (t, north, east) == (0.5, pytest.approx(3.0, abs=0.02),
+                                pytest.approx(-4.0, abs=0.02))
+
+
+def test_a_sample_at_the_instant_of_the_last_mode_change_is_in_the_new_mode() -> None:
+    # AUTO begins with the log's last message, where the position is logged too.
+    entries = _log(*_upload(_waypoint(0, 0.0, 0.0), _waypoint(1, 10.0, 0.0)),
+                   (0.0, _rover_heartbeat(Mode.MANUAL)), (0.1, ROVER("mission_current", 1)),
+                   (0.5, _local(1.0, 0.0)), (1.0, _rover_heartbeat(Mode.AUTO)),
+                   (1.0, _local(2.0, 0.5)))
+    (leg,) = analyse(entries).legs
+    assert (leg.seq, leg.samples) == (1, 1)
+
+
+# --------------------------------------------------------------------------- simulator states
+
+
+def test_a_sim_states_whole_degE7_position_wins_over_its_float_degrees() -> None:
+    # SIM_STATE's lat/lon are float32 degrees (about a metre at 47 deg); lat_int/lon_int
+    # (degE7) are exact, also on the equator or the prime meridian (one of them 0).
+    assert sim_latlon(_sim_state(47.39774, 8.54559, 473_977_421, 85_455_939)) == (
+        473_977_421, 85_455_939)
+    assert sim_latlon(_sim_state(0.0, 8.5, 0, 85_000_001)) == (0, 85_000_001)
+    assert sim_latlon(_sim_state(47.5, 0.0, 475_000_001, 0)) == (475_000_001, 0)
+
+
+def test_a_sim_state_without_degE7_fields_is_read_from_its_degrees() -> None:
+    # Both 0 (ArduPilot before the fields existed) or absent (pymavlink 2.4.40, the oldest
+    # this project supports, has no lat_int/lon_int in SIM_STATE).
+    assert sim_latlon(_sim_state(47.25, -8.5)) == (472_500_000, -85_000_000)
+    old = _sim_state(47.25, -8.5)
+    del old.lat_int, old.lon_int
+    assert sim_latlon(old) == (472_500_000, -85_000_000)
+
+
+def test_ardupilots_simstate_is_in_degE7() -> None:
+    simstate = ROVER("simstate", 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 473_977_421,
+                     -85_455_939)
+    assert sim_latlon(simstate) == (473_977_421, -85_455_939)

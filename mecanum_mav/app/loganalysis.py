@@ -185,7 +185,7 @@ def analyse(entries: Sequence[TlogEntry]) -> LogAnalysis:
                         for v in (msg.x, msg.y, msg.r)]
                 result.sticks.append((t, axes[0], axes[1], axes[2]))
             elif kind == "RC_CHANNELS_OVERRIDE":
-                channels = [getattr(msg, f"chan{i}_raw", 0) for i in range(1, 19)]
+                channels = [getattr(msg, f"chan{i}_raw") for i in range(1, 19)]
                 sender = f"{msg.get_srcSystem()}/{msg.get_srcComponent()}"
                 if override_from_pilot(msg, channels, vehicle):
                     result.pilot_overrides.setdefault(sender, []).append((t, channels))
