@@ -248,7 +248,9 @@ def survivors(results: dict[str, dict[str, int | None]], targets: set[str],
 def run_mutmut(targets: list[str], jobs: int) -> int:
     """``mutmut run`` on the targets' mutants (names ``mecanum_mav.<target>.*``)."""
     globs = [f"{PACKAGE}.{t}.*" for t in targets]
-    return subprocess.call(["mutmut", "run", "--max-children", str(jobs), *globs], cwd=ROOT)
+    # (the mutmut of this Python, whether or not its bin/ is on PATH)
+    return subprocess.call([sys.executable, "-m", "mutmut", "run", "--max-children", str(jobs),
+                            *globs], cwd=ROOT)
 
 
 def all_packages() -> list[str]:
