@@ -51,3 +51,10 @@ def test_an_origin_from_degrees_off_the_earth_is_refused():
     with pytest.raises(ValueError, match="is not on earth"):
         GlobalOrigin.from_degrees(90.0000001, 0.0)
     assert GlobalOrigin.from_degrees(-90.0, 180.0) == GlobalOrigin(-900_000_000, 1_800_000_000)
+
+
+def test_an_origin_off_the_earth_is_refused_naming_it_in_degrees():
+    with pytest.raises(ValueError, match=r"^origin 90\.0000001, -12\.5 is not on earth$"):
+        GlobalOrigin(900_000_001, -125_000_000)
+    with pytest.raises(ValueError, match=r"^origin -45\.0, 180\.0000001 is not on earth$"):
+        GlobalOrigin(-450_000_000, 1_800_000_001)
