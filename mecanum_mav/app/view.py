@@ -255,7 +255,7 @@ def _messages(connect: str, wait_s: float = _WAIT_S
                 yield batch
         finally:
             follower.close()
-    conn = mavutil.mavlink_connection(connect, source_system=255, source_component=191)
+    conn = mavutil.mavlink_connection(connect)  # (its own ids: never used, it sends nothing)
     try:
         while True:
             msg = conn.recv_match(blocking=True, timeout=wait_s)
@@ -263,7 +263,7 @@ def _messages(connect: str, wait_s: float = _WAIT_S
             while msg is not None:
                 if msg.get_type() != "BAD_DATA":
                     batch.append((time.time(), msg))
-                msg = conn.recv_match(blocking=False)
+                msg = conn.recv_match()  # (what waits, without waiting)
             yield batch
     finally:
         conn.close()
