@@ -228,7 +228,7 @@ class TlogFollower:
         data = self._tail + self._file.read()
         if not data:
             return []
-        read = parse_tlog(data, self.path.name)
+        read = parse_tlog(data)  # (only its entries are kept: its name is not needed)
         if read.entries:
             last = read.entries[-1]
             end = last.offset + STAMP_LEN + len(last.msg.get_msgbuf())
