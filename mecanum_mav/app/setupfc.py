@@ -130,7 +130,7 @@ class FcSession:
                 self._send(self.link.mav.param_request_read_send, *self.target, name.encode(),
                            -1)
             wait_s = reader.next_due_s() - time.monotonic()
-            for msg in self._receive(max(0.0, min(wait_s, 0.2))):
+            for msg in self._receive(max(0.0, wait_s)):  # (our HEARTBEAT: _receive)
                 if msg.get_type() == "PARAM_VALUE":
                     reader.on_value(msg.param_id, float(msg.param_value),
                                     int(msg.param_type))
