@@ -13,6 +13,7 @@ import json
 import signal
 import socket
 import sys
+import time
 import urllib.parse
 from collections.abc import Iterator
 from pathlib import Path
@@ -37,6 +38,7 @@ with socket.socket() as s:
     s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
     s.bind(("127.0.0.1", int(args[args.index("--port") + 1])))
     s.listen()
+    seen["listening_at"] = time.time()
     open({record!r}, "w").write(json.dumps(seen))
     time.sleep(60)  # (a window, or a server, until it is stopped)
 """
@@ -87,6 +89,13 @@ def test_the_native_viewer_is_rerun_on_the_recordings_port_quiet_and_in_a_sessio
     assert seen["rust_log"] == "warn"
     assert seen["session_leader"] is True  # a Ctrl-C meant for the view leaves its window
     assert seen["death_signal"] == 0  # the window stays when the view ends
+
+
+def test_serve_rrd_returns_as_soon_as_the_viewer_listens(
+        fake_viewer: Path, viewers: list[Viewer]) -> None:
+    viewers.append(serve_rrd(None, 0, native=True))
+    returned = time.time()
+    assert returned - _seen(fake_viewer)["listening_at"] < 0.5  # (it looks every 50 ms)
 
 
 def test_closing_the_native_viewer_serve_rrd_started_leaves_its_window_open(
