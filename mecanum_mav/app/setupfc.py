@@ -187,7 +187,8 @@ class FcSession:
         """Reboot the board and wait until it is back (its time since boot started again);
         None, or why it failed."""
         before_ms, before_s = self.boot_ms(), time.monotonic()
-        ack = self._command(mavlink.MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN, 1.0)
+        # (param1 1: the autopilot reboots; param2 0: the onboard computer, us, does not)
+        ack = self._command(mavlink.MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN, 1, 0, 0, 0, 0, 0, 0)
         if ack is None:
             return "no answer to MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN"
         if ack != mavlink.MAV_RESULT_ACCEPTED:
@@ -205,13 +206,12 @@ class FcSession:
         return None
 
     def _command(self, command: int, *params: float) -> int | None:
-        """COMMAND_LONG ``command``, sent up to three times (its confirmation counting the
-        times it was sent before, as MAVLink's command protocol asks); the COMMAND_ACK's
-        result."""
-        args = [*params, *[0.0] * (7 - len(params))]
+        """COMMAND_LONG ``command`` with its seven ``params``, sent up to three times (its
+        confirmation counting the times it was sent before, as MAVLink's command protocol
+        asks); the COMMAND_ACK's result."""
         for confirmation in range(3):
             self._send(self.link.mav.command_long_send, *self.target, command, confirmation,
-                       *args)
+                       *params)
             deadline = time.monotonic() + ACK_TIMEOUT_S
             while (now := time.monotonic()) < deadline:
                 for msg in self._receive(deadline - now):
