@@ -12,6 +12,7 @@ from __future__ import annotations
 import json
 import signal
 import socket
+import subprocess
 import sys
 import time
 import urllib.parse
@@ -23,6 +24,7 @@ import pytest
 
 pytest.importorskip("rerun", reason="the view extra (rerun-sdk) is not installed")
 
+from mecanum_mav.app import view
 from mecanum_mav.app.view import Viewer, has_display, open_viewer, serve_rrd, viewer_url
 from mecanum_mav.sim.process import free_port
 
@@ -191,3 +193,20 @@ def test_the_web_viewers_address_carries_the_recordings_address_percent_encoded(
     assert url == ("http://127.0.0.1:9090/?url=rerun%2Bhttp%3A%2F%2F127.0.0.1%3A9876%2Fproxy")
     query = urllib.parse.parse_qs(urllib.parse.urlsplit(url).query)
     assert query == {"url": ["rerun+http://127.0.0.1:9876/proxy"]}
+
+
+def test_a_web_viewer_that_ignores_sigterm_is_killed_after_the_stop_wait(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(view, "_STOP_WAIT_S", 0.2)
+    process = subprocess.Popen(["sh", "-c", 'trap "" TERM; echo ready; exec sleep 30'],
+                               stdin=subprocess.DEVNULL, stdout=subprocess.PIPE)
+    try:
+        assert process.stdout is not None and process.stdout.readline() == b"ready\n"
+        Viewer(process, "rerun+http://127.0.0.1:9/proxy", "http://127.0.0.1:9/").close()
+        assert process.returncode == -signal.SIGKILL
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait()
+        process.stdout.close()  # type: ignore[union-attr]
+

@@ -58,6 +58,8 @@ _MAX_TAIL = 1 << 16
 """Bytes of a followed tlog kept unread at most (a record cut short by the writer)."""
 _WAIT_S = 0.05
 """How long a live read waits for a message (s)."""
+_STOP_WAIT_S = 5.0
+"""How long a web viewer asked to stop (SIGTERM) may take before it is killed (s)."""
 
 
 @contextlib.contextmanager
@@ -122,11 +124,12 @@ class Viewer:
     url: str | None
 
     def close(self) -> None:
-        """Stop the viewer's process (the web server; a native window is left open)."""
+        """Stop the viewer's process (the web server, killed if it has not ended
+        :data:`_STOP_WAIT_S` after SIGTERM; a native window is left open)."""
         if self.url is not None and self.process.poll() is None:
             self.process.terminate()
             try:
-                self.process.wait(5.0)
+                self.process.wait(_STOP_WAIT_S)
             except subprocess.TimeoutExpired:
                 self.process.kill()
                 self.process.wait()
