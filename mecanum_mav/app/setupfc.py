@@ -31,6 +31,8 @@ import time
 from collections.abc import Callable, Iterable, Sequence
 from typing import Any, NamedTuple, TextIO
 
+import numpy as np
+
 from mecanum_mav.config.params import Params
 from mecanum_mav.control.core import FC_LINK_COMPID
 from mecanum_mav.io.links import Link, follow, open_link
@@ -54,7 +56,11 @@ WRITE_DEADLINE_S = 10.0
 REBOOT_TIMEOUT_S = 60.0
 """How long a rebooting board may take to come back."""
 ACK_TIMEOUT_S = 1.0
-"""How long a COMMAND_LONG waits for its COMMAND_ACK before it is sent again."""
+"""How long a COMMAND_LONG waits for its COMMAND_ACK (or the answer it asks for) before it is
+sent again."""
+BOOT_TIME_TIMEOUT_S = 3.0
+"""How long the board's time since boot is asked for before a reboot (no answer: the first
+answer after the reboot counts)."""
 EXIT_REBOOT_PENDING = 3
 
 
@@ -124,9 +130,9 @@ class FcSession:
                 self._send(self.link.mav.param_request_read_send, *self.target, name.encode(),
                            -1)
             wait_s = reader.next_due_s() - time.monotonic()
-            for msg in self._receive(max(0.0, min(wait_s, 0.2))):
+            for msg in self._receive(max(0.0, wait_s)):  # (our HEARTBEAT: _receive)
                 if msg.get_type() == "PARAM_VALUE":
-                    reader.on_value(msg.param_id.rstrip("\x00"), float(msg.param_value),
+                    reader.on_value(msg.param_id, float(msg.param_value),
                                     int(msg.param_type))
         self.types.update(reader.types)
         return Reading(dict(reader.values), reader.missing())
@@ -151,57 +157,73 @@ class FcSession:
                            float(settings[name]), kind)
                 sent[name] = now
             for msg in self._receive(0.1):
-                name = msg.param_id.rstrip("\x00") if msg.get_type() == "PARAM_VALUE" else ""
-                if name in sent:
+                if msg.get_type() == "PARAM_VALUE" and msg.param_id in sent:
+                    name = msg.param_id
                     echoed[name] = float(msg.param_value)
-                    if abs(echoed[name] - settings[name]) <= 1e-3:
+                    if echoed[name] == as_sent(settings[name]):
                         del sent[name]
         return echoed
 
-    def boot_ms(self, timeout_s: float = 3.0) -> int | None:
+    def boot_ms(self, timeout_s: float = BOOT_TIME_TIMEOUT_S,
+                accept: Callable[[int], bool] = lambda ms: True) -> int | None:
         """The board's time since boot (SYSTEM_TIME.time_boot_ms, asked for with
-        MAV_CMD_REQUEST_MESSAGE), or None if it does not answer."""
-        deadline = time.monotonic() + timeout_s
-        next_ask = 0.0
-        while (now := time.monotonic()) < deadline:
-            if now >= next_ask:
+        MAV_CMD_REQUEST_MESSAGE, again every :data:`ACK_TIMEOUT_S` until answered): the first
+        answer ``accept`` takes, or None if none came within ``timeout_s``."""
+        now = time.monotonic()
+        deadline, next_ask = now + timeout_s, now
+        while now < deadline:
+            if now >= next_ask:  # (each ask a new request: for the time now)
                 self._send(self.link.mav.command_long_send,
                            *self.target, mavlink.MAV_CMD_REQUEST_MESSAGE, 0,
                            mavlink.MAVLINK_MSG_ID_SYSTEM_TIME, 0, 0, 0, 0, 0, 0)
-                next_ask = now + 1.0
-            for msg in self._receive(min(0.2, deadline - now)):
-                if msg.get_type() == "SYSTEM_TIME":
+                next_ask = now + ACK_TIMEOUT_S
+            for msg in self._receive(min(next_ask, deadline) - now):
+                if msg.get_type() == "SYSTEM_TIME" and accept(int(msg.time_boot_ms)):
                     return int(msg.time_boot_ms)
+            now = time.monotonic()
         return None
 
     def reboot(self, timeout_s: float = REBOOT_TIMEOUT_S) -> str | None:
-        """Reboot the board and wait until it is back; None, or why it failed."""
+        """Reboot the board and wait until it is back (its time since boot started again);
+        None, or why it failed."""
         before_ms, before_s = self.boot_ms(), time.monotonic()
-        ack = self._command(mavlink.MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN, 1.0)
+        # (param1 1: the autopilot reboots; param2 0: the onboard computer, us, does not)
+        ack = self._command(mavlink.MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN, 1, 0, 0, 0, 0, 0, 0)
         if ack is None:
             return "no answer to MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN"
         if ack != mavlink.MAV_RESULT_ACCEPTED:
             return f"MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN refused (result {ack}); disarm first"
-        deadline = time.monotonic() + timeout_s
-        while time.monotonic() < deadline:
-            now_ms = self.boot_ms(timeout_s=min(2.0, max(0.1, deadline - time.monotonic())))
-            if now_ms is None:
-                continue  # (rebooting)
-            if before_ms is None or now_ms < before_ms + (time.monotonic() - before_s) * 1000 - 500:
-                return None  # its clock started again
-        return f"the board was not back within {timeout_s:g} s"
+
+        def restarted(now_ms: int) -> bool:
+            """Whether the board's clock is behind where it would be had it run on (by more
+            than an answer's way back, 500 ms)."""
+            if before_ms is None:
+                return True
+            return now_ms < before_ms + (time.monotonic() - before_s) * 1000 - 500
+
+        if self.boot_ms(timeout_s, accept=restarted) is None:
+            return f"the board was not back within {timeout_s:g} s"
+        return None
 
     def _command(self, command: int, *params: float) -> int | None:
-        """COMMAND_LONG ``command``, sent up to three times; the COMMAND_ACK's result."""
-        args = [*params, *[0.0] * (7 - len(params))]
-        for _ in range(3):
-            self._send(self.link.mav.command_long_send, *self.target, command, 0, *args)
+        """COMMAND_LONG ``command`` with its seven ``params``, sent up to three times (its
+        confirmation counting the times it was sent before, as MAVLink's command protocol
+        asks); the COMMAND_ACK's result."""
+        for confirmation in range(3):
+            self._send(self.link.mav.command_long_send, *self.target, command, confirmation,
+                       *params)
             deadline = time.monotonic() + ACK_TIMEOUT_S
             while (now := time.monotonic()) < deadline:
                 for msg in self._receive(deadline - now):
                     if msg.get_type() == "COMMAND_ACK" and msg.command == command:
                         return int(msg.result)
         return None
+
+
+def as_sent(value: float) -> float:
+    """``value`` as PARAM_SET and PARAM_VALUE carry it (a float32): what the board echoes of
+    a value it took."""
+    return float(np.float32(value))
 
 
 def _show(value: float | None) -> str:
@@ -252,8 +274,7 @@ class _Setup:
             self.session.write(nudges)
         writes = {n: wanted[n] for n in wanted if n in changed or n in nudges}
         echoed = self.session.write(writes)
-        refused = sorted(n for n, v in writes.items()
-                         if n not in echoed or abs(echoed[n] - v) > 1e-3)
+        refused = sorted(n for n, v in writes.items() if echoed.get(n) != as_sent(v))
         self.out.write(f"\nwrote {len(writes) - len(refused)} of {len(writes)} settings "
                        f"({len(changed)} changed, {len(nudges)} stored by writing a neighbour "
                        "first)" + (f"; not accepted: {', '.join(refused)}" if refused else "")

@@ -58,6 +58,8 @@ _MAX_TAIL = 1 << 16
 """Bytes of a followed tlog kept unread at most (a record cut short by the writer)."""
 _WAIT_S = 0.05
 """How long a live read waits for a message (s)."""
+_STOP_WAIT_S = 5.0
+"""How long a web viewer asked to stop (SIGTERM) may take before it is killed (s)."""
 
 
 @contextlib.contextmanager
@@ -122,11 +124,12 @@ class Viewer:
     url: str | None
 
     def close(self) -> None:
-        """Stop the viewer's process (the web server; a native window is left open)."""
+        """Stop the viewer's process (the web server, killed if it has not ended
+        :data:`_STOP_WAIT_S` after SIGTERM; a native window is left open)."""
         if self.url is not None and self.process.poll() is None:
             self.process.terminate()
             try:
-                self.process.wait(5.0)
+                self.process.wait(_STOP_WAIT_S)
             except subprocess.TimeoutExpired:
                 self.process.kill()
                 self.process.wait()
@@ -228,7 +231,7 @@ class TlogFollower:
         data = self._tail + self._file.read()
         if not data:
             return []
-        read = parse_tlog(data, self.path.name)
+        read = parse_tlog(data)  # (only its entries are kept: its name is not needed)
         if read.entries:
             last = read.entries[-1]
             end = last.offset + STAMP_LEN + len(last.msg.get_msgbuf())
@@ -255,7 +258,7 @@ def _messages(connect: str, wait_s: float = _WAIT_S
                 yield batch
         finally:
             follower.close()
-    conn = mavutil.mavlink_connection(connect, source_system=255, source_component=191)
+    conn = mavutil.mavlink_connection(connect)  # (its own ids: never used, it sends nothing)
     try:
         while True:
             msg = conn.recv_match(blocking=True, timeout=wait_s)
@@ -263,7 +266,7 @@ def _messages(connect: str, wait_s: float = _WAIT_S
             while msg is not None:
                 if msg.get_type() != "BAD_DATA":
                     batch.append((time.time(), msg))
-                msg = conn.recv_match(blocking=False)
+                msg = conn.recv_match()  # (what waits, without waiting)
             yield batch
     finally:
         conn.close()
