@@ -188,7 +188,7 @@ def desaturate_prioritized_scalar(
     Returns:
         Wheel commands with ``max|w| <= limit``; four 0.0 if any value is not finite.
     """
-    if limit != 1.0:
+    if limit != 1.0 or type(limit) is not float:  # (a float32 1.0 would make float32 wheels)
         limit = _check_limit(limit)
     t0, t1, t2, t3 = translation
     r0, r1, r2, r3 = rotation
@@ -250,5 +250,5 @@ def mix_pairs(a: float, b: float, r: float, priority: Desaturation | int) -> Whe
         else:  # translation priority
             if t > 1.0:
                 a, b, t = a / t, b / t, 1.0
-            r = math.copysign(1.0 - t, r) if ar > 0.0 else 0.0
+            r = math.copysign(1.0 - t, r)  # (|r| == 0 here only when t was > 1: 0.0 now)
     return (a + r, b - r, b + r, a - r)

@@ -121,8 +121,8 @@ def wheels_from_stick(
     if algorithm == "cartesian":
         return cartesian_scalar(x, y, rotation, heading_deg, priority)
     scalar = _POLAR_SCALAR[algorithm]
-    if not _finite(x, y, rotation, heading_deg):
-        return _STOP
+    # (no check here: a non-finite x or y makes the magnitude or the direction non-finite, a
+    # non-finite heading the direction, and each polar function stops on its own arguments)
     magnitude = math.hypot(x, y)
     direction_deg = math.degrees(math.atan2(y, x)) - heading_deg
     if scalar is holonomic_2010_scalar:
