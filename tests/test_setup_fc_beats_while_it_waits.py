@@ -5,9 +5,14 @@ port 0)."""
 
 from __future__ import annotations
 
+import io
 import socket
 import time
 
+import pytest
+from support import FakeFlightController
+
+from mecanum_mav.app import setupfc
 from mecanum_mav.app.setupfc import FcSession
 from mecanum_mav.config.params import Params
 from mecanum_mav.control.core import FC_LINK_COMPID
@@ -38,3 +43,16 @@ def test_a_heartbeat_a_second_goes_to_a_silent_board_until_setup_fc_gives_up_on_
         assert (beat.get_srcSystem(), beat.get_srcComponent()) == (
             int(Params()["FC_GCS_SYSID"]), FC_LINK_COMPID)
         assert (beat.type, beat.autopilot) == (mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID)
+
+
+def test_only_the_heartbeat_of_the_system_fc_sysid_names_counts(
+        monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
+    """FC_SYSID 3, FC_COMPID 1: a board beating as system 1 (component 1) is another one."""
+    monkeypatch.setattr(setupfc, "HEARTBEAT_TIMEOUT_S", 0.6)
+    params = Params()
+    params.update({"FC_SYSID": 3.0})
+    with FakeFlightController(sysid=1, compid=1) as board:
+        status = setupfc.run_setup(board.url, params, apply=False, out=io.StringIO())
+    assert status == 2
+    assert capsys.readouterr().err == (
+        f"mecanum-mav setup-fc: no HEARTBEAT from system 3 on {board.url}\n")

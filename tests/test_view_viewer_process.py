@@ -10,6 +10,7 @@ listens on ``--port`` as the real one does.
 from __future__ import annotations
 
 import json
+import os
 import signal
 import socket
 import subprocess
@@ -35,7 +36,8 @@ sig = ctypes.c_int(0)
 ctypes.CDLL(None).prctl(2, ctypes.byref(sig), 0, 0, 0)  # PR_GET_PDEATHSIG
 seen = {{"args": args, "rust_log": os.environ.get("RUST_LOG"),
         "stdin": os.readlink("/proc/self/fd/0"), "stdout": os.readlink("/proc/self/fd/1"),
-        "session_leader": os.getsid(0) == os.getpid(), "death_signal": sig.value}}
+        "session_leader": os.getsid(0) == os.getpid(), "death_signal": sig.value,
+        "pid": os.getpid()}}
 with socket.socket() as s:
     s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
     s.bind(("127.0.0.1", int(args[args.index("--port") + 1])))
@@ -210,3 +212,17 @@ def test_a_web_viewer_that_ignores_sigterm_is_killed_after_the_stop_wait(
             process.wait()
         process.stdout.close()  # type: ignore[union-attr]
 
+
+@pytest.mark.parametrize("native", [True, False], ids=["native", "web"])
+def test_the_viewer_never_reads_the_terminal_the_view_was_started_from(
+        native: bool, fake_viewer: Path, viewers: list[Viewer]) -> None:
+    read_end, write_end = os.pipe()  # (the view's own input: a pipe, as a terminal would be)
+    saved = os.dup(0)
+    try:
+        os.dup2(read_end, 0)
+        viewers.append(serve_rrd(None, 0, native=native))
+    finally:
+        os.dup2(saved, 0)
+        for fd in (saved, read_end, write_end):
+            os.close(fd)
+    assert _seen(fake_viewer)["stdin"] == "/dev/null"

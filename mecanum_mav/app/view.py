@@ -222,7 +222,6 @@ class TlogFollower:
     :meth:`poll` (a record cut short by the writer waits for the rest)."""
 
     def __init__(self, path: Path) -> None:
-        self.path = path
         self._file = path.open("rb")
         self._tail = b""
 
