@@ -26,6 +26,8 @@ def test_a_list_or_tuple_of_other_than_four_distances_is_refused_saying_so(dista
     [np.float32(0.05), np.float32(0.07), np.float32(0.03), 0.05],
     [np.float32(0.05), np.float32(0.07), 0.03, 0.05],
     [0.05, np.float32(0.07), np.float32(0.03), np.float32(0.05)],
+    [np.float32(0.05), 0.07, 0.03, 0.05], [0.05, np.float32(0.07), 0.03, 0.05],
+    [0.05, 0.07, np.float32(0.03), 0.05], [0.05, 0.07, 0.03, np.float32(0.05)],
 ])
 def test_numpy_scalars_mixed_with_floats_move_the_pose_as_their_float_values(mixed):
     odom, plain = MecanumOdometry(KIN, yaw_rad=0.0), MecanumOdometry(KIN, yaw_rad=0.0)
