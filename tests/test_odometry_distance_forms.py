@@ -38,3 +38,20 @@ def test_numpy_scalars_mixed_with_floats_move_the_pose_as_their_float_values(mix
                       else v * scale for v in mixed])
     assert odom.pose == plain.pose
     assert all(type(v) is float for v in odom.pose)
+
+
+def test_a_non_finite_distance_is_refused_naming_the_four_and_the_pose_stays():
+    odom = MecanumOdometry(KIN, yaw_rad=0.0)
+    odom.update([0.1, 0.1, 0.1, 0.1])
+    before = odom.pose
+    want = r"^non-finite wheel distances: \(0\.2, nan, 0\.2, 0\.2\)$"
+    with pytest.raises(ValueError, match=want):
+        odom.update([0.2, float("nan"), 0.2, 0.2])
+    assert odom.pose == before
+
+
+def test_a_complex_distance_is_refused_not_taken_for_its_real_part():
+    odom = MecanumOdometry(KIN, yaw_rad=0.0)
+    with pytest.raises((TypeError, ValueError)):
+        odom.update([0.1 + 0j, 0.1, 0.1, 0.1])
+    assert odom.pose == (0.0, 0.0, 0.0)
