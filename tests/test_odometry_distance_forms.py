@@ -55,3 +55,9 @@ def test_a_complex_distance_is_refused_not_taken_for_its_real_part():
     with pytest.raises((TypeError, ValueError)):
         odom.update([0.1 + 0j, 0.1, 0.1, 0.1])
     assert odom.pose == (0.0, 0.0, 0.0)
+
+
+def test_a_non_finite_external_yaw_is_refused_naming_it():
+    odom = MecanumOdometry(KIN, yaw_rad=0.0)
+    with pytest.raises(ValueError, match=r"^non-finite yaw: inf$"):
+        odom.update([0.1, 0.1, 0.1, 0.1], yaw_rad=float("inf"))
