@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from mecanum_mav.mecanum.geometry import Pose2d
 from mecanum_mav.mecanum.kinematics import MecanumKinematics
 from mecanum_mav.mecanum.odometry import MecanumOdometry
 
@@ -61,3 +62,9 @@ def test_a_non_finite_external_yaw_is_refused_naming_it():
     odom = MecanumOdometry(KIN, yaw_rad=0.0)
     with pytest.raises(ValueError, match=r"^non-finite yaw: inf$"):
         odom.update([0.1, 0.1, 0.1, 0.1], yaw_rad=float("inf"))
+
+
+def test_a_non_finite_starting_pose_is_refused_naming_it():
+    want = r"^non-finite pose: Pose2d\(x_m=1\.0, y_m=nan, yaw_rad=0\.0\)$"
+    with pytest.raises(ValueError, match=want):
+        MecanumOdometry(KIN, pose=Pose2d(1.0, float("nan"), 0.0))
