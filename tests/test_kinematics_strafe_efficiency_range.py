@@ -21,3 +21,9 @@ def test_a_strafe_efficiency_in_0_to_2_is_taken(efficiency):
 def test_a_strafe_efficiency_outside_0_to_2_is_refused_saying_so(efficiency):
     with pytest.raises(ValueError, match=r"is not in \(0, 2\]$"):
         MecanumKinematics(*WHEELS, strafe_efficiency=efficiency)
+
+
+def test_at_half_strafe_efficiency_the_wheels_are_asked_for_twice_the_sideways_speed():
+    """Class docstring: the inverse kinematics ask the wheels for ``vy / strafe_efficiency``."""
+    kinematics = MecanumKinematics(*WHEELS, strafe_efficiency=0.5)
+    assert kinematics.wheel_speeds(0.0, 0.25, 0.0) == (0.5, -0.5, -0.5, 0.5)  # FL, FR, RL, RR
