@@ -60,3 +60,17 @@ def test_a_value_of_a_setting_the_check_does_not_read_is_ignored() -> None:
     assert "BATT_CAPACITY" not in check.values
     assert check.state is FcCheckState.SAFE and check.next_due_s == float("inf")
 
+
+
+def test_before_the_link_comes_up_the_check_blocks_nothing_and_ignores_values() -> None:
+    check = FcSetupCheck()
+    assert check.state is FcCheckState.IDLE and not check.checked
+    assert (check.hazards, check.missing, check.values) == ([], [], {})
+    assert check.on_value("RC2_DZ", 30.0, 0.0) == [] and check.values == {}
+    assert check.arm_problem(0.0) == (None, []) and check.next_due_s == float("inf")
+
+
+def test_a_board_that_answers_nothing_is_in_the_not_checked_state() -> None:
+    check = FcSetupCheck()
+    run_check(QueuedBoard({}), check, Params())
+    assert check.state is FcCheckState.NOT_CHECKED and check.state.value == "not checked"
