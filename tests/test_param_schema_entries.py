@@ -67,9 +67,11 @@ def test_an_enumeration_from_1_is_labelled_1_to_its_maximum():
 
 
 @pytest.mark.parametrize(("number", "shown"), [
-    (3.0, "3"), (-2.0, "-2"), (2.5, "2.5"), (999_999_999_999_999.0, "999999999999999"),
-    (1e15, "1000000000000000.0"), (float("inf"), "inf"), (float("nan"), "nan")])
-def test_numbers_in_messages_drop_decimals_only_for_integral_values_below_1e15(number, shown):
+    (3.0, "3"), (-2.0, "-2"), (-0.0, "0"), (7, "7"), (2.5, "2.5"),
+    (999_999_999_999_999.0, "999999999999999"), (1e15, "1000000000000000"),
+    (2.0 ** 53, "9007199254740992"), (1e16, "1e+16"), (1.5e300, "1.5e+300"),
+    (float("inf"), "inf"), (float("nan"), "nan")])
+def test_numbers_in_messages_are_written_without_decimals_when_they_are_whole(number, shown):
     assert show_number(number) == shown
 
 

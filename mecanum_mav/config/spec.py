@@ -90,10 +90,10 @@ def float32_canonical(x: float) -> float:
 
 
 def show_number(x: float) -> str:
-    """Format a number for a message: integral values without decimals."""
-    if math.isfinite(x) and x == int(x) and abs(x) < 1e15:
-        return str(int(x))
-    return repr(x)
+    """Format a number for a message: integral values without decimals (``-0.0`` as ``0``),
+    others as Python writes them (``0.25``, ``1e+16``, ``inf``)."""
+    text = repr(float(x) + 0.0)  # + 0.0: -0.0 becomes 0.0
+    return text.removesuffix(".0")
 
 
 def join_words(items: Sequence[str], word: str = "or") -> str:
