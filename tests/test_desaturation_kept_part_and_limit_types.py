@@ -15,6 +15,7 @@ from mecanum_mav.mecanum.desaturation import (
     desaturate_prioritized,
     desaturate_prioritized_scalar,
     mix_pairs,
+    normalize,
 )
 
 KEPT_FIRST = (Desaturation.ROTATION_PRIORITY, Desaturation.TRANSLATION_PRIORITY)
@@ -81,3 +82,8 @@ def test_a_limit_of_any_number_type_gives_plain_floats_the_numbers_of_that_limit
     got = desaturate_prioritized_scalar(translation, rotation, priority, limit)
     assert all(type(w) is float for w in got)
     assert got == desaturate_prioritized_scalar(translation, rotation, priority, float(limit))
+
+
+def test_normalize_by_default_brings_wheels_over_1_down_to_a_largest_of_1_and_leaves_the_rest():
+    got = normalize(np.array([[2.0, -1.0, 0.5, 0.0], [0.5, -0.25, 0.1, 0.0]]))
+    np.testing.assert_array_equal(got, [[1.0, -0.5, 0.25, 0.0], [0.5, -0.25, 0.1, 0.0]])
