@@ -31,9 +31,8 @@ import time
 from collections.abc import Callable, Iterable, Sequence
 from typing import Any, NamedTuple, TextIO
 
-import numpy as np
-
 from mecanum_mav.config.params import Params
+from mecanum_mav.config.spec import float32_of
 from mecanum_mav.control.core import FC_LINK_COMPID
 from mecanum_mav.io.links import Link, follow, open_link
 from mecanum_mav.protocol.dialect import mavlink
@@ -223,7 +222,7 @@ class FcSession:
 def as_sent(value: float) -> float:
     """``value`` as PARAM_SET and PARAM_VALUE carry it (a float32): what the board echoes of
     a value it took."""
-    return float(np.float32(value))
+    return float32_of(value)
 
 
 def _show(value: float | None) -> str:

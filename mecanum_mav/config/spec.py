@@ -72,6 +72,13 @@ class ParamFileError(ValueError):
         return "\n".join([heading, *(f"  {e}" for e in self.errors)])
 
 
+def float32_of(x: float) -> float:
+    """``x`` rounded to the nearest float32 (what a MAVLink float field carries), as a float.
+    Raises ``OverflowError`` outside float32's range."""
+    single: float = _FLOAT32.unpack(_FLOAT32.pack(x))[0]
+    return single
+
+
 def float32_canonical(x: float) -> float:
     """Return the float that ``x`` becomes as a MAVLink float32, written shortest.
 
@@ -81,7 +88,7 @@ def float32_canonical(x: float) -> float:
     ``float32_canonical(float32(v)) == v`` for every value it returns.
     Raises ``OverflowError`` outside float32's range.
     """
-    single: float = _FLOAT32.unpack(_FLOAT32.pack(x))[0]
+    single = float32_of(x)
     for digits in range(1, 10):
         shortest = float(format(single, f".{digits}g"))
         if _FLOAT32.unpack(_FLOAT32.pack(shortest))[0] == single:
