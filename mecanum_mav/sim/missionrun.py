@@ -149,6 +149,11 @@ class MissionRun:
     """From AUTO to the end: the "Mission complete" text (or, without it, the HOLD), s."""
     max_yaw_deg: float = 0.0
     """The largest true heading away from north, degrees."""
+    world_lag_s: float = 0.0
+    """How much less time the chassis lived than the ground station's clock from AUTO to the
+    end, s (the twin: :meth:`~mecanum_mav.sim.twinmission.TruthTrack.lag_s`; 0 in lockstep).
+    A companion that dead-reckons its commanded wheel speeds believes the rover drove that
+    long more than it did: up to this times the speed, metres short."""
 
 
 def passed_at_speed(planned: Sequence[Vec], k: int) -> bool:

@@ -120,6 +120,14 @@ class TruthTrack:
         s = self.at(wall_s)
         return Pose2d(s.north_m - origin[0], s.east_m - origin[1], s.yaw_rad)
 
+    def lag_s(self, start_s: float, end_s: float) -> float:
+        """Wall time minus physics time from wall time ``start_s`` to ``end_s`` (s, by the frames
+        answered by then): how long the chassis' world stood still while the clocks of the
+        ground station and the companion ran on (the firmware or the bridge starved of CPU;
+        SITL catches up part of a stall afterwards). 0 for a twin in real time."""
+        first, last = self.at(start_s), self.at(end_s)
+        return (last.wall_s - first.wall_s) - (last.time_s - first.time_s)
+
 
 # ---------------------------------------------------------------------------- grading
 
@@ -151,28 +159,32 @@ def grade(waypoints: Sequence[Waypoint], record: Recording, truth: TruthTrack,
     the driver's local frame and of the mission: the companion's odometry starts where it was
     started, the firmware's home is set where it was armed; the chassis stood still there).
     Returns the run and why it did not finish (None: it did; else the record's own failure if
-    it has one, or the watch's)."""
+    it has one, or the watch's). The run's ``world_lag_s`` is :meth:`TruthTrack.lag_s` from
+    AUTO to the last look."""
     watch = MissionWatch(waypoints, record.start_s)
     home = truth.at(record.start_s)
     origin = (home.north_m, home.east_m)
     end_s = max(record.arrived_s[-1] if record.arrived_s else record.start_s, truth.end_s)
     messages, arrived = record.messages, record.arrived_s
     now, i = record.start_s, 0
+    failure: str | None = None
     try:
         while True:
             due = min(now + period_s, arrived[i] if i < len(arrived) else math.inf)
             if due > end_s:
+                failure = "the mission did not finish in time"
                 break
             batch = []
             while i < len(arrived) and arrived[i] <= due:
                 batch.append(messages[i])
                 i += 1
-            if watch.look(due, truth.pose_at(due, origin), batch):
-                return watch.run, record.failure
             now = due
+            if watch.look(due, truth.pose_at(due, origin), batch):
+                break
     except RuntimeError as exc:
-        return watch.run, record.failure or str(exc)
-    return watch.run, record.failure or "the mission did not finish in time"
+        failure = str(exc)
+    watch.run.world_lag_s = truth.lag_s(record.start_s, now)
+    return watch.run, record.failure or failure
 
 
 # ---------------------------------------------------------------------------- companion
