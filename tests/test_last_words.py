@@ -1,7 +1,7 @@
-"""The last words at shutdown over a stream link: neutral, then the release, go before
-anything else waiting in the link, in order, none replaced, and the close waits for the
-wire to carry them, however slow the baud rate (docs/companion.md: every way out ends at
-neutral, then the channels go back to the radio)."""
+"""The last words at shutdown over a stream link: neutral, then the release, go before anything
+else waiting in the link (dropped: it would come out of sequence), in order, none replaced,
+and the close waits for the wire to carry them, however slow the baud rate
+(docs/companion.md: every way out ends at neutral, then the channels go back to the radio)."""
 
 from __future__ import annotations
 
@@ -42,7 +42,12 @@ def test_the_last_words_pass_what_waits_in_order_and_none_replaces_another(tmp_p
             seen += pty.messages()
         kinds = [override_channels(m)[:4] if m.get_type() == "RC_CHANNELS_OVERRIDE"
                  else m.get_type() for m in seen]
-        assert kinds[:5] == [DRIVE, NEUTRAL, NEUTRAL, RELEASE, "HEARTBEAT"], kinds
+        # the waiting heartbeat was numbered before the neutrals: dropped, not sent after them
+        assert kinds == [DRIVE, NEUTRAL, NEUTRAL, RELEASE, DRIVE], kinds
+        seqs = [m.get_seq() for m in seen]
+        assert seqs == sorted(seqs)  # in the order they were numbered
+        assert link.unsent == 1  # the heartbeat: the board sees one number missing
+        assert seqs[-1] - seqs[0] + 1 == len(seqs) + link.unsent
         assert link.superseded == 1  # the waiting drive, by the first neutral
 
 

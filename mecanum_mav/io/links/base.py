@@ -90,7 +90,8 @@ class Link:
     """When :meth:`reopen` tries next (s, on the link's :attr:`clock`); inf while up or when
     it needs no timer."""
     unsent = 0
-    """Packets dropped because the link was down."""
+    """Packets dropped unsent: the link was down, or (a stream link) the last words at
+    shutdown passed them in its queue."""
     refused_senders: RefusedSenders | None = None
     """A signed ``udpin:`` link told to: the addresses it refused lately, told why with each
     heartbeat (:class:`~mecanum_mav.io.links.udpin.SignedUdpinLink`); None on other links."""

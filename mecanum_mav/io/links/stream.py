@@ -3,24 +3,27 @@ link's own queue paced to the wire, the newest-override-wins rule, breaks and re
 the linger on close. The transports are in :mod:`~mecanum_mav.io.links.serialport` and
 :mod:`~mecanum_mav.io.links.tcp`. Times are seconds on the link's clock.
 
-Stream links never block the loop on a write, and keep no standing queue in the kernel. What
-is sent waits in the link (:meth:`StreamLink.flush` hands it over); a packet goes to the
-kernel only when what the kernel already holds would be on the wire within
-:data:`PACING_LEAD_S` (how that is judged is the transport's: the baud rate and the tty's
-queue, or TCP's unsent bytes). The kernel's own buffers (4 KB of tty, about 0.7 s at 57600
-baud; a pty's 20 KB, ~4 s) would otherwise be a standing queue. RC_CHANNELS_OVERRIDE is
-*newest wins*: an override still waiting in the link is replaced by a newer one (counted in
+Stream links never block the loop on a write, and keep no standing queue in the kernel. What is
+sent waits in the link (:meth:`StreamLink.flush` hands it over); a packet goes to the kernel
+only when what the kernel already holds would be on the wire within :data:`PACING_LEAD_S` (how
+that is judged is the transport's: the baud rate and the tty's queue, or TCP's unsent bytes).
+The kernel's own buffers (4 KB of tty, about 0.7 s at 57600 baud; a pty's 20 KB, ~4 s) would
+otherwise be a standing queue. RC_CHANNELS_OVERRIDE is *newest wins*: an override still waiting
+in the link is replaced by a newer one (counted in
 :attr:`~mecanum_mav.io.links.base.Link.superseded`, never packed, so the sequence numbers the
 board sees have no gaps); everything else queues in order, at most the transport's
 :attr:`StreamLink.queue_limit` bytes; a packet that does not fit is dropped and counted as a
 send error. Overrides and queued packets take turns, so a 1 kHz override stream never starves
 the heartbeat. The last words at shutdown (``send_rc_override(..., replace=False)``: neutral,
-then the release) go before anything else that waits, in the order given, and none replaces
-another. A loop waits for :attr:`~mecanum_mav.io.links.base.Link.next_send_s` (the
-pacing timer) and calls :func:`~mecanum_mav.io.links.base.follow` once per pass, which
-flushes and watches the descriptor for writing while the kernel refuses more (``EAGAIN``).
-:meth:`StreamLink.close` with a linger hands over what is still waiting, paced, before it
-closes: the last words whatever the wire needs for them, the rest for at most the linger.
+then the release) go before anything else, in the order given, and none replaces another: what
+waits in the link's queue when one of them comes is dropped (counted in
+:attr:`~mecanum_mav.io.links.base.Link.unsent`), since it was numbered before it and would
+reach the board out of sequence after it. A loop waits for
+:attr:`~mecanum_mav.io.links.base.Link.next_send_s` (the pacing timer) and calls
+:func:`~mecanum_mav.io.links.base.follow` once per pass, which flushes and watches the
+descriptor for writing while the kernel refuses more (``EAGAIN``). :meth:`StreamLink.close`
+with a linger hands over what is still waiting, paced, before it closes: the last words
+whatever the wire needs for them, the rest for at most the linger.
 
 Stream links that break come back by themselves. A serial device that vanishes (USB
 unplugged, board rebooting: reads and writes fail with EIO/ENXIO), a ``tcp:`` connection the
@@ -210,9 +213,10 @@ class StreamLink(Link):
 
         *Newest wins* (``replace``): an override still waiting in the link (not yet handed to
         the kernel) is replaced by this one, unpacked. With ``replace=False`` (the last
-        words at shutdown: neutral, then release) it supersedes the waiting one and goes
-        before everything else that waits, after the last words sent before it; a later
-        override does not replace it, and :meth:`close` waits for the wire to carry it."""
+        words at shutdown: neutral, then release) it supersedes the waiting one, drops what
+        else waits in the queue (module description) and goes after the last words sent
+        before it; a later override does not replace it, and :meth:`close` waits for the
+        wire to carry it."""
         try:
             self._check_open()
         except LinkDownError:
@@ -224,6 +228,7 @@ class StreamLink(Link):
         if replace:
             self._override = (target_system, target_component, channels)
         else:
+            self._drop_queue()
             self._last_words.append((target_system, target_component, channels))
             self.sent += 1
         self.flush()
@@ -346,6 +351,15 @@ class StreamLink(Link):
         self._head = data[n:]
         self._blocked = bool(self._head)  # the kernel took only part: it is full
         return not self._blocked
+
+    def _drop_queue(self) -> None:
+        """A last word passes what waits in the queue: that is dropped (counted in
+        :attr:`unsent`). It was numbered when it was queued; after the last word, packed when
+        handed over, it would reach the board out of sequence (and a board that checks
+        signatures refuses a packet whose timestamp is older than the last one's)."""
+        self.unsent += len(self._queue)
+        self._queue.clear()
+        self._queued = 0
 
     def _drop_pending(self) -> None:
         """The link broke: what waits in it is lost (counted in :attr:`unsent`)."""
