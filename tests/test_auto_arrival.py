@@ -105,6 +105,12 @@ def test_heading_schedule_turns_in_proportion_to_the_distance_and_feeds_its_rate
     assert abs(math.degrees(yaw)) == pytest.approx(180.0) and rate > 0.0
 
 
+def test_a_leg_of_no_length_turns_to_its_heading_at_once_with_no_rate_fed_forward():
+    # (two waypoints on the same spot, as a ground station's "turn here" item makes)
+    here = Leg((1.0, 2.0), (1.0, 2.0))
+    assert heading_schedule(here, (1.0, 2.0), 0.0, 1.2, 1.0) == (1.2, 0.0)
+
+
 def test_a_yaw_rate_feed_forward_is_added_to_the_heading_controller():
     controller = GuidedController(Params())
     here = Pose2d(0.0, 0.0, 0.3)
@@ -152,3 +158,24 @@ def test_a_rover_stalled_inside_the_radius_of_a_stop_goes_on_after_the_settle_ti
         executor.update(stalled, (0.06, 0.0), t)  # the controller still asks for 6 cm/s
     assert executor.current == 2
     assert SETTLE_TIMEOUT_S <= t <= SETTLE_TIMEOUT_S + 2 * DT
+
+
+def test_a_control_pass_that_comes_late_starts_the_grid_again_instead_of_a_burst_of_ticks():
+    from mecanum_mav.config.views import InputConfig, OutputConfig
+    from mecanum_mav.control.pwm import PwmMap
+    from mecanum_mav.protocol.modes import Mode
+
+    params = Params()
+    pilot = _autopilot()
+    config, pwm = OutputConfig.from_params(params), PwmMap.from_params(params)
+    priority = InputConfig.from_params(params).desaturation
+    period = config.control_period_s
+    pilot.on_mode_change(Mode.MANUAL, Mode.GUIDED, 0.0)
+
+    def tick(now_s: float) -> object:
+        return pilot.output(False, now_s, config, priority, pwm)
+
+    tick(0.0)
+    late = tick(10 * period)  # the loop was held up for ten periods: one tick now,
+    assert tick(10.5 * period) is late  # the next a whole period after it, not at once
+    assert tick(11 * period) is not late

@@ -98,3 +98,12 @@ def test_standing_still_before_the_first_attitude_does_not_stop_it_setting_the_h
     est.on_commanded([0.0] * 4, 0.02, 0.02)  # the companion's neutral outputs, standing
     est.on_attitude(-0.04, 0.0, 0.03)
     assert est.pose.yaw_rad == pytest.approx(-0.04)
+
+
+@pytest.mark.parametrize("tau", [0.0, 0.08])
+@pytest.mark.parametrize("dt_s", [0.0, -0.02])
+def test_a_command_held_for_no_time_or_a_negative_time_rolls_no_wheel(tau, dt_s):
+    est = commanded(ODOM_CMD_TAU=tau)
+    est.on_commanded([1.0] * 4, dt_s, 0.5)
+    assert est.wheel_distances_m == (0.0, 0.0, 0.0, 0.0)
+    assert est.pose.x_m == 0.0

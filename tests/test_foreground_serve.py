@@ -288,3 +288,21 @@ def test_simfc_on_a_link_it_cannot_open_says_why_and_exits_1(
     assert serve_simfc("udpin:203.0.113.1:14550", Params()) == 1
     err = capsys.readouterr().err
     assert err.startswith("simfc: ") and err.count("\n") == 1
+
+
+def test_a_mission_file_it_cannot_read_is_said_to_the_ground_station_and_the_rover_runs(
+        tmp_path: Path) -> None:
+    parm = tmp_path / "rover.parm"
+    parm.write_text("WP_SPEED 0.5\n")
+    (tmp_path / "rover.waypoints").write_text("not a waypoint file\n")
+    said: list[object] = []
+
+    def listen(gcs: ScriptedGroundStation) -> None:
+        said.append(gcs.wait("STATUSTEXT", lambda m: "Mission file" in m.text, DEADLINE_S,
+                             since=0))
+
+    assert serve_while(listen, parm, None) == 0
+    assert said[0] is not None
+    assert said[0].text == "Mission file unreadable: rover.waypoints"  # type: ignore[attr-defined]
+    assert said[0].severity == mavlink.MAV_SEVERITY_ERROR  # type: ignore[attr-defined]
+    assert (tmp_path / "rover.waypoints").read_text() == "not a waypoint file\n"  # left as is

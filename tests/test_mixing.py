@@ -334,3 +334,9 @@ def test_the_control_loops_tuple_path_matches_mix_stick_with_plain_floats(x, y, 
     assert all(type(w) is float for w in fast)
     np.testing.assert_array_equal(np.array(fast), mix_stick(x, y, r, algo, heading_deg=h,
                                                             priority=p))
+
+
+@pytest.mark.parametrize("wheels", [[0.5, 0.5, 0.5], [[0.5] * 5], 0.5])
+def test_chassis_from_wheels_refuses_anything_but_four_wheels_on_the_last_axis(wheels):
+    with pytest.raises(ValueError, match="wheels must have 4 values on the last axis"):
+        chassis_from_wheels(wheels)

@@ -100,3 +100,10 @@ def test_a_non_finite_value_is_sent_as_0_so_the_line_stays_readable():
                          (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
     document = json.loads(encode_state(state))
     assert document["timestamp"] == 0.0 and document["imu"]["gyro"] == [0.0, 0.0, 0.0]
+
+
+def test_a_servo_packet_carries_at_most_32_channels_as_the_firmware_sends_them():
+    assert len(encode_servo_packet(400, 1, [1500] * 32)) == len(encode_servo_packet(400, 1,
+                                                                                   [1500] * 17))
+    with pytest.raises(ValueError, match="at most 32 channels, got 33"):
+        encode_servo_packet(400, 1, [1500] * 33)

@@ -279,3 +279,23 @@ def test_the_bridge_process_ends_by_itself_when_the_process_that_started_it_is_k
         with contextlib.suppress(ProcessLookupError):
             os.killpg(holder.pid, signal.SIGKILL)
         holder.wait(timeout=10)
+
+
+# ---------------------------------------------------------------------------- the record's edges
+
+def test_a_record_before_any_frame_has_no_truth_and_no_load_figure():
+    from mecanum_mav.sim.twinrecord import TwinRecord
+    record = TwinRecord.local(capacity=4)
+    with pytest.raises(LookupError, match="no truth recorded yet"):
+        record.truth_now()
+    stats = record.stats()
+    assert stats.frames == 0
+    assert math.isnan(stats.busy_fraction) and math.isnan(stats.real_time_factor)
+
+
+def test_a_record_without_room_for_one_frame_is_refused():
+    import numpy as np
+
+    from mecanum_mav.sim.twinrecord import TwinRecord
+    with pytest.raises(ValueError, match="at least one frame"):
+        TwinRecord(np.zeros(TwinRecord.size(0)))

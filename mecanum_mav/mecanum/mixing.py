@@ -300,7 +300,7 @@ def chassis_from_wheels(wheels: ArrayLike) -> NDArray[np.float64]:
         ``hypot(x, y)``.
 
     Raises:
-        ValueError: a wheel value is not finite.
+        ValueError: the last axis does not hold 4 values, or a wheel value is not finite.
     """
     w = np.asarray(wheels, dtype=np.float64)
     if w.shape[-1:] != (4,):
