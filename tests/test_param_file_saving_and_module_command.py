@@ -50,3 +50,17 @@ def test_the_module_command_does_only_what_it_is_asked(tmp_path: Path,
     assert main(["--write-defaults", str(tmp_path / "d.parm")]) == 0
     assert capsys.readouterr().out == ""
     assert load(tmp_path / "d.parm") == Params()
+
+
+def test_the_documented_module_command_regenerates_the_committed_default_file(tmp_path: Path):
+    """docs/development.md: ``python -m mecanum_mav.params --write-defaults
+    params/default.parm``, run as a user runs it (a process of its own)."""
+    import subprocess
+    import sys
+
+    out = tmp_path / "default.parm"
+    done = subprocess.run([sys.executable, "-m", "mecanum_mav.params", "--write-defaults",
+                           str(out)], capture_output=True, text=True, timeout=60, check=False)
+    assert done.returncode == 0, done.stderr
+    committed = Path(__file__).resolve().parent.parent / "params" / "default.parm"
+    assert out.read_text(encoding="utf-8") == committed.read_text(encoding="utf-8")

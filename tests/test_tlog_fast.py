@@ -143,3 +143,18 @@ def test_a_damaged_tlog_reads_as_pymavlink_reads_it(drive, monkeypatch, data):
     damaged = data.draw(damage(good))
     fast = parse_tlog(damaged, "x.tlog")
     assert snapshot(fast) == snapshot(slow_read(damaged, monkeypatch))
+
+
+@pytest.mark.parametrize("tail", [b"", b"\xfe", b"\xfd", b"\xfd\x09"], ids=[
+    "a timestamp alone", "a MAVLink 1 start byte", "a MAVLink 2 start byte",
+    "a MAVLink 2 header begun"])
+def test_a_tlog_cut_off_in_its_last_records_header_reads_every_whole_record_and_says_where(
+        tail: bytes):
+    """(A companion killed mid-write: the file ends in the last record's stamp or header.)"""
+    good = odd_tlog()
+    whole = parse_tlog(good, "x.tlog")
+    cut = good + tlog_record(T0_US, b"")[:8] + tail
+    read = parse_tlog(cut, "x.tlog")
+    assert len(read.entries) == len(whole.entries) and not whole.problems
+    assert read.problems == [f"x.tlog: truncated at byte {len(good)} (last record "
+                             f"incomplete, {8 + len(tail)} bytes)"]

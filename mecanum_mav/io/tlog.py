@@ -173,7 +173,6 @@ def parse_tlog(data: bytes, name: str = "tlog") -> TlogRead:
 
 def _resync(decoder: _Decoder, data: bytes, start: int) -> int | None:
     """The first offset at or after ``start`` where a valid record begins, or None."""
-    size = len(data)
     at = start
     while True:
         # A record's packet starts with a MAVLink start byte 8 bytes after the record.
@@ -182,9 +181,7 @@ def _resync(decoder: _Decoder, data: bytes, start: int) -> int | None:
         hits = [h for h in (v1, v2) if h >= 0]
         if not hits:
             return None
-        candidate = min(hits) - STAMP_LEN
-        if candidate + STAMP_LEN >= size:
-            return None
+        candidate = min(hits) - STAMP_LEN  # (its start byte is inside the data)
         if decoder.record(data, candidate) is not None:
             return candidate
         at = candidate + 1

@@ -212,7 +212,8 @@ class MissionService:
     # ------------------------------------------------------------------ upload
 
     def on_count(self, src: Src, count: int, mission_type: int, now: float) -> list[Outgoing]:
-        """MISSION_COUNT: start (or restart) an upload of ``count`` items from ``src``."""
+        """MISSION_COUNT: start (or restart) an upload of ``count`` items (uint16 on the wire)
+        from ``src``."""
         if mission_type != _MISSION:
             return [_ack(src, mavlink.MAV_MISSION_UNSUPPORTED, mission_type)]
         upload = self._upload
@@ -221,8 +222,6 @@ class MissionService:
                 self._error("Mission upload denied: another in progress")
                 return [_ack(src, mavlink.MAV_MISSION_DENIED)]
             self._upload = None  # the uploader starts again
-        if count < 0:
-            return [_ack(src, mavlink.MAV_MISSION_ERROR)]
         if count > MAX_ITEMS:
             self._last_outcome = (src, mavlink.MAV_MISSION_NO_SPACE)
             self._error(f"Only {MAX_ITEMS} mission items are supported")
