@@ -192,6 +192,17 @@ def test_the_reader_keeps_at_most_a_window_of_requests_unanswered_and_asks_again
     assert reader.missing()[0] == "A" and "B" not in reader.missing()
 
 
+def test_a_setting_answered_again_by_its_other_name_updates_it_and_counts_once():
+    singles = [(f"P{i}",) for i in range(WINDOW - 1)]
+    reader = ParamReader([*singles, ("B", "B_OLD"), ("C",)], 0.0)
+    assert reader.requests(0.0)[-1] == "B"  # the window is full: B_OLD and C wait
+    assert reader.on_value("B", 1.0)
+    assert reader.on_value("B_OLD", 2.0)  # (an older firmware's name, or a later announce)
+    assert reader.answered == 1 and not reader.over
+    assert reader.values == {"B": 1.0, "B_OLD": 2.0}
+    assert reader.requests(0.1) == ["C"]  # B_OLD's group is answered: never asked for
+
+
 def test_the_companions_check_reads_every_setting_of_a_board_that_drops_bursts():
     board, check_ = QueuedBoard(SAFE_BOARD), FcSetupCheck()
     verdicts = run_check(board, check_, Params())

@@ -417,8 +417,6 @@ class ControlLoop:
             self._write(self.core.link_down(link.name, link.down_reason or "", now))
 
     def _write(self, out: Outbox) -> None:
-        if out is NOTHING:
-            return
         if out.override is not None:  # first: the latency-critical part
             self._send_override(out.override)
         if out.fc:
