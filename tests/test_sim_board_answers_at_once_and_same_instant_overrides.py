@@ -67,3 +67,18 @@ def test_of_two_overrides_arriving_at_one_instant_the_later_is_in_force_and_no_t
     assert {ch: second.channel_pwm[ch] for ch in (1, 2, 3, 4)} == dict.fromkeys((1, 2, 3, 4),
                                                                                  1300)
     assert all(c < 0.0 for c in second.wheel_commands)  # below trim: the wheels roll back
+
+
+def test_a_board_held_up_for_seconds_sends_each_message_once_then_keeps_its_rate():
+    """A late board (a starved process) does not burst out the messages it missed: one of
+    each, and the next a whole period later, as a real board's scheduler does."""
+    board, outbox = SimBoard(Params(), 0.0), MessageOutbox()
+    board.on_time(0.0, outbox)
+    outbox.take()
+    board.on_time(5.0, outbox)  # 5 s late: HEARTBEAT is 1 Hz
+    late = [m.get_type() for m in outbox.take()]
+    assert late.count("HEARTBEAT") == 1
+    board.on_time(5.5, outbox)
+    assert "HEARTBEAT" not in [m.get_type() for m in outbox.take()]
+    board.on_time(6.0, outbox)
+    assert [m.get_type() for m in outbox.take()].count("HEARTBEAT") == 1
