@@ -329,3 +329,11 @@ def test_the_companions_loop_answers_each_stick_of_the_pilot_in_its_lane_in_the_
     assert h.lane_answers == len(arrived) - 1
     for t in arrived:
         assert [o.channels for o in h.overrides if abs(o.time_s - t) < 1e-9] == [expected]
+
+
+@pytest.mark.parametrize(("deadband", "expo"), [(1.0, 0.0), (-0.1, 0.0), (0.0, 1.5),
+                                                 (0.0, -0.2)])
+def test_a_lane_is_not_built_for_a_deadband_or_expo_the_shaping_cannot_use(deadband, expo):
+    config = replace(InputConfig.from_params(Params()), deadband=deadband, expo=expo)
+    with pytest.raises(ValueError, match="out of range"):
+        compile_stick_lane(config, PwmMap.from_params(Params()), IDENTITY, FC_LINK_COMPID)

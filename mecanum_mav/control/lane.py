@@ -61,6 +61,10 @@ def compile_stick_lane(config: InputConfig, pwm: PwmMap, identity: IdentityConfi
         ``lane(datagram, seq)``: for a datagram the lane answers (module description), the
         unsigned MAVLink 2 RC_CHANNELS_OVERRIDE packet with sequence number ``seq`` and what it
         was computed from (:data:`LaneAnswer`); else None.
+
+    Raises:
+        ValueError: a deadband outside [0, 1) or an expo outside [0, 1] (the parameter
+            schema keeps both inside).
     """
     wire = STICK_WIRE
     crc16, header, crc_field = wire.crc16, wire.header.pack, wire.crc.pack
