@@ -219,6 +219,22 @@ def test_with_fs_thr_enable_off_a_failing_receiver_still_stops_the_wheels_but_ke
     assert h.core.vehicle.mode is Mode.MANUAL and h.core.vehicle.armed
 
 
+def test_a_receiver_failing_while_a_ground_station_drives_does_not_blip_its_wheels_to_neutral():
+    """(FS_THR_ENABLE 0 keeps the mode: the ground station's pilot, whose sticks are fresh,
+    drives on; the failsafe's stop is for a rover the receiver was driving.)"""
+    h = receiver_harness(FS_THR_ENABLE=0)
+    arm_by_switch(h)
+    h.every(0.05, lambda now: h.gcs.sticks(0, 1000, 0))  # ground station: full right
+    h.run_for(0.3)
+    driving = h.truth().channel_pwm
+    failed_s = h.now_s
+    h.board.rssi = 0  # (the receiver's frames come at 25 Hz: several fail in 0.3 s)
+    h.run_for(0.3)
+    seen = {tuple(o.channels) for o in h.overrides_since(failed_s)}
+    assert len(seen) == 1 and h.truth().channel_pwm == driving  # no neutral, not once
+    assert h.core.vehicle.mode is Mode.MANUAL
+
+
 def test_with_the_receiver_on_a_wheel_may_not_sit_on_a_receiver_channel():
     from mecanum_mav.config.params import ParamError, Params
     params = Params()
