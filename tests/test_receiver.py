@@ -219,6 +219,20 @@ def test_with_fs_thr_enable_off_a_failing_receiver_still_stops_the_wheels_but_ke
     assert h.core.vehicle.mode is Mode.MANUAL and h.core.vehicle.armed
 
 
+def test_a_ground_stations_override_that_leaves_the_stick_channels_alone_is_not_a_stick():
+    """(MAVProxy's ``rc 6 1500``: channel 6 only; 65535 leaves the others, ch 1-8.)"""
+    h = receiver_harness()
+    arm_by_switch(h)
+    rx(h, ch7=2000, ch3=2000)  # receiver: full forward
+    h.run_for(0.3)
+    leave = [65535] * 8
+    aux_only = [*leave[:5], 1500, *leave[6:]]
+    h.every(0.05, lambda now: h.gcs.mav.rc_channels_override_send(1, 1, *aux_only))
+    h.run_for(0.5)
+    assert h.core.stick[0] == 1.0  # the receiver still drives
+    assert wheels(h) == (2000,) * 4
+
+
 def test_a_receiver_failing_while_a_ground_station_drives_does_not_blip_its_wheels_to_neutral():
     """(FS_THR_ENABLE 0 keeps the mode: the ground station's pilot, whose sticks are fresh,
     drives on; the failsafe's stop is for a rover the receiver was driving.)"""
