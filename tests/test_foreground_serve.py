@@ -18,9 +18,11 @@ station hears the rover; serve() runs in the main thread, as the cli runs it.
 
 from __future__ import annotations
 
+import contextlib
 import io
 import os
 import signal
+import socket
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -306,3 +308,115 @@ def test_a_mission_file_it_cannot_read_is_said_to_the_ground_station_and_the_rov
     assert said[0].text == "Mission file unreadable: rover.waypoints"  # type: ignore[attr-defined]
     assert said[0].severity == mavlink.MAV_SEVERITY_ERROR  # type: ignore[attr-defined]
     assert (tmp_path / "rover.waypoints").read_text() == "not a waypoint file\n"  # left as is
+
+
+# ---------------------------------------------------------------------------- signing keys
+
+def accepted_with(key: bytes, data: bytes) -> list[object]:
+    """The messages in ``data`` a receiver holding ``key`` accepts (signed with it)."""
+    parser = mavlink.MAVLink(None)
+    parser.signing.secret_key = key
+    parser.robust_parsing = True
+    return [m for m in parser.parse_buffer(data) or [] if m.get_type() != "BAD_DATA"]
+
+
+def heartbeats_seen(sock: socket.socket, wait_s: float = DEADLINE_S) -> bytes:
+    """What arrives on ``sock`` until a HEARTBEAT-sized burst came (at least one datagram
+    holding a HEARTBEAT packet), raw."""
+    data = b""
+    deadline = time.monotonic() + wait_s
+    sock.settimeout(0.1)
+    while time.monotonic() < deadline:
+        with contextlib.suppress(TimeoutError):
+            data += sock.recv(65536)
+        if len(data) > 200:
+            break
+    return data
+
+
+@pytest.mark.parametrize("which", ["gcs", "fc"])
+def test_each_links_key_signs_what_goes_out_on_that_link_and_only_there(which: str) -> None:
+    gcs_key, fc_key = bytes(range(32)), bytes(range(32, 64))
+    keys = (gcs_key, None) if which == "gcs" else (None, fc_key)
+    gcs_sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    fc_sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    seen: dict[str, bytes] = {}
+    try:
+        for sock in (gcs_sock, fc_sock):
+            sock.bind(("127.0.0.1", 0))
+
+        def listen() -> None:
+            try:
+                seen["gcs"] = heartbeats_seen(gcs_sock)
+                seen["fc"] = heartbeats_seen(fc_sock)
+            finally:
+                os.kill(os.getpid(), signal.SIGTERM)
+
+        thread = threading.Thread(target=listen, daemon=True)
+        thread.start()
+        code = serve(Params(), f"udpout:127.0.0.1:{gcs_sock.getsockname()[1]}",
+                     f"udpout:127.0.0.1:{fc_sock.getsockname()[1]}", None, None, keys)
+        thread.join(DEADLINE_S)
+    finally:
+        gcs_sock.close()
+        fc_sock.close()
+    assert code == 0
+    key = gcs_key if which == "gcs" else fc_key
+    other = "fc" if which == "gcs" else "gcs"
+    assert accepted_with(key, seen[which])  # signed with its own key
+    assert not accepted_with(key, seen[other])  # the other link is not signed
+    plain = mavlink.MAVLink(None)
+    plain.robust_parsing = True
+    assert all(not m.get_signed() for m in plain.parse_buffer(seen[other]) or [])
+
+
+def test_simfcs_listening_line_reaches_a_pipe_while_it_serves(monkeypatch) -> None:
+    """(A script starts ``simfc`` and waits for this line before it connects.)"""
+    read_end, write_end = os.pipe()
+    stdout = io.TextIOWrapper(io.FileIO(write_end, "w"), write_through=False)
+    monkeypatch.setattr("sys.stdout", stdout)
+    got = b""
+
+    def wait_for_the_line() -> None:
+        nonlocal got
+        deadline = time.monotonic() + DEADLINE_S
+        os.set_blocking(read_end, False)
+        while b"\n" not in got and time.monotonic() < deadline:
+            with contextlib.suppress(BlockingIOError):
+                got += os.read(read_end, 4096)
+            time.sleep(0.01)
+        os.kill(os.getpid(), signal.SIGTERM)
+
+    thread = threading.Thread(target=wait_for_the_line, daemon=True)
+    thread.start()
+    try:
+        assert serve_simfc("udpin:127.0.0.1:0", Params()) == 0
+    finally:
+        thread.join(DEADLINE_S)
+        stdout.close()
+        os.close(read_end)
+    assert got.startswith(b"simfc: simulated ArduPilot Rover, system 1 component 1, "
+                          b"listening on udpin:127.0.0.1:0 (port ")
+
+
+def test_simfc_on_a_serial_device_names_it_without_a_port(monkeypatch) -> None:
+    from support import RawPty
+    stdout = io.StringIO()
+    monkeypatch.setattr("sys.stdout", stdout)
+    pty = RawPty()
+
+    def stop_once_it_said_so() -> None:
+        deadline = time.monotonic() + DEADLINE_S
+        while "\n" not in stdout.getvalue() and time.monotonic() < deadline:
+            time.sleep(0.01)
+        os.kill(os.getpid(), signal.SIGTERM)
+
+    thread = threading.Thread(target=stop_once_it_said_so, daemon=True)
+    thread.start()
+    try:
+        assert serve_simfc(f"{pty.path},115200", Params()) == 0
+    finally:
+        thread.join(DEADLINE_S)
+        pty.close()
+    assert stdout.getvalue() == (f"simfc: simulated ArduPilot Rover, system 1 component 1, "
+                                 f"listening on {pty.path},115200\n")
