@@ -34,7 +34,7 @@ import socket
 import threading
 import time
 import tty
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NamedTuple, Self, TypeVar
 
@@ -229,6 +229,24 @@ def fc_heartbeat(mav: Any) -> Any:
     return mav.heartbeat_encode(mavlink.MAV_TYPE_GROUND_ROVER,
                                 mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA, 0, 0,
                                 mavlink.MAV_STATE_STANDBY)
+
+
+@contextlib.contextmanager
+def tcp_link_to_a_board(sysid: int = 255, compid: int = 190) -> Iterator[tuple[Link,
+                                                                             socket.socket]]:
+    """A ``tcp:`` link (named "fc", sending as ``sysid``/``compid``) connected to a listening
+    socket of the test's: the link and the board's end of the connection; both closed after."""
+    with socket.socket() as server:
+        server.bind(("127.0.0.1", 0))
+        server.listen(1)
+        link = open_link(f"tcp:127.0.0.1:{server.getsockname()[1]}", source_system=sysid,
+                         source_component=compid, name="fc")
+        board, _ = server.accept()
+        try:
+            yield link, board
+        finally:
+            board.close()
+            link.close()
 
 
 class RawPty:

@@ -7,13 +7,12 @@ from __future__ import annotations
 
 import contextlib
 import math
-import socket
 import time
 from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from support import PtyFlightController, lane_answers, wait_until
+from support import PtyFlightController, lane_answers, tcp_link_to_a_board, wait_until
 from support import override_channels as channels
 from test_link_timing import START_S, Pty, exactly, override, serial
 from test_links import FakeClock
@@ -100,21 +99,12 @@ def test_a_tcp_server_link_without_a_client_never_takes_the_lanes_packet():
 
 
 def test_a_tcp_link_takes_the_lanes_packet_at_once():
-    with socket.socket() as server:
-        server.bind(("127.0.0.1", 0))
-        server.listen(1)
-        link = open_link(f"tcp:127.0.0.1:{server.getsockname()[1]}", source_system=255,
-                         source_component=190, name="fc")
-        board, _ = server.accept()
-        try:
-            assert link.takes_packet()
-            packet = lane_packet(link, 1100)
-            link.send_packet(packet)
-            board.settimeout(2.0)
-            assert board.recv(4096) == packet
-        finally:
-            board.close()
-            link.close()
+    with tcp_link_to_a_board() as (link, board):
+        assert link.takes_packet()
+        packet = lane_packet(link, 1100)
+        link.send_packet(packet)
+        board.settimeout(2.0)
+        assert board.recv(4096) == packet
 
 
 # --------------------------------------------------------------------------- the companion

@@ -16,13 +16,12 @@ from __future__ import annotations
 
 import errno
 import os
-import socket
 import termios
 import time
 from collections.abc import Iterator
 
 import pytest
-from support import RawPty, mavlink_sender
+from support import RawPty, mavlink_sender, tcp_link_to_a_board
 from test_stream_link_counts_and_sequence import (
     BAUD,
     NEUTRAL,
@@ -94,13 +93,7 @@ def test_with_the_wire_busy_the_newest_override_goes_first_then_the_queue_takes_
 
 
 def test_a_read_takes_every_chunk_waiting_and_received_counts_every_message():
-    listener = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
-    listener.bind(("127.0.0.1", 0))
-    listener.listen(1)
-    link = open_link(f"tcp:127.0.0.1:{listener.getsockname()[1]}", source_system=1,
-                     source_component=191, name="fc")
-    board_end, _ = listener.accept()
-    try:
+    with tcp_link_to_a_board(sysid=1, compid=191) as (link, board_end):
         board = mavlink_sender(sysid=1, compid=1)
         packet = board.heartbeat_encode(mavlink.MAV_TYPE_GROUND_ROVER, 3, 0, 0, 4).pack(board)
         count = 3 * READ_CHUNK // len(packet) + 1  # more than three of the link's chunks
@@ -116,10 +109,6 @@ def test_a_read_takes_every_chunk_waiting_and_received_counts_every_message():
         while link.received == count and time.monotonic() < deadline:
             link.read()
         assert link.received == count + 1
-    finally:
-        link.close()
-        board_end.close()
-        listener.close()
 
 
 def test_after_a_read_a_signed_link_signs_no_earlier_than_the_newest_packet_it_verified(pty):
