@@ -15,6 +15,7 @@ hands (at 115200 baud the link queues at most a second of the wire, 11520 bytes)
 from __future__ import annotations
 
 import errno
+import math
 import os
 import termios
 import time
@@ -132,3 +133,77 @@ def test_after_a_read_a_signed_link_signs_no_earlier_than_the_newest_packet_it_v
 def test_what_the_kernel_holds_is_0_for_a_descriptor_it_cannot_ask(tmp_path):
     with (tmp_path / "not-a-tty").open("wb") as file:  # TIOCOUTQ: ENOTTY
         assert queued_bytes(file.fileno(), termios.TIOCOUTQ) == 0
+
+
+def test_a_packet_the_kernel_took_part_of_is_finished_whole_first_once_it_is_writable(pty):
+    """A device that stops taking bytes (its buffer full): the rest of the packet begun waits
+    at the head, the link asks to be woken when the descriptor is writable and sets no
+    timer; once the device takes bytes again every packet arrives whole and in order."""
+    clock = Clock()
+    link = serial_link(pty, clock)
+    sent = 0
+    while not link.wants_write and sent < 10_000:
+        clock.now_s += 10.0  # pacing never holds it back: the kernel's buffer fills
+        link.conn.mav.statustext_send(6, f"packet {sent:05d}".encode().ljust(50, b"."))
+        sent += 1
+    assert link.wants_write and link.pending
+    assert link.next_send_s == math.inf  # woken by the descriptor, not a timer
+    clock.now_s += 10.0
+    link.flush()  # still full: the kernel takes nothing (EAGAIN), nothing changes
+    assert link.wants_write and link.next_send_s == math.inf
+    parser = mavlink.MAVLink(None)  # one parser: a packet may come in two reads
+    got: list = []
+
+    def board_reads_more() -> None:
+        while True:
+            try:
+                data = os.read(pty.master, 65536)
+            except BlockingIOError:
+                return
+            got.extend(parser.parse_buffer(data) or [])
+
+    for _ in range(10_000):
+        board_reads_more()
+        clock.now_s += 10.0
+        link.flush()
+        if not link.pending:
+            break
+    board_reads_more()
+    texts = [m.text for m in got]
+    assert texts == [f"packet {k:05d}".ljust(50, ".") for k in range(sent)]
+    assert not link.wants_write
+    link.close()
+
+
+def test_a_break_drops_and_counts_every_packet_waiting_in_the_link(pty):
+    clock = Clock()
+    link = serial_link(pty, clock)
+    busy(link)
+    link.conn.mav.system_time_send(1, 0)
+    link.conn.mav.system_time_send(2, 0)
+    link.send_rc_override(1, 1, NEUTRAL)
+    assert link.unsent == 0
+    pty.close()
+    drain_until_down(link, clock)
+    assert link.unsent == 3 and not link.pending
+
+
+def test_a_break_drops_and_counts_the_last_words_waiting_too(pty):
+    clock = Clock()
+    link = serial_link(pty, clock)
+    busy(link)
+    link.send_rc_override(1, 1, NEUTRAL, replace=False)
+    link.send_rc_override(1, 1, [0] * 18, replace=False)
+    link.send_rc_override(1, 1, NEUTRAL)  # (a late tick's, after them)
+    pty.close()
+    drain_until_down(link, clock)
+    assert link.unsent == 3 and not link.pending
+
+
+def drain_until_down(link: SerialLink, clock: Clock) -> None:
+    for _ in range(100):
+        clock.now_s += 1.0
+        link.flush()
+        if link.down_reason is not None:
+            return
+    raise AssertionError("the write never failed")
