@@ -55,6 +55,18 @@ def busy(link: SerialLink) -> None:
     assert not link.pending
 
 
+def three_waiting(pty: RawPty) -> tuple[SerialLink, Clock]:
+    """A link with the wire busy and three packets waiting in it: two SYSTEM_TIME queued,
+    then an override."""
+    clock = Clock()
+    link = serial_link(pty, clock)
+    busy(link)
+    link.conn.mav.system_time_send(1, 0)
+    link.conn.mav.system_time_send(2, 0)
+    link.send_rc_override(1, 1, NEUTRAL)
+    return link, clock
+
+
 def test_a_packet_that_fits_the_queue_exactly_is_taken_and_a_byte_more_is_refused(pty):
     link = serial_link(pty, Clock())
     limit = link.queue_limit
@@ -80,12 +92,7 @@ def test_a_link_that_is_down_refuses_a_write_with_its_reason(pty):
 
 
 def test_with_the_wire_busy_the_newest_override_goes_first_then_the_queue_takes_turns(pty):
-    clock = Clock()
-    link = serial_link(pty, clock)
-    busy(link)
-    link.conn.mav.system_time_send(1, 0)
-    link.conn.mav.system_time_send(2, 0)
-    link.send_rc_override(1, 1, NEUTRAL)
+    link, clock = three_waiting(pty)
     assert link.pending and not link.wants_write  # the kernel never refused: not watched
     drain(link, clock)
     kinds = [m.get_type() for m in board_reads(pty) if m.get_type() != "BAD_DATA"]
@@ -176,12 +183,7 @@ def test_a_packet_the_kernel_took_part_of_is_finished_whole_first_once_it_is_wri
 
 
 def test_a_break_drops_and_counts_every_packet_waiting_in_the_link(pty):
-    clock = Clock()
-    link = serial_link(pty, clock)
-    busy(link)
-    link.conn.mav.system_time_send(1, 0)
-    link.conn.mav.system_time_send(2, 0)
-    link.send_rc_override(1, 1, NEUTRAL)
+    link, clock = three_waiting(pty)
     assert link.unsent == 0
     pty.close()
     drain_until_down(link, clock)
