@@ -73,10 +73,17 @@ def test_a_process_that_has_ended_reports_its_exit_code_no_memory_and_no_cpu_clo
             proc.rss_kb()  # (a zombie has no resident set)
         assert proc.wait(5.0) == 3
         assert proc.cpu_s() != proc.cpu_s()  # NaN: the process is gone
+        assert proc.run_queue_s() != proc.run_queue_s()  # NaN too
         assert proc.stop() == 3  # nothing to stop: its exit code
         assert "exiting" in proc.log()
         proc.log_path.unlink()
         assert proc.log() == ""
+
+
+def test_a_running_process_reports_the_time_it_waited_for_a_cpu_and_it_never_goes_back():
+    first = process.process_run_queue_s(os.getpid())
+    sum(range(200_000))  # (some work, so the scheduler has looked at it again)
+    assert 0.0 <= first <= process.process_run_queue_s(os.getpid())
 
 
 def test_free_port_never_hands_out_a_port_that_is_taken(monkeypatch: pytest.MonkeyPatch):

@@ -5,10 +5,11 @@ MANUAL_CONTROL at 50 Hz (and HEARTBEAT at 1 Hz) and a flight controller sending 
 ATTITUDE and WHEEL_DISTANCE, default telemetry on. Three reporting intervals of 20 s, the first
 standing for the first minute: RSS grows under 2 MB after it, as the issue's goal says, and the
 overrides keep flowing: no gap between two of them reaches the override timeout setup-fc gives
-the board (RC_OVERRIDE_TIME 0.5 s; a longer gap would make it lapse). The tool's own goal for
-the gaps, at most two refresh periods (100 ms) of wall-clock time, is its figure (printed, in
-refresh periods); the refresh itself is asserted exactly in virtual time (test_companion.py,
-``test_overrides_are_refreshed_*``).
+the board (RC_OVERRIDE_TIME 0.5 s; a longer gap would make it lapse). Each interval's line also
+says how long the companion waited for a CPU (a starved machine's share of a gap). The tool's
+own goal for the gaps, at most two refresh periods (100 ms) of wall-clock time, is its figure
+(printed, in refresh periods); the refresh itself is asserted exactly in virtual time
+(test_companion.py, ``test_overrides_are_refreshed_*``).
 
 The tool's third goal, the last interval's median delay within 1.2x the first's, is a speed
 figure for its 30-minute run (quoted in docs/benchmarks.md) and is printed here but not

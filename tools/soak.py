@@ -25,7 +25,9 @@ Method
     the commands with no override of their own (superseded or late, see bench_latency.py), and
     the largest gap between consecutive overrides received, also as a multiple of the refresh
     period 1 / ``OUT_RATE`` (50 ms by default; at 50 Hz input an override goes out per stick,
-    so the gaps are ~20 ms). A one-second warm-up after arming is not counted.
+    so the gaps are ~20 ms), and how long the companion waited, ready to run, for a CPU
+    over the interval (the kernel's ``run_delay``: a gap that long is the machine's, not the
+    companion's). A one-second warm-up after arming is not counted.
 
 Goals (issue 11.4), checked at the end:
     - RSS grows under 2 MB after the first interval (the largest RSS of the later intervals
@@ -121,6 +123,7 @@ class Interval:
     delays_us: list[float] = field(default_factory=list)  # matched commands only
     overrides: int = 0
     max_gap_ms: float = 0.0
+    run_queue_ms: float = float("nan")  # the companion waited for a CPU this long, in all
 
     def pct(self, q: float) -> float:
         return float(np.percentile(self.delays_us, q)) if self.delays_us else float("nan")
@@ -167,14 +170,15 @@ class SoakResult:
 
 HEADER = (f"{'t s':>6} {'RSS MB':>7} {'dRSS MB':>8} {'CPU %':>6} {'sent':>5} {'unmatched':>9} "
           f"{'p50 us':>7} {'p99 us':>7} {'max us':>7} {'overrides':>9} {'max gap ms':>10} "
-          f"{'periods':>7}")
+          f"{'periods':>7} {'CPU wait ms':>11}")
 
 
 def interval_line(iv: Interval, first: Interval, refresh_period_ms: float) -> str:
     return (f"{iv.end_s:>6.0f} {iv.rss_kb / 1024:>7.2f} {(iv.rss_kb - first.rss_kb) / 1024:>+8.2f} "
             f"{iv.cpu_pct:>6.2f} {iv.sent:>5} {iv.unmatched:>9} {iv.pct(50):>7.0f} "
             f"{iv.pct(99):>7.0f} {max(iv.delays_us, default=float('nan')):>7.0f} "
-            f"{iv.overrides:>9} {iv.max_gap_ms:>10.1f} {iv.max_gap_ms / refresh_period_ms:>7.2f}")
+            f"{iv.overrides:>9} {iv.max_gap_ms:>10.1f} {iv.max_gap_ms / refresh_period_ms:>7.2f}"
+            f" {iv.run_queue_ms:>11.1f}")
 
 
 def summary(result: SoakResult) -> list[str]:
@@ -254,7 +258,7 @@ def _soak(peers: SoakPeers, companion: CompanionProcess, result: SoakResult, chu
     rx_ns = peers.override_rx_ns = []
     last_rx_ns = 0
     t0 = t_prev = time.perf_counter()
-    cpu0 = companion.cpu_s()
+    cpu0, waited0 = companion.cpu_s(), companion.run_queue_s()
     for _ in range(intervals):
         iv = Interval(0.0, 0, 0.0)
         for _ in range(chunks_per_interval):
@@ -264,10 +268,11 @@ def _soak(peers: SoakPeers, companion: CompanionProcess, result: SoakResult, chu
         iv.max_gap_ms = max(np.diff(stamps), default=0) / 1e6
         last_rx_ns = stamps[-1] if stamps else last_rx_ns
         rx_ns.clear()
-        now, cpu = time.perf_counter(), companion.cpu_s()
+        now, cpu, waited = time.perf_counter(), companion.cpu_s(), companion.run_queue_s()
         iv.end_s, iv.rss_kb = now - t0, companion.rss_kb()
         iv.cpu_pct = 100.0 * (cpu - cpu0) / (now - t_prev)
-        cpu0, t_prev = cpu, now
+        iv.run_queue_ms = 1e3 * (waited - waited0)
+        cpu0, waited0, t_prev = cpu, waited, now
         result.intervals.append(iv)
         report(interval_line(iv, result.intervals[0], result.refresh_period_ms))
 

@@ -97,6 +97,16 @@ def process_cpu_s(pid: int) -> float:
     return time.clock_gettime((~pid << 3) | _CPUCLOCK_SCHED)
 
 
+def process_run_queue_s(pid: int) -> float:
+    """Seconds process ``pid``'s main thread has waited, ready to run, for a CPU so far (the
+    kernel's ``run_delay``, the second field of ``/proc/PID/schedstat``): how much a busy
+    machine held it back; NaN where the kernel does not keep it, or once it is gone."""
+    try:
+        return int(Path(f"/proc/{pid}/schedstat").read_text().split()[1]) / 1e9
+    except (OSError, IndexError, ValueError):
+        return float("nan")
+
+
 _Process = TypeVar("_Process", bound="CliProcess")
 
 
@@ -142,6 +152,10 @@ class CliProcess:
             return process_cpu_s(self.pid)
         except OSError:
             return float("nan")
+
+    def run_queue_s(self) -> float:
+        """:func:`process_run_queue_s` of it."""
+        return process_run_queue_s(self.pid)
 
     def rss_kb(self) -> int:
         """Its resident set size (kB, ``VmRSS`` of ``/proc/PID/status``).
