@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import os
 import re
+import signal
 from collections.abc import Generator, Iterator
 
 import pytest
@@ -135,6 +136,20 @@ def pytest_configure(config: pytest.Config) -> None:
     if os.environ.get("MUTANT_UNDER_TEST") == "stats":
         del os.environ["MUTANT_UNDER_TEST"]
         _tracing_for_mutmut = True
+    _ctrl_c_as_a_terminal_gives_it()
+
+
+def _ctrl_c_as_a_terminal_gives_it() -> None:
+    """A suite a shell started in the background without job control (``cmd &`` in a
+    script) inherits SIGINT and SIGQUIT ignored, and so would every process it starts: the
+    Ctrl-C tests would fail for a reason of the launcher's (a process that starts with SIGINT
+    ignored keeps it so, as Python does). Here they get what a terminal gives; a handled
+    signal goes back to its default in the processes started after (xdist's workers, the
+    companions)."""
+    for sig in (signal.SIGINT, signal.SIGQUIT):
+        if signal.getsignal(sig) is signal.SIG_IGN:
+            signal.signal(sig, signal.default_int_handler if sig == signal.SIGINT
+                          else signal.SIG_DFL)
 
 
 _tracing_for_mutmut = False
