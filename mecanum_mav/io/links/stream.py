@@ -150,10 +150,7 @@ class StreamLink(Link):
         for _ in range(max_reads):
             try:
                 data = self._receive()
-            except LinkDownError:
-                break
-            except OSError as exc:
-                log.debug("%s: read failed: %s", self.name, exc)
+            except LinkDownError:  # (the only failure _receive raises)
                 break
             if not data:
                 break
