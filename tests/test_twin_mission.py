@@ -90,6 +90,12 @@ def test_the_lag_is_the_wall_time_the_chassis_world_stood_still_between_two_wall
     assert truth.lag_s(WALL0 + 1.5, WALL0 + 2.0) == pytest.approx(0.0, abs=1e-9)
 
 
+def test_a_world_that_stopped_answering_lags_by_all_the_time_since_its_last_frame():
+    # (the bridge or the firmware frozen at the end of a mission: the truth stops at WALL0 + 1)
+    truth = tm.TruthTrack([sample(WALL0 + k / 100, k / 100) for k in range(101)])
+    assert truth.lag_s(WALL0, WALL0 + 2.5) == pytest.approx(1.5, abs=1e-9)
+
+
 def test_a_graded_run_carries_the_lag_from_auto_to_its_end_not_before_auto():
     # The physics stood still 0.4 s before AUTO and 0.2 s during the mission.
     def physics_s(wall: float) -> float:

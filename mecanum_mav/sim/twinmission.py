@@ -121,12 +121,13 @@ class TruthTrack:
         return Pose2d(s.north_m - origin[0], s.east_m - origin[1], s.yaw_rad)
 
     def lag_s(self, start_s: float, end_s: float) -> float:
-        """Wall time minus physics time from wall time ``start_s`` to ``end_s`` (s, by the frames
-        answered by then): how long the chassis' world stood still while the clocks of the
-        ground station and the companion ran on (the firmware or the bridge starved of CPU;
-        SITL catches up part of a stall afterwards). 0 for a twin in real time."""
+        """Wall time minus physics time from wall time ``start_s`` to ``end_s`` (s, the physics
+        time of the last frame answered by each): how long the chassis' world stood still while
+        the clocks of the ground station and the companion ran on (the firmware or the bridge
+        starved of CPU; SITL catches up part of a stall afterwards), a stall still going on at
+        ``end_s`` included. 0 for a twin in real time (give or take a frame)."""
         first, last = self.at(start_s), self.at(end_s)
-        return (last.wall_s - first.wall_s) - (last.time_s - first.time_s)
+        return (end_s - start_s) - (last.time_s - first.time_s)
 
 
 # ---------------------------------------------------------------------------- grading
