@@ -108,8 +108,24 @@ def serial_link(baud: int = BAUD, clock: Callable[[], float] = time.monotonic,
         board.close()
 
 
+class HeldClock:
+    """A link's clock that stands still while the test offers packets (however slowly this
+    machine runs the statements, the wire stays busy with the first packet), then, released,
+    follows the real clock (the pacing's timing is test_link_timing.py's)."""
+
+    def __init__(self) -> None:
+        self.held_at: float | None = time.monotonic()
+
+    def __call__(self) -> float:
+        return self.held_at if self.held_at is not None else time.monotonic()
+
+    def release(self) -> None:
+        self.held_at = None
+
+
 def test_an_override_waiting_for_the_wire_is_replaced_by_a_newer_one_and_others_keep_order():
-    with serial_link() as (link, board):
+    clock = HeldClock()
+    with serial_link(clock=clock) as (link, board):
         beat = link.mav.heartbeat_encode(6, 8, 0, 0, 4)
         link.send_rc_override(1, 1, override(1001))  # the wire is free: handed over at once
         link.send(beat)
@@ -117,6 +133,7 @@ def test_an_override_waiting_for_the_wire_is_replaced_by_a_newer_one_and_others_
         link.send(link.mav.param_request_read_encode(1, 1, b"RCMAP_THROTTLE", -1))
         link.send_rc_override(1, 1, override(1003))
         assert summary(board.messages(1)) == [1001]  # the rest waits in the link
+        clock.release()
         hand_over_all(link)
         # overrides and queued packets take turns; the waiting override was replaced
         assert summary(board.messages(3)) == ["HEARTBEAT", 1003, "PARAM_REQUEST_READ"]
@@ -124,11 +141,13 @@ def test_an_override_waiting_for_the_wire_is_replaced_by_a_newer_one_and_others_
 
 
 def test_the_last_overrides_at_close_all_reach_a_slow_serial_board_in_order():
-    with serial_link() as (link, board):
+    clock = HeldClock()
+    with serial_link(clock=clock) as (link, board):
         link.send_rc_override(1, 1, override(2000))  # on the wire
         link.send_rc_override(1, 1, override(1900))  # waiting: superseded by the last words
         for pulse in (1500, 1500, 0):  # neutral, neutral, release
             link.send_rc_override(1, 1, override(pulse), replace=False)
+        clock.release()
         link.close(linger_s=0.3)
         assert summary(board.messages(4)) == [2000, 1500, 1500, 0]
         assert link.superseded == 1
