@@ -13,6 +13,7 @@
 from __future__ import annotations
 
 import logging
+import math
 import time
 from collections.abc import Iterator
 
@@ -127,3 +128,47 @@ def test_a_send_the_full_queue_cannot_take_is_counted_and_logged_with_the_reason
     assert any("outgoing queue full" in m and m.startswith("fc: send failed (1 so far): ")
                for m in caplog.messages), caplog.messages
     link.close()
+
+
+def test_a_link_keeps_its_url_and_reading_it_idle_finds_nothing_and_counts_nothing_bad(pty):
+    link = serial_link(pty, Clock())
+    assert link.url == f"{pty.path},115200"
+    assert link.read() == [] and link.bad == 0 and link.received == 0
+    link.close()
+
+
+def test_after_a_break_nothing_waits_and_no_send_is_due(pty):
+    clock = Clock()
+    link = serial_link(pty, clock)
+    busy(link)
+    link.conn.mav.system_time_send(1, 0)
+    pty.close()
+    clock.now_s += 1.0
+    link.flush()
+    assert link.down_reason is not None
+    assert not link.pending and link.next_send_s == math.inf
+
+
+def test_closing_on_a_clock_that_stands_still_ends_by_the_real_clock(pty):
+    """(The lockstep harness's links run on virtual time: the linger is over when either
+    clock says so.)"""
+    link = serial_link(pty, Clock())
+    busy(link)
+    link.conn.mav.system_time_send(1, 0)  # waits for a wire that never frees on this clock
+    began = time.monotonic()
+    link.close(linger_s=0.2)
+    assert time.monotonic() - began < 1.0
+
+
+def test_closing_while_the_device_takes_nothing_gives_up_on_the_packet_begun_in_time(pty):
+    """A packet the kernel took part of is the last words' kind of wait (the wire needs
+    it), but at most LAST_WORDS_MAX_S: a device that takes nothing more is given up."""
+    clock = Clock()
+    link = serial_link(pty, clock)
+    while not link.wants_write:
+        clock.now_s += 10.0
+        link.conn.mav.statustext_send(6, b"filling the device's buffer".ljust(50, b"."))
+    began = time.monotonic()
+    link.close(linger_s=0.1)
+    took = time.monotonic() - began
+    assert 0.5 * LAST_WORDS_MAX_S < took < LAST_WORDS_MAX_S + 1.0

@@ -125,6 +125,8 @@ def test_the_last_words_reach_the_board_in_sequence_what_they_passed_is_a_counte
     assert seqs == sorted(seqs)
     assert link.unsent == 3
     assert seqs[-1] - seqs[0] + 1 == len(seqs) + link.unsent
+    assert link.sent == 4  # the lane's packet and the three last words
+    link.write(b"x" * link.queue_limit)  # (what they dropped no longer counts against it)
     link.close()
 
 
