@@ -99,6 +99,7 @@ def test_unsent_adds_up_over_breaks_and_the_queue_is_whole_again_after_reopening
     clock.now_s += 1.0
     link.flush()  # the write fails: down, one dropped
     assert link.down_reason is not None and link.unsent == 1
+    assert not link.pending and link.next_send_s == math.inf  # nothing waits, nothing due
     link.send_rc_override(1, 1, NEUTRAL)  # while down: dropped too
     assert link.unsent == 2
     replugged = RawPty(tmp_path / "ttyFC")
@@ -135,18 +136,6 @@ def test_a_link_keeps_its_url_and_reading_it_idle_finds_nothing_and_counts_nothi
     assert link.url == f"{pty.path},115200"
     assert link.read() == [] and link.bad == 0 and link.received == 0
     link.close()
-
-
-def test_after_a_break_nothing_waits_and_no_send_is_due(pty):
-    clock = Clock()
-    link = serial_link(pty, clock)
-    busy(link)
-    link.conn.mav.system_time_send(1, 0)
-    pty.close()
-    clock.now_s += 1.0
-    link.flush()
-    assert link.down_reason is not None
-    assert not link.pending and link.next_send_s == math.inf
 
 
 def test_closing_on_a_clock_that_stands_still_ends_by_the_real_clock(pty):
