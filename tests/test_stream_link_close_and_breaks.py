@@ -161,3 +161,18 @@ def test_closing_while_the_device_takes_nothing_gives_up_on_the_packet_begun_in_
     link.close(linger_s=0.1)
     took = time.monotonic() - began
     assert 0.5 * LAST_WORDS_MAX_S < took < LAST_WORDS_MAX_S + 1.0
+
+
+def test_a_break_found_by_a_read_leaves_nothing_due_for_the_loop_to_wait_on(pty):
+    """(The loop waits on ``next_send_s``: a link that broke while packets waited must say
+    "nothing due", not keep a time or lose it.)"""
+    clock = Clock()
+    link = serial_link(pty, clock)
+    busy(link)
+    link.conn.mav.system_time_send(1, 0)  # waits
+    assert link.next_send_s < math.inf
+    pty.close()
+    assert link.read() == []  # the read fails first: down
+    assert link.down_reason is not None and link.unsent == 1
+    assert not link.pending and link.next_send_s == math.inf
+    link.close()
