@@ -19,6 +19,7 @@ from fcsim import INT16, LATENCY_S, REAL32, START_S, Board, Clock, session_on, u
 
 from mecanum_mav.app import setupfc
 from mecanum_mav.config.params import Params
+from mecanum_mav.config.spec import float32_of
 from mecanum_mav.protocol.dialect import mavlink
 from mecanum_mav.protocol.paramread import REPEAT_S, WINDOW
 
@@ -99,7 +100,7 @@ def test_a_float_echoed_as_the_float32_the_wire_carries_is_confirmed_at_once(
     board = Board(clock, params={"RC_OVERRIDE_TIME": (3.0, REAL32)},
                   extra=[Board(clock).mav.heartbeat_encode(10, 3, 0, 0, 3)])
     echoed = session_on(board).write({"RC_OVERRIDE_TIME": 0.6})
-    assert echoed == {"RC_OVERRIDE_TIME": setupfc.as_sent(0.6)} != {"RC_OVERRIDE_TIME": 0.6}
+    assert echoed == {"RC_OVERRIDE_TIME": float32_of(0.6)} != {"RC_OVERRIDE_TIME": 0.6}
     assert len(board.times("PARAM_SET")) == 1  # (a HEARTBEAT came with the echo)
 
 

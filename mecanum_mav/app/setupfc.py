@@ -159,7 +159,7 @@ class FcSession:
                 if msg.get_type() == "PARAM_VALUE" and msg.param_id in sent:
                     name = msg.param_id
                     echoed[name] = float(msg.param_value)
-                    if echoed[name] == as_sent(settings[name]):
+                    if echoed[name] == float32_of(settings[name]):  # (as PARAM_SET carried it)
                         del sent[name]
         return echoed
 
@@ -219,12 +219,6 @@ class FcSession:
         return None
 
 
-def as_sent(value: float) -> float:
-    """``value`` as PARAM_SET and PARAM_VALUE carry it (a float32): what the board echoes of
-    a value it took."""
-    return float32_of(value)
-
-
 def _show(value: float | None) -> str:
     if value is None:
         return "(none)"
@@ -273,7 +267,7 @@ class _Setup:
             self.session.write(nudges)
         writes = {n: wanted[n] for n in wanted if n in changed or n in nudges}
         echoed = self.session.write(writes)
-        refused = sorted(n for n, v in writes.items() if echoed.get(n) != as_sent(v))
+        refused = sorted(n for n, v in writes.items() if echoed.get(n) != float32_of(v))
         self.out.write(f"\nwrote {len(writes) - len(refused)} of {len(writes)} settings "
                        f"({len(changed)} changed, {len(nudges)} stored by writing a neighbour "
                        "first)" + (f"; not accepted: {', '.join(refused)}" if refused else "")

@@ -360,11 +360,9 @@ class StreamLink(Link):
 
     def _drop_pending(self) -> None:
         """The link broke: what waits in it is lost (counted in :attr:`unsent`)."""
-        self.unsent += (len(self._queue) + len(self._last_words) + (self._override is not None)
-                        + bool(self._head))
-        self._queue.clear()
+        self._drop_queue()
+        self.unsent += len(self._last_words) + (self._override is not None) + bool(self._head)
         self._last_words.clear()
-        self._queued = 0
         self._override, self._head, self._blocked = None, b"", False
         self.next_send_s = math.inf
 
