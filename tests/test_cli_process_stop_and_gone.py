@@ -15,6 +15,7 @@ import signal
 import socket
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -24,10 +25,18 @@ from mecanum_mav.sim import process
 from mecanum_mav.sim.process import CliProcess, free_port
 
 STAND_IN = """\
-import signal, sys, time
+import os, signal, sys, time
 if sys.argv[1] == "exit":
     print("exiting", flush=True)
     sys.exit(int(sys.argv[2]))
+if sys.argv[1] == "work":  # hold MB megabytes, spin a CPU for S seconds, then wait
+    held = bytearray(int(sys.argv[2]) << 20)
+    held[::4096] = b"x" * len(held[::4096])  # (touched: resident)
+    end = time.process_time() + float(sys.argv[3])
+    while time.process_time() < end:
+        pass
+    print("worked", flush=True)
+    time.sleep(30)
 signal.signal(signal.SIGTERM, signal.SIG_IGN)
 print("ignoring SIGTERM", flush=True)
 time.sleep(10)
@@ -69,7 +78,7 @@ def test_a_process_that_has_ended_reports_its_exit_code_no_memory_and_no_cpu_clo
         tmp_path: Path, stand_in: Path):
     with CliProcess(["exit", "3"], tmp_path / "work", package_root=stand_in) as proc:
         assert wait_until(lambda: state(proc.pid) in ("Z", ""), 10.0)  # ended, not reaped
-        with pytest.raises(OSError):
+        with pytest.raises(OSError, match=f"no VmRSS for process {proc.pid}"):
             proc.rss_kb()  # (a zombie has no resident set)
         assert proc.wait(5.0) == 3
         assert proc.cpu_s() != proc.cpu_s()  # NaN: the process is gone
@@ -78,6 +87,43 @@ def test_a_process_that_has_ended_reports_its_exit_code_no_memory_and_no_cpu_clo
         assert "exiting" in proc.log()
         proc.log_path.unlink()
         assert proc.log() == ""
+
+
+def ticks_s(pid: int) -> float:
+    """User + system CPU time of ``pid`` from ``/proc/PID/stat`` (clock ticks), s."""
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def test_a_running_process_reports_its_own_cpu_time_and_resident_memory(
+        tmp_path: Path, stand_in: Path):
+    with CliProcess(["work", "64", "0.3"], tmp_path / "work", package_root=stand_in) as proc:
+        assert wait_until(lambda: "worked" in proc.log(), 20.0), proc.log()
+        cpu_s, ticks = proc.cpu_s(), ticks_s(proc.pid)
+        assert 0.3 <= cpu_s < 5.0
+        assert abs(cpu_s - ticks) <= 0.05  # the same time, finer than /proc's ticks
+        assert abs(process.process_cpu_s(os.getpid()) - time.process_time()) < 0.05
+        assert 64 * 1024 <= proc.rss_kb() < 1024 * 1024  # kB: the 64 MB it holds, and more
+        assert 0.0 <= proc.run_queue_s() < 5.0  # (a number: not NaN)
+
+
+def test_two_processes_sharing_one_cpu_each_report_waiting_for_it(tmp_path: Path):
+    """The run queue wait (the kernel's run_delay) of a process that shares one core with
+    another busy one for most of a second: a good part of that time, never more than all of
+    it."""
+    spin = "import time\nend = time.monotonic() + 1.0\nwhile time.monotonic() < end: pass"
+    started = time.monotonic()
+    spinners = [subprocess.Popen([sys.executable, "-c", spin],
+                                 preexec_fn=lambda: os.sched_setaffinity(0, {0}))
+                for _ in range(2)]
+    try:
+        assert wait_until(lambda: time.monotonic() - started > 0.8, 5.0)  # (both spinning)
+        waited = [process.process_run_queue_s(p.pid) for p in spinners]
+        elapsed = time.monotonic() - started
+    finally:
+        for p in spinners:
+            p.wait(10)
+    assert all(0.1 <= w <= elapsed for w in waited), (waited, elapsed)
 
 
 def test_a_running_process_reports_the_time_it_waited_for_a_cpu_and_it_never_goes_back():

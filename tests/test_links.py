@@ -18,7 +18,7 @@ from mecanum_mav.control.core import LinkCounts, RoverCore
 from mecanum_mav.io import links
 from mecanum_mav.io.links import open_link
 from mecanum_mav.protocol.dialect import mavlink
-from mecanum_mav.protocol.signing import TICKS_PER_S, ticks_from_unix
+from mecanum_mav.protocol.signing import TICKS_PER_S, Check, ticks_from_unix
 
 
 class FakeClock:
@@ -148,8 +148,21 @@ def test_a_signing_link_signs_no_earlier_than_the_newest_verified_packet_it_rece
                 "the link never read the packet")
         stamps = sent_timestamps()
         assert ahead <= stamps[0] < stamps[1] < ahead + TICKS_PER_S, stamps
+        assert link.take_rejections() == {Check.BAD_SIGNATURE: 1}  # the forged one
+        assert link.take_rejections() == {}  # (each counted once)
     finally:
         board.close()
+        link.close()
+
+
+def test_a_datagram_link_without_a_key_refuses_nothing_and_takes_a_packet_at_any_time():
+    """(A datagram has no queue: the stick lane's packet always goes to the kernel at once.)"""
+    link = open_link("udpin:127.0.0.1:0", source_system=255, source_component=190, name="gcs")
+    try:
+        assert link.signature_check is None
+        assert link.take_rejections() == {}
+        assert link.takes_packet()
+    finally:
         link.close()
 
 

@@ -245,6 +245,29 @@ def survivors(results: dict[str, dict[str, int | None]], targets: set[str],
     return "\n".join(out)
 
 
+def recheck_survivors(targets: set[str]) -> int:
+    """Forget the targets' survivors (survived, no tests) so this run tries them again.
+
+    mutmut keeps a verdict until the mutant's function changes; a survivor of an earlier run
+    would stay one after the test that kills it was written. A killed mutant stays killed
+    (tests are added, not weakened: a weakened test shows in review). Returns how many."""
+    count = 0
+    for meta in sorted((MUTANTS / PACKAGE).rglob("*.py.meta")):
+        module = ".".join(meta.relative_to(MUTANTS).with_suffix("").with_suffix("").parts)
+        if not selected(module, targets):
+            continue
+        data = json.loads(meta.read_text())
+        codes = data.get("exit_code_by_key", {})
+        again = [name for name, code in codes.items()
+                 if code is not None and verdict(code) in SURVIVED]
+        for name in again:
+            codes[name] = None
+        if again:
+            meta.write_text(json.dumps(data, indent=4))
+            count += len(again)
+    return count
+
+
 def run_mutmut(targets: list[str], jobs: int) -> int:
     """``mutmut run`` on the targets' mutants (names ``mecanum_mav.<target>.*``)."""
     globs = [f"{PACKAGE}.{t}.*" for t in targets]
@@ -282,6 +305,10 @@ def main(argv: list[str] | None = None) -> int:
     if unknown:
         parser.error(f"no package or module {', '.join(unknown)} in {PACKAGE}/")
     os.chdir(ROOT)  # mutmut reads its configuration and results from here
+    if not args.report_only:
+        again = recheck_survivors(set(packages))
+        if again:
+            print(f"mutation: {again} earlier survivors tried again against today's tests")
     if not args.report_only and run_mutmut(packages, args.jobs) != 0:
         print("mutation: mutmut failed (its output above)", file=sys.stderr)
         return 2

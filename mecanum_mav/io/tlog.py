@@ -42,6 +42,11 @@ LATEST_US = 4_102_444_800 * 1_000_000
 _V1, _V2 = 0xFE, 0xFD
 
 
+def _plausible(stamp_us: int) -> bool:
+    """Whether a record's timestamp (Unix us) could be one: from 1995 to 2100, both included."""
+    return EARLIEST_US <= stamp_us <= LATEST_US
+
+
 def tlog_record(unix_us: int, packet: bytes | bytearray) -> bytes:
     """One tlog record: ``packet`` stamped with ``unix_us`` (Unix microseconds), as ``--tlog``
     writes it and :func:`parse_tlog` reads it."""
@@ -111,7 +116,7 @@ class _Decoder:
         if at + STAMP_LEN >= len(data):
             return None
         stamp = _STAMP.unpack_from(data, at)[0]
-        if not EARLIEST_US <= stamp <= LATEST_US:
+        if not _plausible(stamp):
             return None
         length = _packet_len(data, at + STAMP_LEN)
         end = at + STAMP_LEN + (length or 0)
@@ -129,11 +134,11 @@ class _Decoder:
         return STAMP_LEN + length, stamp / 1e6, msg if known else None
 
     def truncated(self, data: bytes, at: int) -> bool:
-        """True if a record starts at ``at`` but the data ends inside it."""
+        """True if a record starts at ``at`` (inside ``data``) but the data ends inside it: in
+        its timestamp, or after a plausible one in its packet's header or body."""
         if at + STAMP_LEN > len(data):
-            return len(data) - at < STAMP_LEN and at < len(data)
-        stamp = _STAMP.unpack_from(data, at)[0]
-        if not EARLIEST_US <= stamp <= LATEST_US:
+            return True
+        if not _plausible(_STAMP.unpack_from(data, at)[0]):
             return False
         start = at + STAMP_LEN
         if start >= len(data):
@@ -178,7 +183,7 @@ def _resync(decoder: _Decoder, data: bytes, start: int) -> int | None:
         # A record's packet starts with a MAVLink start byte 8 bytes after the record.
         v2 = data.find(b"\xfd", at + STAMP_LEN)
         v1 = data.find(b"\xfe", at + STAMP_LEN)
-        hits = [h for h in (v1, v2) if h >= 0]
+        hits = [h for h in (v1, v2) if h != -1]
         if not hits:
             return None
         candidate = min(hits) - STAMP_LEN  # (its start byte is inside the data)

@@ -1,0 +1,56 @@
+"""tools/mutation.py's bookkeeping of mutmut's results (docs/testing.md): a new run tries the
+earlier survivors of what it targets again, keeps killed mutants killed, and leaves other
+modules' results alone; the report scores killed / (mutants - equivalent) per module."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import sys
+from pathlib import Path
+from types import ModuleType
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+@pytest.fixture
+def tool(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> ModuleType:
+    spec = importlib.util.spec_from_file_location("mutation_tool", ROOT / "tools" / "mutation.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    monkeypatch.setitem(sys.modules, "mutation_tool", module)
+    spec.loader.exec_module(module)
+    monkeypatch.setattr(module, "MUTANTS", tmp_path / "mutants")
+    return module
+
+
+def write_meta(tool: ModuleType, source: str, codes: dict[str, int | None]) -> Path:
+    meta = tool.MUTANTS / "mecanum_mav" / f"{source}.meta"
+    meta.parent.mkdir(parents=True, exist_ok=True)
+    meta.write_text(json.dumps({"exit_code_by_key": codes, "hash_by_function_name": {}}))
+    return meta
+
+
+def codes_in(meta: Path) -> dict[str, int | None]:
+    return json.loads(meta.read_text())["exit_code_by_key"]
+
+
+def test_a_run_tries_its_targets_survivors_again_and_keeps_their_killed_mutants(tool):
+    tlog = write_meta(tool, "io/tlog.py", {"a": 0, "b": 1, "c": 33, "d": 36, "e": None})
+    other = write_meta(tool, "io/poller.py", {"f": 0, "g": 1})
+    assert tool.recheck_survivors({"io.tlog"}) == 2
+    assert codes_in(tlog) == {"a": None, "b": 1, "c": None, "d": 36, "e": None}
+    assert codes_in(other) == {"f": 0, "g": 1}  # not a target: untouched
+    assert tool.recheck_survivors({"io"}) == 1  # a package takes its modules
+    assert codes_in(other) == {"f": None, "g": 1}
+
+
+def test_the_score_leaves_out_equivalent_mutants_and_counts_timeouts_as_killed(tool):
+    write_meta(tool, "io/tlog.py", {f"mecanum_mav.io.tlog.x_f__mutmut_{k}": code
+                                    for k, code in enumerate([1, 1, 36, 0, 0, 33, None])})
+    equivalent = tool.Equivalent("mecanum_mav.io.tlog.x_f__mutmut_3", "x = 1", "why")
+    [tally] = tool.tally(tool.load_results(), {"io"}, [equivalent])
+    assert (tally.total, tally.equivalent, tally.killed, tally.unchecked) == (7, 1, 3, 1)
+    assert tally.score == pytest.approx(3 / 5)  # the unchecked one is not scored yet
