@@ -37,14 +37,36 @@ def codes_in(meta: Path) -> dict[str, int | None]:
     return json.loads(meta.read_text())["exit_code_by_key"]
 
 
+def trace(tool: ModuleType) -> Path:
+    stats = tool.MUTANTS / tool.STATS_NAME
+    stats.parent.mkdir(parents=True, exist_ok=True)
+    stats.write_text("{}")
+    return stats
+
+
 def test_a_run_tries_its_targets_survivors_again_and_keeps_their_killed_mutants(tool):
-    tlog = write_meta(tool, "io/tlog.py", {"a": 0, "b": 1, "c": 33, "d": 36, "e": None})
+    tlog = write_meta(tool, "io/tlog.py", {"a": 0, "b": 1, "c": 36, "d": None})
     other = write_meta(tool, "io/poller.py", {"f": 0, "g": 1})
-    assert tool.recheck_survivors({"io.tlog"}) == 2
-    assert codes_in(tlog) == {"a": None, "b": 1, "c": None, "d": 36, "e": None}
+    stats = trace(tool)
+    assert tool.recheck_survivors({"io.tlog"}, []) == 1
+    assert codes_in(tlog) == {"a": None, "b": 1, "c": 36, "d": None}
     assert codes_in(other) == {"f": 0, "g": 1}  # not a target: untouched
-    assert tool.recheck_survivors({"io"}) == 1  # a package takes its modules
+    assert tool.recheck_survivors({"io"}, []) == 1  # a package takes its modules
     assert codes_in(other) == {"f": None, "g": 1}
+    assert stats.exists()  # (the trace is kept: nothing read "no tests")
+
+
+def test_a_no_tests_verdict_that_is_not_a_reviewed_equivalent_has_every_test_traced_again(
+        tool):
+    """(A function moved to another module is reached by no test mutmut traced before.)"""
+    write_meta(tool, "io/tlog.py", {"mecanum_mav.io.tlog.x_f__mutmut_1": 33})
+    stats = trace(tool)
+    equivalent = tool.Equivalent("mecanum_mav.io.tlog.x_f__mutmut_1", "x = 1", "why")
+    assert tool.recheck_survivors({"io"}, [equivalent]) == 1
+    assert stats.exists()  # a reviewed equivalent: no test can reach it, as reviewed
+    write_meta(tool, "io/tlog.py", {"mecanum_mav.io.tlog.x_f__mutmut_1": 33})
+    assert tool.recheck_survivors({"io"}, []) == 1
+    assert not stats.exists()
 
 
 def test_the_score_leaves_out_equivalent_mutants_and_counts_timeouts_as_killed(tool):

@@ -245,13 +245,24 @@ def survivors(results: dict[str, dict[str, int | None]], targets: set[str],
     return "\n".join(out)
 
 
-def recheck_survivors(targets: set[str]) -> int:
+STATS_NAME = "mutmut-stats.json"
+"""mutmut's trace in mutants/: which tests reach which function, how long each test takes."""
+
+
+def recheck_survivors(targets: set[str], equivalents: list[Equivalent]) -> int:
     """Forget the targets' survivors (survived, no tests) so this run tries them again.
 
     mutmut keeps a verdict until the mutant's function changes; a survivor of an earlier run
     would stay one after the test that kills it was written. A killed mutant stays killed
-    (tests are added, not weakened: a weakened test shows in review). Returns how many."""
+    (tests are added, not weakened: a weakened test shows in review). Returns how many.
+
+    mutmut also keeps its trace, and traces only tests that are new: a function moved to
+    another module since (a new name to mutmut) is reached by no traced test, so its mutants
+    read "no tests" whatever the tests do. A "no tests" verdict that is not a reviewed
+    equivalent therefore deletes the trace: this run traces every test again first."""
     count = 0
+    stale_trace = False
+    equivalent = {e.name for e in equivalents}
     for meta in sorted((MUTANTS / PACKAGE).rglob("*.py.meta")):
         module = ".".join(meta.relative_to(MUTANTS).with_suffix("").with_suffix("").parts)
         if not selected(module, targets):
@@ -261,10 +272,13 @@ def recheck_survivors(targets: set[str]) -> int:
         again = [name for name, code in codes.items()
                  if code is not None and verdict(code) in SURVIVED]
         for name in again:
+            stale_trace |= verdict(codes[name]) == "no tests" and name not in equivalent
             codes[name] = None
         if again:
             meta.write_text(json.dumps(data, indent=4))
             count += len(again)
+    if stale_trace:
+        (MUTANTS / STATS_NAME).unlink(missing_ok=True)
     return count
 
 
@@ -306,9 +320,11 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"no package or module {', '.join(unknown)} in {PACKAGE}/")
     os.chdir(ROOT)  # mutmut reads its configuration and results from here
     if not args.report_only:
-        again = recheck_survivors(set(packages))
+        again = recheck_survivors(set(packages), load_equivalents())
         if again:
             print(f"mutation: {again} earlier survivors tried again against today's tests")
+        if not (MUTANTS / STATS_NAME).exists():
+            print("mutation: tracing every test first (which reaches which function)")
     if not args.report_only and run_mutmut(packages, args.jobs) != 0:
         print("mutation: mutmut failed (its output above)", file=sys.stderr)
         return 2
