@@ -417,3 +417,14 @@ def test_a_link_told_to_sign_without_a_key_packs_as_pymavlink_does():
     except Exception as exc:
         got = type(exc)
     assert got == expected
+
+
+@pytest.mark.parametrize("data", [b"", b"\x00", b"123456789", bytes(range(256))])
+def test_the_pure_python_crc_a_machine_without_fastcrc_uses_is_mavlinks_x25_crc(data):
+    """CRC-16/MCRF4XX (MAVLink's X.25): check value 0x6F91 for "123456789", and the same
+    as fastcrc's for any data, continued from any CRC."""
+    if data == b"123456789":
+        assert codec._slow_crc16(data, 0xFFFF) == 0x6F91
+    if codec._mcrf4xx is not None:
+        for start in (0xFFFF, 0x0000, 0x1234):
+            assert codec._slow_crc16(data, start) == codec._mcrf4xx(data, start)

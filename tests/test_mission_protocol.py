@@ -7,7 +7,12 @@ import math
 import pytest
 
 from mecanum_mav.protocol.dialect import mavlink
-from mecanum_mav.protocol.mission import MAX_ITEMS, MissionItem, item_from_fields
+from mecanum_mav.protocol.mission import (
+    MAX_ITEMS,
+    MissionItem,
+    command_name,
+    item_from_fields,
+)
 from mecanum_mav.protocol.missionservice import (
     ITEM_TIMEOUT_S,
     MAX_RETRIES,
@@ -469,3 +474,12 @@ def test_fence_messages_do_not_disturb_an_upload_in_progress():
     assert svc.uploading
     assert item(svc, wp(1)) == [ack(ACCEPTED)]
     assert len(svc.items) == 2
+
+
+def test_a_command_is_named_as_mavlink_names_it_and_a_number_without_a_name_as_a_number():
+    """(The names STATUSTEXTs and `mecanum-mav log` give items: MAV_CMD without its prefix.
+    MAV_CMD_ENUM_END is the dialect's end marker, not a command.)"""
+    assert command_name(mavlink.MAV_CMD_NAV_WAYPOINT) == "NAV_WAYPOINT"
+    assert command_name(mavlink.MAV_CMD_DO_CHANGE_SPEED) == "DO_CHANGE_SPEED"
+    assert command_name(mavlink.MAV_CMD_ENUM_END) == f"command {mavlink.MAV_CMD_ENUM_END}"
+    assert command_name(12345) == "command 12345"

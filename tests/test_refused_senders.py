@@ -9,6 +9,7 @@ from __future__ import annotations
 import hashlib
 import socket
 import time
+import tracemalloc
 from typing import Any
 
 import pytest
@@ -52,12 +53,13 @@ def test_a_refused_address_silent_for_the_timeout_is_forgotten_one_still_sending
 def test_the_table_keeps_the_most_recently_heard_addresses_and_drops_the_longest_silent():
     table = RefusedSenders()
     table.refused("first", Check.UNSIGNED, 0.0)
-    for n in range(MAX_REFUSED_SENDERS - 1):
+    for n in range(MAX_REFUSED_SENDERS - 2):
         table.refused(n, Check.UNSIGNED, 0.1 + n * 0.01)
-    table.refused("first", Check.UNSIGNED, 0.5)  # heard again: now the newest
-    table.refused("new", Check.UNSIGNED, 0.6)  # one too many: address 0 goes
+    table.refused("first", Check.UNSIGNED, 0.5)  # heard again (the table not yet full)
+    table.refused("new", Check.UNSIGNED, 0.6)  # the table full
+    table.refused("newer", Check.UNSIGNED, 0.7)  # one too many: address 0 goes
     assert len(table) == MAX_REFUSED_SENDERS
-    assert "first" in table and "new" in table and 0 not in table
+    assert "first" in table and "newer" in table and 0 not in table
 
 
 def test_a_forgotten_address_is_told_nothing_more():
@@ -66,6 +68,33 @@ def test_a_forgotten_address_is_told_nothing_more():
     table.forget("a")
     table.forget("never heard")
     assert table.due(1.0) == [] and len(table) == 0
+
+
+def test_a_flood_of_forged_addresses_costs_no_more_memory_than_eight_addresses_do():
+    """The module's promise: however many addresses are refused, told, forgotten for being
+    silent or for signing, the table holds what eight addresses need."""
+    table = RefusedSenders()
+
+    def flood(first: int, count: int) -> None:
+        for n in range(first, first + count):
+            now_s = n * 0.01
+            table.refused(("10.0.0.1", n), Check.UNSIGNED, now_s)
+            table.due(now_s)
+            if n % 3 == 0:
+                table.forget(("10.0.0.1", n - 1))  # (a peer now)
+            if n % 1000 == 0:
+                table.due(now_s + REFUSED_TIMEOUT_S + 1.0)  # (all silent too long)
+
+    flood(0, 2_000)  # (the dictionaries at their working size)
+    tracemalloc.start()
+    try:
+        before = tracemalloc.get_traced_memory()[0]
+        flood(2_000, 20_000)
+        grown = tracemalloc.get_traced_memory()[0] - before
+    finally:
+        tracemalloc.stop()
+    assert len(table) <= MAX_REFUSED_SENDERS
+    assert grown < 16_000, f"{grown} bytes more after 20,000 addresses"
 
 
 # --------------------------------------------------------------------------- the link

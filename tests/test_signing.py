@@ -45,15 +45,31 @@ def test_a_key_file_holds_64_hex_digits_or_a_passphrase_hashed_as_mavproxy_does(
     assert key_from_text("correct horse battery staple\n") == KEY
     assert key_from_text("pass phrase with spaces") == hashlib.sha256(
         b"pass phrase with spaces").digest()
+    assert key_from_text("Grüße aus Zürich") == hashlib.sha256(
+        "Grüße aus Zürich".encode()).digest()  # (UTF-8, as MAVProxy encodes it)
+
+
+@pytest.mark.parametrize("ending", ["\r\n", "\r"], ids=["CRLF", "CR"])
+def test_a_key_file_saved_with_a_windows_or_old_mac_line_end_is_the_same_key(ending: str):
+    """(A key file written by Notepad holds the line and CR LF: the key is the line's.)"""
+    assert key_from_text(KEY.hex() + ending) == KEY
+    assert key_from_text("correct horse battery staple" + ending) == KEY
+
+
+EMPTY = "empty: expected 64 hex digits or a passphrase"
+LINES = "more than one line: expected 64 hex digits or a passphrase"
 
 
 @pytest.mark.parametrize(("text", "why"), [
-    ("", "empty"), ("\n", "empty"), ("   \n", "empty"), ("one\ntwo\n", "more than one line"),
-    ("abcdef0123", "10 hex digits"), (KEY.hex()[:-1], "63 hex digits"),
-    (KEY.hex() * 2, "128 hex digits")])
+    ("", EMPTY), ("\n", EMPTY), ("   \n", EMPTY), ("\r\n", EMPTY),
+    ("one\ntwo\n", LINES), ("one\rtwo", LINES), ("one\r\ntwo\r\n", LINES),
+    ("abcdef0123", "10 hex digits: a key is exactly 64"),
+    (KEY.hex()[:-1], "63 hex digits: a key is exactly 64"),
+    (KEY.hex() * 2, "128 hex digits: a key is exactly 64")])
 def test_a_key_file_that_is_not_a_key_is_refused_with_the_reason(text, why):
-    with pytest.raises(SigningKeyError, match=why):
+    with pytest.raises(SigningKeyError) as refused:
         key_from_text(text)
+    assert str(refused.value) == why
 
 
 def test_the_timestamp_counts_10_us_ticks_since_2015():

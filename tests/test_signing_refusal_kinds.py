@@ -21,3 +21,6 @@ def test_a_long_unsigned_packet_is_refused_as_unsigned_not_as_a_bad_signature():
     check = SignatureCheck(KEY, now_ticks=0)
     assert check.check(unsigned_packet()) is Check.UNSIGNED
     assert check.take_rejections() == {Check.UNSIGNED: 1}
+    assert check.new_rejections == 0  # (the loop's cheap test: nothing new since)
+    assert check.take_rejections() == {}
+    assert check.summary() == "unsigned 1"  # (the total, kept)

@@ -14,6 +14,7 @@ from typing import Any
 import pytest
 from conftest import lockstep
 
+import mecanum_mav
 from mecanum_mav.config.params import Params
 from mecanum_mav.control.core import RoverCore
 from mecanum_mav.io.links import mavlink
@@ -146,6 +147,44 @@ def test_request_message_answers_autopilot_version_and_home_position(harness):
     version = h.gcs.received("AUTOPILOT_VERSION", since)[0]
     assert version.capabilities & CMD.MAV_PROTOCOL_CAPABILITY_MAVLINK2
     assert version.capabilities & CMD.MAV_PROTOCOL_CAPABILITY_PARAM_FLOAT
+
+
+def test_autopilot_version_claims_what_the_companion_honours_and_gives_its_version(harness):
+    """AUTOPILOT_VERSION (MAVLink): the capabilities are the protocol features a ground
+    station may use with us (MAVLink 2, float parameters, COMMAND_INT, MISSION_ITEM_INT) and
+    no others; flight_sw_version is the package's version as ArduPilot packs its own: major,
+    minor and patch in the top three bytes, FIRMWARE_VERSION_TYPE_OFFICIAL (255) in the last."""
+    h = harness
+    since = h.gcs.mark()
+    h.gcs.command(CMD.MAV_CMD_REQUEST_MESSAGE, CMD.MAVLINK_MSG_ID_AUTOPILOT_VERSION)
+    [version] = h.gcs.received("AUTOPILOT_VERSION", since)
+    assert version.capabilities == (CMD.MAV_PROTOCOL_CAPABILITY_MAVLINK2
+                                    | CMD.MAV_PROTOCOL_CAPABILITY_PARAM_FLOAT
+                                    | CMD.MAV_PROTOCOL_CAPABILITY_COMMAND_INT
+                                    | CMD.MAV_PROTOCOL_CAPABILITY_MISSION_INT)
+    sw = version.flight_sw_version
+    major, minor, patch = (int(part) for part in mecanum_mav.__version__.split(".")[:3])
+    assert (sw >> 24, sw >> 16 & 0xFF, sw >> 8 & 0xFF, sw & 0xFF) == (major, minor, patch, 255)
+
+
+@pytest.mark.parametrize("origin", [None, (473_977_420, 85_455_940, 488_123)],
+                         ids=["no global origin", "origin set"])
+def test_home_position_is_the_local_origin_at_its_latitude_and_longitude_once_known(origin):
+    """HOME_POSITION: home is where the local frame starts (x = y = z = 0, level: q is the
+    identity), at the global origin's latitude, longitude (1e-7 deg) and altitude (mm), as
+    SET_GPS_GLOBAL_ORIGIN gave them; all 0 while the rover has none. time_usec is the time
+    since boot."""
+    h = lockstep()
+    if origin is not None:
+        h.gcs.mav.set_gps_global_origin_send(1, *origin)
+    assert h.gcs.wait("HEARTBEAT", timeout_s=1.5) is not None  # (some time since boot)
+    since = h.gcs.mark()
+    h.gcs.command(CMD.MAV_CMD_REQUEST_MESSAGE, CMD.MAVLINK_MSG_ID_HOME_POSITION)
+    [home] = h.gcs.received("HOME_POSITION", since)
+    assert (home.latitude, home.longitude, home.altitude) == (origin or (0, 0, 0))
+    assert (home.x, home.y, home.z) == (0.0, 0.0, 0.0)
+    assert list(home.q) == [1.0, 0.0, 0.0, 0.0]
+    assert 0 < home.time_usec <= 1e6 * h.now_s
 
 
 def test_request_message_for_an_unknown_message_is_denied(harness):
