@@ -144,8 +144,9 @@ def test_a_physics_process_that_dies_while_starting_stops_the_twin(tmp_path):
     killer = threading.Thread(target=kill_the_bridge)
     killer.start()
     try:
-        with pytest.raises(TwinError, match=r"the bridge \(physics\) process exited"):
+        with pytest.raises(TwinError, match=r"the bridge \(physics\) process exited") as raised:
             start(twin, 10.0)
+        assert "\nbridge: exited; 0 frames" in str(raised.value)
     finally:
         killer.join()
 
@@ -160,9 +161,11 @@ def test_a_failed_setup_fc_stops_the_twin_with_its_status_and_output(tmp_path):
 
 def test_a_setup_fc_that_does_not_end_is_given_up_at_the_start_timeout(tmp_path):
     twin = Twin(stand_in(tmp_path, "beat"))
-    with pytest.raises(TwinError, match=r"setup-fc did not end within 1\.5 s"):
+    with pytest.raises(TwinError, match=r"setup-fc did not end within 1\.5 s") as raised:
         start(twin, 1.5)
     assert twin.companion is None
+    # (what the bridge answered: here nothing, the stand-in sends no servo packets)
+    assert "\nbridge: running; 0 frames (0 restarts, 0 malformed)" in str(raised.value)
 
 
 def test_a_companion_that_dies_while_starting_stops_the_twin_with_its_log(tmp_path):

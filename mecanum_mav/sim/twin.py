@@ -191,7 +191,7 @@ class Twin(Started):
                                   check=False)
         except subprocess.TimeoutExpired as exc:
             raise TwinError(f"setup-fc did not end within {timeout_s:g} s\n"
-                            f"{self.firmware.log()}") from exc
+                            f"{self.why()}") from exc
         self.setup_output = done.stdout
         if done.returncode != 0 or SETUP_OK not in done.stdout:
             raise TwinError(f"setup-fc --apply --reboot failed ({done.returncode}):\n"
@@ -242,11 +242,27 @@ class Twin(Started):
         return ""
 
     def why(self) -> str:
-        """The tails of the firmware's and the companion's output (for error messages)."""
+        """The tails of the firmware's and the companion's output and what the bridge has
+        answered (for error messages)."""
         parts = [f"firmware: {self.firmware.log() if self.firmware else ''}"]
         if self.companion is not None:
             parts.append(f"companion: {self.companion.log()}")
+        parts.append(f"bridge: {self.bridge_summary()}")
         return "\n".join(parts)
+
+    def bridge_summary(self) -> str:
+        """One line: whether the physics process runs and what it has answered, e.g.
+        ``running; 12034 frames (1 restart, 0 malformed), last 0.0 s ago``: a firmware that
+        says "No JSON sensor message received" while the count stands still was not answered."""
+        if self.bridge is None:
+            return "not started"
+        state = "running" if self.bridge.alive() else "exited"
+        stats = self.bridge.record.stats()
+        line = (f"{state}; {stats.frames} frames ({stats.restarts} restart"
+                f"{'' if stats.restarts == 1 else 's'}, {stats.malformed} malformed)")
+        if stats.frames:
+            line += f", last {time.monotonic() - self.bridge.record.truth_now().wall_s:.1f} s ago"
+        return line
 
     @property
     def firmware_pid(self) -> int | None:
