@@ -510,3 +510,27 @@ def test_mission_start_past_the_last_item_or_while_auto_cannot_start_is_refused(
     ack = empty.gcs.command(mavlink.MAV_CMD_MISSION_START, 0, 0)
     assert ack is not None and ack.result != CMD_ACCEPTED  # no mission: AUTO refused
     assert empty.core.vehicle.mode is not Mode.AUTO
+
+
+# --------------------------------------------------------------------------- MISSION_START
+
+
+@pytest.mark.parametrize(("first", "expected"), [(1, 1), (2, 2), (0, 3)],
+                         ids=["from item 1", "from item 2", "0 resumes at the current item"])
+def test_mission_start_runs_auto_from_its_first_item_or_resumes_with_0(first, expected):
+    """MAV_CMD_MISSION_START: param1 is the first item to run; 0 (ArduPilot) keeps the current
+    one. Item 1, the first after home, is an item like any other."""
+    h = with_line()
+    assert current_after(h, lambda: h.gcs.mav.mission_set_current_send(1, 1, 3)) == 3
+    ack = h.gcs.command(mavlink.MAV_CMD_MISSION_START, first)
+    assert ack is not None and ack.result == CMD_ACCEPTED
+    assert h.core.vehicle.mode is Mode.AUTO
+    assert h.core.mission.executor.current == expected
+
+
+@pytest.mark.parametrize("mission", [False, True], ids=["no mission", "no such item"])
+def test_mission_start_that_cannot_run_is_denied_and_the_mode_kept(mission):
+    h = with_line() if mission else lockstep()
+    ack = h.gcs.command(mavlink.MAV_CMD_MISSION_START, len(LINE) if mission else 0)
+    assert ack is not None and ack.result == mavlink.MAV_RESULT_DENIED
+    assert h.core.vehicle.mode is not Mode.AUTO
