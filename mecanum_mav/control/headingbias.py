@@ -206,18 +206,14 @@ class HeadingBias:
     def _bends(self, start: _Sample, now: _Sample) -> bool:
         """Whether the raw path from :data:`TURN_GUARD_S` before ``start`` (or the oldest
         sample) to ``now`` turns: its two halves' chords more than :data:`TURN_GUARD_RAD`
-        apart."""
-        first: _Sample | None = None
-        mid, half = None, math.inf
-        for sample in self._samples:  # oldest first
-            if first is None:
-                if sample.time_s < start.time_s - TURN_GUARD_S:
-                    continue
-                first, half = sample, (sample.path_m + now.path_m) / 2.0
-            if sample.path_m >= half:
-                mid = sample
-                break
-        if first is None or mid is None or mid is first or mid is now:
+        apart. ``now`` is the newest sample (so the path has a first sample and a middle one,
+        ``now`` at the latest: the path only grows)."""
+        guard_s = start.time_s - TURN_GUARD_S
+        recent = [sample for sample in self._samples if sample.time_s >= guard_s]
+        first = recent[0]
+        half = (first.path_m + now.path_m) / 2.0
+        mid = next(sample for sample in recent if sample.path_m >= half)
+        if mid is first or mid is now:
             return False
         before = math.atan2(mid.raw[1] - first.raw[1], mid.raw[0] - first.raw[0])
         after = math.atan2(now.raw[1] - mid.raw[1], now.raw[0] - mid.raw[0])
