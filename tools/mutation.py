@@ -254,7 +254,8 @@ def recheck_survivors(targets: set[str], equivalents: list[Equivalent]) -> int:
 
     mutmut keeps a verdict until the mutant's function changes; a survivor of an earlier run
     would stay one after the test that kills it was written. A killed mutant stays killed
-    (tests are added, not weakened: a weakened test shows in review). Returns how many.
+    (tests are added, not weakened: a weakened test shows in review), and so does a reviewed
+    equivalent (mutmut runs it again when its function changes). Returns how many.
 
     mutmut also keeps its trace, and traces only tests that are new: a function moved to
     another module since (a new name to mutmut) is reached by no traced test, so its mutants
@@ -269,10 +270,10 @@ def recheck_survivors(targets: set[str], equivalents: list[Equivalent]) -> int:
             continue
         data = json.loads(meta.read_text())
         codes = data.get("exit_code_by_key", {})
-        again = [name for name, code in codes.items()
-                 if code is not None and verdict(code) in SURVIVED]
+        again = [name for name, code in codes.items() if code is not None
+                 and verdict(code) in SURVIVED and name not in equivalent]
         for name in again:
-            stale_trace |= verdict(codes[name]) == "no tests" and name not in equivalent
+            stale_trace |= verdict(codes[name]) == "no tests"
             codes[name] = None
         if again:
             meta.write_text(json.dumps(data, indent=4))
