@@ -59,13 +59,10 @@ class Poller(selectors.EpollSelector):
         """Wait up to ``timeout_s`` seconds (at least that long when nothing is ready: epoll
         counts in milliseconds, so it is rounded up); the ready descriptors' data and events."""
         timeout = math.ceil(timeout_s * 1e3) * 1e-3 if timeout_s > 0.0 else 0.0
-        data = self._data
-        try:
-            ready = self._epoll.poll(timeout, len(data) or 1)
-        except InterruptedError:
-            return []
+        data = self._data  # (every registered descriptor's: epoll reports no other)
+        # (A signal during the wait: Python retries it with the time left, PEP 475.)
+        ready = self._epoll.poll(timeout, len(data) or 1)
         out = []
         for fd, events in ready:  # (a loop, not a comprehension: no frame of its own in 3.11)
-            if fd in data:
-                out.append((data[fd], events))
+            out.append((data[fd], events))
         return out

@@ -1,0 +1,57 @@
+"""The loop's poller (mecanum_mav/io/poller.py): a selector whose wait gives each ready
+descriptor's registered data (the latest, after a modify) with its epoll events, waits at
+least the time asked when nothing is ready (epoll's milliseconds rounded up), goes on waiting
+through a signal, and reports nothing for a descriptor it no longer watches."""
+
+from __future__ import annotations
+
+import select
+import selectors
+import signal
+import socket
+import threading
+import time
+
+from mecanum_mav.io.poller import READABLE, Poller
+
+
+def test_wait_gives_the_data_of_the_latest_registration_or_modify_with_its_events():
+    a, b = socket.socketpair()
+    with Poller() as poller, a, b:
+        poller.register(a, selectors.EVENT_READ, "reading")
+        assert poller.wait(0.0) == []  # nothing to read
+        poller.modify(a, selectors.EVENT_READ | selectors.EVENT_WRITE, "writing too")
+        [(data, events)] = poller.wait(0.0)
+        assert data == "writing too" and events & select.EPOLLOUT and not events & READABLE
+        b.send(b"x")
+        [(data, events)] = poller.wait(0.0)
+        assert events & select.EPOLLIN and events & select.EPOLLOUT
+        poller.unregister(a)
+        assert poller.wait(0.0) == []
+
+
+def test_an_idle_wait_lasts_at_least_the_time_asked():
+    with Poller() as poller:
+        for timeout_s in (0.0004, 0.0101):  # (under a millisecond; between two)
+            started = time.monotonic()
+            assert poller.wait(timeout_s) == []
+            assert time.monotonic() - started >= timeout_s
+
+
+def test_a_signal_during_a_wait_does_not_cut_it_short():
+    """(A handled SIGUSR1 — the companion's status request — arrives mid-wait.)"""
+    got: list[int] = []
+    previous = signal.signal(signal.SIGUSR1, lambda signum, frame: got.append(signum))
+    main = threading.main_thread().ident
+    assert main is not None
+    timer = threading.Timer(0.05, lambda: signal.pthread_kill(main, signal.SIGUSR1))
+    try:
+        with Poller() as poller:
+            started = time.monotonic()
+            timer.start()
+            assert poller.wait(0.2) == []
+            assert time.monotonic() - started >= 0.2
+    finally:
+        timer.cancel()
+        signal.signal(signal.SIGUSR1, previous)
+    assert got == [signal.SIGUSR1]
