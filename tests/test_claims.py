@@ -12,7 +12,12 @@ from pathlib import Path
 import pytest
 from support import wait_until
 
-from mecanum_mav.io.claims import InUseError, claim_ground_station
+from mecanum_mav.io.claims import (
+    InUseError,
+    claim_ground_station,
+    ground_station_claim,
+    runtime_dir,
+)
 from mecanum_mav.sim.process import CliProcess, free_port
 
 
@@ -67,3 +72,36 @@ def test_a_second_rover_with_the_same_id_and_ground_station_exits_2_until_the_fi
         with CliProcess(["run", "--fc", "sim", "--gcs", gcs], tmp_path / "third") as third:
             assert wait_until(lambda: started(third), 20.0), third.log()
             assert third.stop(10.0) == 0, third.log()
+
+
+def test_a_claims_folder_that_is_a_link_or_a_file_is_refused_not_followed(tmp_path: Path):
+    """(In /tmp another user could plant ``mecanum-mav-UID`` as a link to a folder of theirs,
+    and so decide which rovers this user may start.)"""
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    planted = tmp_path / "mecanum-mav"
+    planted.symlink_to(elsewhere)
+    with pytest.raises(OSError, match=f"{planted} is not a folder of this user's"):
+        runtime_dir()
+    planted.unlink()
+    planted.write_text("")
+    with pytest.raises(OSError, match="not a folder of this user's"):
+        runtime_dir()
+
+
+def lock_name(url: str) -> str:
+    claim = ground_station_claim(1, url)
+    assert claim is not None
+    return claim[0]
+
+
+@pytest.mark.parametrize(("url", "same"), [
+    ("udpout:localhost:14550", "udpout:127.0.0.1:14550"),
+    ("udpout:LOCALHOST:14550", "udpout:localhost:14550"),
+    ("udpout:A..B:14550", "udpout:a..b:14550"),  # (no address: IDNA refuses an empty label)
+])
+def test_one_destination_named_two_ways_is_one_claim(url: str, same: str):
+    """A sending link's claim is its destination's address where the name resolves, the name
+    (case aside) where it does not; another port is another claim."""
+    assert lock_name(url) == lock_name(same)
+    assert lock_name(url) != lock_name(url.replace("14550", "14551"))

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import hashlib
+import os
 
 import pytest
 from conftest import lockstep
@@ -197,6 +198,19 @@ def test_a_key_file_that_holds_no_key_is_refused_naming_the_file(tmp_path, conte
 def test_a_missing_key_file_is_refused_naming_it(tmp_path):
     with pytest.raises(KeyFileError, match="No such file"):
         load_signing_key(tmp_path / "absent.key")
+
+
+@pytest.mark.parametrize("kind", ["folder", "fifo"])
+def test_a_key_path_that_is_not_a_regular_file_is_refused_without_reading_it(tmp_path, kind):
+    """(A FIFO would block the start for ever: it is not opened.)"""
+    path = tmp_path / "rover.key"
+    if kind == "folder":
+        path.mkdir(mode=0o700)
+    else:
+        os.mkfifo(path, 0o600)
+    with pytest.raises(KeyFileError) as info:
+        load_signing_key(path)
+    assert str(info.value) == f"signing key {path}: not a regular file"
 
 
 # --------------------------------------------------------------------------- the parser
