@@ -105,3 +105,13 @@ def test_one_destination_named_two_ways_is_one_claim(url: str, same: str):
     (case aside) where it does not; another port is another claim."""
     assert lock_name(url) == lock_name(same)
     assert lock_name(url) != lock_name(url.replace("14550", "14551"))
+
+
+def test_a_claims_folder_that_cannot_be_made_is_refused_saying_where_and_why(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch):
+    """(XDG_RUNTIME_DIR of a session that has ended, or of another user after ``su``.)"""
+    monkeypatch.setenv("XDG_RUNTIME_DIR", str(tmp_path / "gone"))
+    with pytest.raises(OSError) as refused:
+        runtime_dir()
+    assert str(refused.value) == (f"cannot keep the rover claims in {tmp_path}/gone/mecanum-mav:"
+                                  " No such file or directory (from XDG_RUNTIME_DIR)")

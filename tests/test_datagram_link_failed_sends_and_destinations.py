@@ -6,9 +6,11 @@ destination."""
 
 from __future__ import annotations
 
+import os
 import select
 import socket
 
+import pytest
 from test_links import failing_link
 
 from mecanum_mav.io.links import mavlink, mavutil, open_link
@@ -81,3 +83,26 @@ def test_only_a_udpout_connection_has_a_fixed_destination_its_host_resolved_once
     finally:
         for conn in conns.values():
             conn.close()
+
+
+@pytest.mark.parametrize("url", ["udpin:127.0.0.1:0", "udpout:127.0.0.1:9"],
+                         ids=["answering its peers", "connected to its destination"])
+def test_a_datagram_link_whose_socket_fails_every_read_reads_nothing_and_never_raises(url):
+    """(The socket's descriptor made a folder's: every read fails with ENOTSOCK, not a "none
+    waits" error.)"""
+    link = open_link(url, source_system=255, source_component=190, name="gcs")
+    folder = os.open("/", os.O_RDONLY)
+    try:
+        os.dup2(folder, link.fileno())
+        assert link.receive_datagram() is None
+        assert link.read() == []
+    finally:
+        os.close(folder)
+        link.close()
+
+
+def test_a_udpout_host_that_is_no_host_name_is_refused_when_the_link_opens():
+    """(``rover..local``: IDNA refuses an empty label; pymavlink would raise at each send.)"""
+    with pytest.raises(ValueError, match=r"cannot open gcs link 'udpout:rover\.\.local:14550'"):
+        open_link("udpout:rover..local:14550", source_system=255, source_component=190,
+                  name="gcs")

@@ -46,8 +46,13 @@ def runtime_dir() -> Path:
     """
     base = os.environ.get("XDG_RUNTIME_DIR")
     path = (Path(base) / "mecanum-mav") if base else Path(f"/tmp/mecanum-mav-{os.getuid()}")
-    with contextlib.suppress(FileExistsError):
+    try:
         path.mkdir(mode=0o700)
+    except FileExistsError:
+        pass
+    except OSError as exc:  # (XDG_RUNTIME_DIR gone, or another user's after su)
+        raise OSError(f"cannot keep the rover claims in {path}: {exc.strerror or exc}"
+                      f"{' (from XDG_RUNTIME_DIR)' if base else ''}") from None
     info = path.lstat()
     if not stat.S_ISDIR(info.st_mode) or info.st_uid != os.getuid():
         raise OSError(f"{path} is not a folder of this user's: cannot keep the rover claims "
