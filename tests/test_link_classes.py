@@ -82,3 +82,21 @@ def test_a_datagram_link_never_goes_down_and_nothing_waits_in_it(url):
         assert link.wait_fd() == link.fileno()
     finally:
         link.close()
+
+
+def test_a_serial_link_is_paced_to_the_urls_baud_rate_and_refused_without_one():
+    """8N1: ten bits a byte on the wire (pymavlink's 115200 where the URL gives no rate); a
+    rate of 0 cannot carry anything and is refused when the link opens."""
+    port = RawPty()
+    try:
+        for url, bytes_per_s in ((f"{port.path},57600", 5760.0), (port.path, 11520.0)):
+            link = open_link(url, source_system=255, source_component=190, name="fc")
+            try:
+                assert link.bytes_per_s == bytes_per_s
+            finally:
+                link.close()
+        with pytest.raises(ValueError, match=f"cannot open fc link '{port.path},0': baud rate "
+                                             "0: a serial link needs a positive one"):
+            open_link(f"{port.path},0", source_system=255, source_component=190, name="fc")
+    finally:
+        port.close()

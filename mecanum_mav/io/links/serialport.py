@@ -55,13 +55,14 @@ class SerialLink(StreamLink):
 
     def __init__(self, conn: Any, *, url: str, name: str, signing_key: bytes | None,
                  clock: Callable[[], float]) -> None:
-        baud = int(getattr(conn, "baud", 0) or 0)
-        self.bytes_per_s = baud / 10.0 if baud > 0 else None
-        """The wire's capacity (8N1 at the URL's baud rate; None: not known)."""
+        baud = int(conn.baud)  # (pymavlink's: the URL's, 115200 where it gives none)
+        if baud <= 0:
+            raise ValueError(f"baud rate {baud}: a serial link needs a positive one")
+        self.bytes_per_s = baud / 10.0
+        """The wire's capacity: 8N1 at the URL's baud rate (bytes/s)."""
         self._wire_free_s = 0.0  # when what was handed over is on the wire (clock s)
         self._next_look_s = -math.inf  # when the lane's path next asks the kernel (clock s)
-        limit = (max(QUEUE_MIN_BYTES, int(QUEUE_S * self.bytes_per_s))
-                 if self.bytes_per_s is not None else QUEUE_MIN_BYTES)
+        limit = max(QUEUE_MIN_BYTES, int(QUEUE_S * self.bytes_per_s))
         super().__init__(conn, url=url, name=name, signing_key=signing_key, clock=clock,
                          queue_limit=limit)
 
@@ -79,8 +80,6 @@ class SerialLink(StreamLink):
 
     def _backlog_s(self, now: float) -> float:
         rate = self.bytes_per_s
-        if rate is None:
-            return 0.0
         in_kernel = queued_bytes(self._port_fd, termios.TIOCOUTQ)
         if in_kernel:  # the device is slower than its baud rate says: follow the device
             self._wire_free_s = max(self._wire_free_s, now + in_kernel / rate)
@@ -93,14 +92,12 @@ class SerialLink(StreamLink):
     def _sent_now(self, now: float) -> None:
         """After the lane's write: what the kernel holds, at most every
         :data:`KERNEL_LOOK_S` (a syscall costs about as much as the write)."""
-        if self.bytes_per_s is not None and now >= self._next_look_s:
+        if now >= self._next_look_s:
             self._next_look_s = now + KERNEL_LOOK_S
             self._backlog_s(now)  # a device slower than its baud rate: follow the device
 
     def _handed(self, n: int, now: float) -> None:
-        rate = self.bytes_per_s
-        if rate is not None:
-            self._wire_free_s = max(self._wire_free_s, now) + n / rate
+        self._wire_free_s = max(self._wire_free_s, now) + n / self.bytes_per_s
 
     def _drop_pending(self) -> None:
         super()._drop_pending()
