@@ -193,6 +193,29 @@ def test_an_unplugged_serial_link_tries_to_reopen_exactly_every_half_second_unti
             back.unplug()
 
 
+def test_a_serial_path_that_reappears_as_something_else_than_a_tty_keeps_the_link_down_trying(
+        tmp_path: Path) -> None:
+    """(A udev name briefly pointing elsewhere, or a file left at the path: it is not opened
+    as the board; the link goes on trying every half second, and opens the tty once it is
+    back.)"""
+    clock = FakeClock()
+    with serial(tmp_path, 57600, clock) as (link, pty):
+        pty.unplug()
+        link.send_rc_override(1, 1, override(1500))
+        link.read()
+        assert not link.up
+        Path(pty.path).write_text("not a serial device\n")
+        tried = step_reopen(link, clock, START_S + 1.1)
+        assert tried == [START_S + 0.5, START_S + 1.0] and not link.up
+        Path(pty.path).unlink()
+        back = Pty(Path(pty.path))
+        try:
+            assert step_reopen(link, clock, START_S + 2.0) == [START_S + 1.5]
+            assert link.up
+        finally:
+            back.unplug()
+
+
 def test_a_tcp_link_whose_server_is_gone_tries_to_connect_exactly_every_half_second(
         tmp_path: Path) -> None:
     clock = FakeClock()
