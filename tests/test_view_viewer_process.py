@@ -22,6 +22,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from support import wait_until
 
 pytest.importorskip("rerun", reason="the view extra (rerun-sdk) is not installed")
 
@@ -43,7 +44,8 @@ with socket.socket() as s:
     s.bind(("127.0.0.1", int(args[args.index("--port") + 1])))
     s.listen()
     seen["listening_at"] = time.time()
-    open({record!r}, "w").write(json.dumps(seen))
+    open({record!r} + ".part", "w").write(json.dumps(seen))
+    os.replace({record!r} + ".part", {record!r})  # (whole, or not there yet)
     time.sleep(60)  # (a window, or a server, until it is stopped)
 """
 """A viewer that records its command line and how it was started, then listens on
@@ -78,6 +80,9 @@ def _grpc_port(viewer: Viewer) -> int:
 
 
 def _seen(record: Path) -> dict[str, Any]:
+    """What the fake viewer recorded (it records right after it listens: serve_rrd, which
+    returns once it listens, can be a moment ahead of the record)."""
+    assert wait_until(record.exists, 10.0), "the fake viewer recorded nothing"
     return dict(json.loads(record.read_text()))
 
 
