@@ -174,8 +174,7 @@ def _sys_status(mav: Any, t: TelemetryState) -> None:
 def _servo_output_raw(mav: Any, t: TelemetryState) -> None:
     servos = [0] * 16
     for channel, pulse in zip(t.channels, t.pulses_us, strict=False):
-        if channel <= 16:
-            servos[channel - 1] = pulse
+        servos[channel - 1] = pulse  # (a wheel's channel is 1-16: WHL_<W>_CH's range)
     mav.servo_output_raw_send(t.boot_us & 0xFFFFFFFF, 0, *servos)
 
 
