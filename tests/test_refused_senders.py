@@ -251,3 +251,16 @@ def test_a_peer_that_sends_an_unsigned_packet_gets_its_heartbeat_once_not_a_hint
     link.send(rover_heartbeat())
     assert kinds(received(pilot)) == ["HEARTBEAT"]
     assert link.refused_senders is not None and len(link.refused_senders) == 0
+
+
+def test_a_hint_the_kernel_refuses_to_send_is_counted_and_the_heartbeat_still_goes_out():
+    """(A refused sender at an address the kernel will not send to, here the broadcast
+    address without SO_BROADCAST: EACCES. The hint is a failed send, counted, never raised;
+    the peers' heartbeat went out before it.)"""
+    link = signed_udpin()
+    try:
+        link.refused_senders.refused(("255.255.255.255", 9), Check.UNSIGNED, link.clock())
+        assert link.send(rover_heartbeat())  # (no peer yet: nothing to send it to)
+        assert (link.hints_sent, link.send_errors) == (0, 1)
+    finally:
+        link.close()
