@@ -10,6 +10,8 @@ from pathlib import Path
 from types import SimpleNamespace
 from typing import Any
 
+import pytest
+
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tools"))
 
 import bench_control
@@ -71,6 +73,21 @@ def test_gps_fixes_without_an_rtk_fix_are_not_a_track():
     fc.on_gps(gps_fix(1, 5.0, 4), 1.3)
     fc.on_gps(gps_fix(6, 1.0, 5), 1.4)  # RTK fixed
     assert [(round(n, 2), round(e, 2)) for n, e in seen] == [(0.0, 0.0), (1.0, 0.0)]
+
+
+def test_an_rtk_fix_not_on_earth_is_ignored_and_the_next_good_one_is_the_first():
+    """(A GPS_RAW_INT whose latitude or longitude is out of range: no origin is made of it,
+    nothing reaches the estimator, and the first good fix becomes the origin.)"""
+    fc = lockstep().core._fc
+    seen: list[tuple[float, float]] = []
+    fc.estimator = SimpleNamespace(on_gps=lambda n, e, now_s: seen.append((n, e)))
+    for time_usec, (lat, lon) in enumerate([(91 * 10**7, 0), (0, 181 * 10**7)], start=1):
+        fc.on_gps(SimpleNamespace(fix_type=6, time_usec=time_usec, lat=lat, lon=lon), 1.0)
+    assert seen == []
+    fc.on_gps(gps_fix(6, 2.0, 10), 1.1)
+    fc.on_gps(gps_fix(6, 3.0, 11), 1.2)
+    assert seen[0] == (0.0, 0.0)  # the first good fix: the origin
+    assert seen[1] == pytest.approx((1.0, 0.0), abs=0.02)  # (1e-7 degrees: about 1.1 cm)
 
 
 def gps_fix(fix_type: int, north_m: float, time_usec: int) -> Any:

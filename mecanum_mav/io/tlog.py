@@ -89,10 +89,8 @@ class TlogRead:
 
 
 def _packet_len(data: bytes | bytearray, start: int) -> int | None:
-    """Length of the MAVLink packet starting at ``start``, from its header; None if no packet
-    starts there (or its header is cut off)."""
-    if start >= len(data):
-        return None
+    """Length of the MAVLink packet starting at ``start`` (inside ``data``), from its header;
+    None if no packet starts there (or its header is cut off)."""
     magic = data[start]
     if magic == _V2:
         if start + 3 > len(data):
