@@ -12,6 +12,7 @@ from __future__ import annotations
 import functools
 import math
 import re
+import sys
 
 from mecanum_mav.app import demo
 from mecanum_mav.app.cli import main
@@ -93,3 +94,20 @@ def test_run_demo_tells_each_leg_in_order_as_the_result_keeps_it():
     told: list[tuple[int, demo.LegReport]] = []
     result = demo.run_demo(side_m=0.6, virtual=True, on_leg=lambda k, leg: told.append((k, leg)))
     assert told == list(enumerate(result.legs, start=1)) and len(told) == 5
+
+
+def test_demo_without_matplotlib_drives_and_reports_and_says_how_to_get_the_figure(
+        tmp_path, capsys, monkeypatch):
+    """(matplotlib is the `plot` extra: without it the demo still runs; the PNG is skipped
+    with the install command, and the exit status is 0.)"""
+    monkeypatch.setattr(demo, "run_demo", functools.partial(demo.run_demo, virtual=True))
+    for name in [m for m in sys.modules if m == "matplotlib" or m.startswith("matplotlib.")]:
+        monkeypatch.delitem(sys.modules, name)
+    monkeypatch.setitem(sys.modules, "matplotlib", None)  # (import matplotlib: ImportError)
+    png = tmp_path / "demo.png"
+    assert main(["demo", "--side", "0.6", "--png", str(png)]) == 0
+    out, err = capsys.readouterr()
+    assert len([line for line in out.splitlines() if line[:1].isdigit()]) == 5
+    assert err == ("mecanum-mav demo: no PNG: plotting needs matplotlib: "
+                   "pip install 'mecanum-mav[plot]'\n")
+    assert not png.exists()

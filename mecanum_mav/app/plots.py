@@ -33,7 +33,7 @@ def _pyplot() -> Any:
 
         mpl.use("Agg")
         import matplotlib.pyplot as plt
-    except ImportError as exc:  # pragma: no cover - depends on the environment
+    except ImportError as exc:
         raise RuntimeError(
             "plotting needs matplotlib: pip install 'mecanum-mav[plot]'"
         ) from exc
