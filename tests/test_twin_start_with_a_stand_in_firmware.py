@@ -16,6 +16,8 @@ from pathlib import Path
 import pytest
 from support import wait_until
 
+from mecanum_mav.app.twin import run_twin
+from mecanum_mav.config.params import Params
 from mecanum_mav.sim.twin import Twin, TwinError
 
 pytestmark = pytest.mark.skipif(importlib.util.find_spec("mujoco") is None,
@@ -44,17 +46,21 @@ if BEHAVIOUR == "hog":  # the companion's port (SERIAL0's peer) is taken
     hog.bind(("127.0.0.1", port("--serial0")))
 sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
 mav = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
-while True:
+end = time.monotonic() + (4.0 if BEHAVIOUR == "crash" else float("inf"))
+while time.monotonic() < end:
     beat = mav.heartbeat_encode(mavlink.MAV_TYPE_GROUND_ROVER,
                                 mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA, 0, 0, 3)
     sock.sendto(beat.pack(mav), ("127.0.0.1", port("--serial1")))
     time.sleep(0.1)
+print("stand-in: crashed", flush=True)
+sys.exit(5)
 """
 
 
 def stand_in(folder: Path, behaviour: str) -> Path:
     """An ``ardurover`` that ``exit``s at once (status 3), stays ``silent``, ``beat``s
-    (HEARTBEAT on SERIAL1 at 10 Hz) or beats and ``hog``s the companion's port."""
+    (HEARTBEAT on SERIAL1 at 10 Hz), beats and ``hog``s the companion's port, or beats for
+    4 s and then ``crash``es (status 5)."""
     folder.mkdir(parents=True, exist_ok=True)
     binary = folder / "ardurover"
     binary.write_text(STAND_IN.format(python=sys.executable, behaviour=behaviour))
@@ -174,3 +180,31 @@ def test_a_companion_that_dies_while_starting_stops_the_twin_with_its_log(tmp_pa
         start(twin, 20.0)
     said = str(raised.value)
     assert "\ncompanion: " in said and "nonsense:1" in said.split("\ncompanion: ", 1)[1]
+
+
+# ---------------------------------------------------------------------------- mecanum-mav twin
+
+
+def test_twin_command_reports_a_firmware_that_dies_while_the_twin_runs_and_exits_1(
+        tmp_path, capsys, monkeypatch):
+    """``mecanum-mav twin``'s watch: the periodic figures, then the part that died with the
+    parts' output, exit status 1. (setup-fc is skipped: a stand-in cannot be set up.)"""
+    monkeypatch.setattr(Twin, "_setup_fc", NoSetupTwin._setup_fc)
+    status = run_twin(Params(), stand_in(tmp_path, "crash"), friction=0.8,
+                      gcs="udpout:127.0.0.1:9", report_period_s=0.2)
+    out, err = capsys.readouterr()
+    assert status == 1, (out, err)
+    assert "mecanum-mav twin: ready." in out and "true pose N" in out
+    assert "mecanum-mav twin: the firmware exited (5)" in err
+    assert "stand-in: crashed" in err and "\nbridge: " in err
+
+
+def test_twin_command_without_the_physics_extra_says_how_to_install_it_and_exits_2(
+        tmp_path, capsys, monkeypatch):
+    for name in ("mujoco", "mecanum_mav.sim.mujocochassis"):
+        monkeypatch.delitem(sys.modules, name, raising=False)
+    monkeypatch.setitem(sys.modules, "mujoco", None)  # (import mujoco: ImportError)
+    status = run_twin(Params(), stand_in(tmp_path, "beat"), friction=0.8,
+                      gcs="udpout:127.0.0.1:9")
+    assert status == 2
+    assert "pip install 'mecanum-mav[physics]'" in capsys.readouterr().err
