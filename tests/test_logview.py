@@ -13,6 +13,7 @@ import io
 import itertools
 import math
 import struct
+import sys
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -507,3 +508,38 @@ def test_pre_arm_refusals_and_clearances_are_not_counted_as_failsafes():
     assert [e.text for e in a.events] == [text for _, text, _ in said]
     assert [e.text for e in a.failsafes] == [text for _, text, fs in said if fs]
     assert "failsafes: 7\n" in summary(read, a)
+
+
+def test_a_png_asked_for_that_cannot_be_written_is_said_and_exit_status_1(
+        drive, tmp_path, capsys):
+    """``log --png FILE``: a script that asked for the figure learns it is missing (the
+    summary is printed all the same); the default PNG beside the tlog is a courtesy, so
+    failing it leaves the status 0."""
+    _, data = drive
+    path = tmp_path / "drive.tlog"
+    path.write_bytes(data)
+    unwritable = path / "x.png"  # (under a file: no folder can be made there)
+    assert main(["log", str(path), "--png", str(unwritable)]) == 1
+    out, err = capsys.readouterr()
+    assert "distance " in out
+    assert err.startswith(f"mecanum-mav log: cannot write {unwritable}: ")
+    (tmp_path / "drive.png").mkdir()  # (where the default PNG goes: a folder)
+    assert main(["log", str(path)]) == 0
+    assert capsys.readouterr().err.startswith(
+        f"mecanum-mav log: cannot write {tmp_path / 'drive.png'}: ")
+
+
+def test_log_without_matplotlib_prints_the_summary_and_fails_only_a_png_asked_for(
+        drive, tmp_path, capsys, monkeypatch):
+    _, data = drive
+    path = tmp_path / "drive.tlog"
+    path.write_bytes(data)
+    for name in [m for m in sys.modules if m == "matplotlib" or m.startswith("matplotlib.")]:
+        monkeypatch.delitem(sys.modules, name)
+    monkeypatch.setitem(sys.modules, "matplotlib", None)  # (import matplotlib: ImportError)
+    hint = "mecanum-mav log: no PNG: plotting needs matplotlib: pip install 'mecanum-mav[plot]'"
+    assert main(["log", str(path)]) == 0
+    out, err = capsys.readouterr()
+    assert "distance " in out and err.strip() == hint
+    assert main(["log", str(path), "--png", str(tmp_path / "asked.png")]) == 1
+    assert capsys.readouterr().err.strip() == hint

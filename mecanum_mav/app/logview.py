@@ -266,7 +266,9 @@ def run_log(tlog: Path, png: Path | None, out: TextIO | None = None,
     PNG to ``png`` (its default beside the tlog); with ``rerun`` the Rerun view to that
     ``.rrd``, with ``view`` that view opened (:mod:`~mecanum_mav.app.view`; ``params``: the
     PWM map and chassis size), and then the PNG only when ``png`` is given (drawing it takes
-    most of a long log's time). Returns the exit status."""
+    most of a long log's time). Returns the exit status: 1 when the PNG asked for with
+    ``png`` could not be drawn or written (no matplotlib, an unwritable path; the summary is
+    printed all the same), 0 when only the default one beside the tlog could not."""
     out = out or sys.stdout
     err = err or sys.stderr
     from mecanum_mav.app.view import gc_paused
@@ -279,24 +281,29 @@ def run_log(tlog: Path, png: Path | None, out: TextIO | None = None,
         print(f"mecanum-mav log: {tlog}: no MAVLink messages read", file=err)
         return 2
     viewing = rerun is not None or view
+    asked_png_failed = False
 
     def report() -> None:  # the summary, and the PNG unless a view was asked without one
+        nonlocal asked_png_failed
         analysis = analyse(read.entries)
         print(summary(read, analysis), file=out)
         if png is not None or not viewing:
             target = png or default_png(tlog)
             try:
                 print(f"wrote {plot_log(analysis, target, tlog.name)}", file=out)
+                return
             except RuntimeError as exc:  # no matplotlib
                 print(f"mecanum-mav log: no PNG: {exc}", file=err)
             except OSError as exc:
                 print(f"mecanum-mav log: cannot write {target}: {exc}", file=err)
+            asked_png_failed = png is not None
 
     if not viewing:
         report()
-        return 0
+        return 1 if asked_png_failed else 0
     from mecanum_mav.app.view import show_log
 
     # (the view first: a long log's summary comes while the viewer is already up)
-    return show_log(read.entries, params or Params(), rerun, view, web_port, out, err,
-                    then=report)
+    status = show_log(read.entries, params or Params(), rerun, view, web_port, out, err,
+                      then=report)
+    return status or (1 if asked_png_failed else 0)
