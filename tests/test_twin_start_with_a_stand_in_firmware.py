@@ -98,6 +98,7 @@ def test_a_twins_truth_is_refused_before_it_started(tmp_path):
         for read in (twin.truth, twin.truth_now, twin.stats):
             with pytest.raises(RuntimeError, match="the twin has not started"):
                 read()
+        assert twin.bridge_summary() == "not started"
     finally:
         twin.close()
 
