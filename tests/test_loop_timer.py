@@ -6,12 +6,17 @@ from __future__ import annotations
 
 import itertools
 import math
+import time
 from typing import Any
 
 import pytest
 from conftest import lockstep
+from support import wait_until
 
+from mecanum_mav.app.companion import Companion
+from mecanum_mav.config.params import Params
 from mecanum_mav.protocol.dialect import mavlink
+from mecanum_mav.sim.groundstation import udp_ground_station
 
 
 def _watch_waits(h: Any) -> list[float]:
@@ -67,3 +72,27 @@ def test_a_timer_set_while_sticks_come_in_their_lane_runs_on_the_next_pass_not_a
     h.step()
     assert calls == [pytest.approx(h.now_s)]
     assert timeouts[0] <= 0.0  # (the companion's epoll would have slept until a stick came)
+
+
+def test_a_timer_set_on_a_running_companion_runs_on_its_next_pass_and_then_when_asked():
+    """(The companion's own thread runs the loop; the timer is set from another one, while
+    the loop waits: it runs on the loop's next pass.)"""
+    _, port = udp_ground_station()
+    companion = Companion(Params(), port.url, "udpout:127.0.0.1:9")
+    calls: list[float] = []
+
+    def action(now_s: float) -> float:
+        calls.append(time.monotonic())
+        return now_s + 0.1
+
+    try:
+        companion.start()
+        assert wait_until(lambda: companion.loop is not None, 5.0)
+        set_at = time.monotonic()
+        companion.set_timer(action)
+        assert wait_until(lambda: len(calls) >= 3, 5.0), calls
+    finally:
+        companion.close()
+        port.close()
+    assert calls[0] - set_at < 0.5  # (the next pass: the loop wakes at least every 0.1 s)
+    assert all(later - earlier >= 0.09 for earlier, later in itertools.pairwise(calls))
