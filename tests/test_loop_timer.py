@@ -94,5 +94,5 @@ def test_a_timer_set_on_a_running_companion_runs_on_its_next_pass_and_then_when_
     finally:
         companion.close()
         port.close()
-    assert calls[0] - set_at < 0.5  # (the next pass: the loop wakes at least every 0.1 s)
+    assert calls[0] - set_at < 0.5  # (the next pass: 14-43 ms after, measured)
     assert all(later - earlier >= 0.09 for earlier, later in itertools.pairwise(calls))
