@@ -26,6 +26,7 @@ from itertools import pairwise
 
 import pytest
 from conftest import lockstep
+from missionitems import local_wp, renumber
 from support import junk_packets, status_texts, wait_until
 
 from mecanum_mav.app.companion import Companion
@@ -163,6 +164,23 @@ def test_heartbeat_shows_a_disarmed_ardupilot_rover_in_manual(harness):
     assert hb.base_mode & CUSTOM and not hb.base_mode & ARMED_FLAG
     assert hb.custom_mode == 0 and hb.system_status == mavlink.MAV_STATE_STANDBY
     assert hb.get_msgbuf()[0] == 0xFD  # MAVLink 2
+
+
+@pytest.mark.parametrize(("mode", "flags"), [
+    (Mode.MANUAL, mavlink.MAV_MODE_FLAG_MANUAL_INPUT_ENABLED),
+    (Mode.HOLD, 0),
+    (Mode.GUIDED, mavlink.MAV_MODE_FLAG_GUIDED_ENABLED),
+    (Mode.AUTO, mavlink.MAV_MODE_FLAG_GUIDED_ENABLED),
+])
+def test_heartbeat_base_mode_flags_are_ardupilot_rovers_in_each_mode(mode, flags):
+    """ArduPilot Rover's base_mode (Rover/GCS_Mavlink.cpp, STICK_MIXING 0): custom mode
+    always, manual input for a mode the sticks drive, guided for an autopilot mode (AUTO
+    too: Rover never sets AUTO_ENABLED), safety armed when armed."""
+    h = lockstep(mission=renumber([local_wp(0, 0.0, 0.0), local_wp(0, 1.0, 0.0)]))
+    h.gcs.arm()
+    assert h.gcs.set_mode(mode) == ACCEPTED
+    hb = heartbeat(h, lambda m: m.custom_mode == mode)
+    assert hb.base_mode == CUSTOM | ARMED_FLAG | flags
 
 
 def test_companion_heartbeats_the_flight_controller_as_a_ground_station(harness):

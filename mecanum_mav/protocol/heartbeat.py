@@ -3,8 +3,10 @@ to the flight controller.
 
 To the ground station (the ArduPilot Rover dialect MAVProxy, MAVSDK, QGroundControl and Mission
 Planner understand): ``MAV_TYPE_GROUND_ROVER``, ``MAV_AUTOPILOT_ARDUPILOTMEGA``; ``base_mode``
-carries ``CUSTOM_MODE_ENABLED`` plus ``SAFETY_ARMED``, ``MANUAL_INPUT_ENABLED``,
-``GUIDED_ENABLED`` and ``AUTO_ENABLED`` as they apply; ``custom_mode`` is Rover's mode number;
+carries ``CUSTOM_MODE_ENABLED`` plus ``SAFETY_ARMED``, ``MANUAL_INPUT_ENABLED`` and
+``GUIDED_ENABLED`` as Rover sets them (``GCS_MAVLINK_Rover::base_mode``: the manual input flag
+for a mode the sticks drive, the guided flag for an autopilot mode, AUTO included; Rover
+never sets ``AUTO_ENABLED``); ``custom_mode`` is Rover's mode number;
 ``system_status`` is STANDBY disarmed, ACTIVE armed and CRITICAL in a link failsafe.
 """
 
@@ -21,9 +23,11 @@ MODE_FLAGS: dict[Mode, int] = {
     Mode.MANUAL: mavlink.MAV_MODE_FLAG_MANUAL_INPUT_ENABLED,
     Mode.HOLD: 0,
     Mode.GUIDED: mavlink.MAV_MODE_FLAG_GUIDED_ENABLED,
-    Mode.AUTO: mavlink.MAV_MODE_FLAG_AUTO_ENABLED | mavlink.MAV_MODE_FLAG_GUIDED_ENABLED,
+    Mode.AUTO: mavlink.MAV_MODE_FLAG_GUIDED_ENABLED,
 }
-"""``base_mode`` flags of each mode, as ArduPilot Rover's ``base_mode()`` sets them."""
+"""``base_mode`` flags of each mode, as ArduPilot Rover's ``base_mode()`` sets them (with
+``STICK_MIXING`` 0, its default: HOLD is not an autopilot mode there, MANUAL has manual
+input)."""
 
 
 def send_rover_heartbeat(mav: Any, mode: Mode, *, armed: bool, failsafe: bool) -> None:
