@@ -162,7 +162,7 @@ def test_heartbeat_shows_a_disarmed_ardupilot_rover_in_manual(harness):
     assert hb.type == mavlink.MAV_TYPE_GROUND_ROVER
     assert hb.autopilot == mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA
     assert hb.base_mode & CUSTOM and not hb.base_mode & ARMED_FLAG
-    assert hb.custom_mode == 0 and hb.system_status == mavlink.MAV_STATE_STANDBY
+    assert hb.custom_mode == 0 and hb.system_status == mavlink.MAV_STATE_ACTIVE  # (Rover's)
     assert hb.get_msgbuf()[0] == 0xFD  # MAVLink 2
 
 
@@ -181,6 +181,9 @@ def test_heartbeat_base_mode_flags_are_ardupilot_rovers_in_each_mode(mode, flags
     assert h.gcs.set_mode(mode) == ACCEPTED
     hb = heartbeat(h, lambda m: m.custom_mode == mode)
     assert hb.base_mode == CUSTOM | ARMED_FLAG | flags
+    # (Rover/GCS_Mavlink.cpp vehicle_system_status: STANDBY in HOLD, ACTIVE otherwise)
+    assert hb.system_status == (mavlink.MAV_STATE_STANDBY if mode is Mode.HOLD
+                                else mavlink.MAV_STATE_ACTIVE)
 
 
 def test_companion_heartbeats_the_flight_controller_as_a_ground_station(harness):

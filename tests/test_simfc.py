@@ -247,7 +247,10 @@ def test_heartbeat_is_a_disarmed_ardupilot_ground_rover_in_manual(simulator):
     assert beat.autopilot == mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA
     assert beat.base_mode & mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
     assert not beat.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED
-    assert (beat.custom_mode, beat.system_status) == (0, mavlink.MAV_STATE_STANDBY)
+    # (as the SITL firmware sends it: custom mode + manual input, ACTIVE while disarmed)
+    assert beat.base_mode == (mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
+                              | mavlink.MAV_MODE_FLAG_MANUAL_INPUT_ENABLED)
+    assert (beat.custom_mode, beat.system_status) == (0, mavlink.MAV_STATE_ACTIVE)
 
 
 def test_wheel_distance_reports_four_growing_encoder_distances(simulator):

@@ -6,8 +6,11 @@ Planner understand): ``MAV_TYPE_GROUND_ROVER``, ``MAV_AUTOPILOT_ARDUPILOTMEGA``;
 carries ``CUSTOM_MODE_ENABLED`` plus ``SAFETY_ARMED``, ``MANUAL_INPUT_ENABLED`` and
 ``GUIDED_ENABLED`` as Rover sets them (``GCS_MAVLINK_Rover::base_mode``: the manual input flag
 for a mode the sticks drive, the guided flag for an autopilot mode, AUTO included; Rover
-never sets ``AUTO_ENABLED``); ``custom_mode`` is Rover's mode number;
-``system_status`` is STANDBY disarmed, ACTIVE armed and CRITICAL in a link failsafe.
+never sets ``AUTO_ENABLED``); ``custom_mode`` is Rover's mode number; ``system_status`` is
+CRITICAL in a link failsafe, else STANDBY in HOLD and ACTIVE in every other mode, armed or not
+(``GCS_MAVLINK_Rover::vehicle_system_status``). Measured with the SITL (ArduPilot master of
+July 2025): MANUAL disarmed 0x41 ACTIVE, armed 0xC1; HOLD disarmed 0x01 STANDBY, armed 0x81;
+GUIDED disarmed 0x09 ACTIVE.
 """
 
 from __future__ import annotations
@@ -38,7 +41,7 @@ def send_rover_heartbeat(mav: Any, mode: Mode, *, armed: bool, failsafe: bool) -
     if failsafe:
         status = mavlink.MAV_STATE_CRITICAL
     else:
-        status = mavlink.MAV_STATE_ACTIVE if armed else mavlink.MAV_STATE_STANDBY
+        status = mavlink.MAV_STATE_STANDBY if mode is Mode.HOLD else mavlink.MAV_STATE_ACTIVE
     mav.heartbeat_send(mavlink.MAV_TYPE_GROUND_ROVER, mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA, base,
                        int(mode), status)
 

@@ -349,15 +349,16 @@ class SimBoard:
         return int((now_s - self.boot_s) * 1e6)
 
     def _heartbeat(self, mav: Any, now_s: float) -> None:
-        """HEARTBEAT of a disarmed ArduPilot Rover in MANUAL: base_mode as Rover's
-        ``GCS_MAVLINK_Rover::base_mode()`` gives it (custom mode + manual input, not armed)."""
+        """HEARTBEAT of a disarmed ArduPilot Rover in MANUAL, as the real firmware sends it
+        (measured with the SITL): base_mode custom mode + manual input, not armed; system
+        status ACTIVE (Rover says STANDBY in HOLD only)."""
         if not self.beating:
             return
         base_mode = (
             mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | mavlink.MAV_MODE_FLAG_MANUAL_INPUT_ENABLED
         )
         mav.heartbeat_send(mavlink.MAV_TYPE_GROUND_ROVER, mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA,
-                           base_mode, int(Mode.MANUAL), mavlink.MAV_STATE_STANDBY)
+                           base_mode, int(Mode.MANUAL), mavlink.MAV_STATE_ACTIVE)
 
     def _attitude(self, mav: Any, now_s: float) -> None:
         """ATTITUDE: the chassis's true roll and pitch (level on the kinematic one), true yaw
