@@ -7,6 +7,7 @@ else); the bridge is the real MuJoCo process. What the real firmware does is tes
 from __future__ import annotations
 
 import importlib.util
+import io
 import os
 import signal
 import sys
@@ -24,7 +25,7 @@ pytestmark = pytest.mark.skipif(importlib.util.find_spec("mujoco") is None,
                                 reason="the twin's chassis needs the physics extra (mujoco)")
 
 STAND_IN = """#!{python}
-import socket, sys, time
+import os, socket, sys, time
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 args = sys.argv[1:]
@@ -46,8 +47,8 @@ if BEHAVIOUR == "hog":  # the companion's port (SERIAL0's peer) is taken
     hog.bind(("127.0.0.1", port("--serial0")))
 sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
 mav = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
-end = time.monotonic() + (4.0 if BEHAVIOUR == "crash" else float("inf"))
-while time.monotonic() < end:
+told = sys.argv[0] + ".crash"  # (crash: once the test creates this file)
+while not (BEHAVIOUR == "crash" and os.path.exists(told)):
     beat = mav.heartbeat_encode(mavlink.MAV_TYPE_GROUND_ROVER,
                                 mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA, 0, 0, 3)
     sock.sendto(beat.pack(mav), ("127.0.0.1", port("--serial1")))
@@ -59,8 +60,8 @@ sys.exit(5)
 
 def stand_in(folder: Path, behaviour: str) -> Path:
     """An ``ardurover`` that ``exit``s at once (status 3), stays ``silent``, ``beat``s
-    (HEARTBEAT on SERIAL1 at 10 Hz), beats and ``hog``s the companion's port, or beats for
-    4 s and then ``crash``es (status 5)."""
+    (HEARTBEAT on SERIAL1 at 10 Hz), beats and ``hog``s the companion's port, or beats until
+    told to ``crash`` (a file ``ardurover.crash`` beside it; status 5)."""
     folder.mkdir(parents=True, exist_ok=True)
     binary = folder / "ardurover"
     binary.write_text(STAND_IN.format(python=sys.executable, behaviour=behaviour))
@@ -191,11 +192,25 @@ def test_twin_command_reports_a_firmware_that_dies_while_the_twin_runs_and_exits
     """``mecanum-mav twin``'s watch: the periodic figures, then the part that died with the
     parts' output, exit status 1. (setup-fc is skipped: a stand-in cannot be set up.)"""
     monkeypatch.setattr(Twin, "_setup_fc", NoSetupTwin._setup_fc)
-    status = run_twin(Params(), stand_in(tmp_path, "crash"), friction=0.8,
-                      gcs="udpout:127.0.0.1:9", report_period_s=0.2)
-    out, err = capsys.readouterr()
-    assert status == 1, (out, err)
-    assert "mecanum-mav twin: ready." in out and "true pose N" in out
+    firmware = stand_in(tmp_path, "crash")
+    out = io.StringIO()
+    finished = threading.Event()  # (run_twin returned: no more watching)
+
+    def crash_once_running() -> None:  # (run_twin keeps the main thread: its signals)
+        if wait_until(lambda: "true pose N" in out.getvalue() or finished.is_set(), 60.0):
+            Path(f"{firmware}.crash").touch()  # the firmware dies now, the twin running
+
+    crasher = threading.Thread(target=crash_once_running)
+    crasher.start()
+    try:
+        status = run_twin(Params(), firmware, friction=0.8, gcs="udpout:127.0.0.1:9",
+                          report_period_s=0.2, out=out)
+    finally:
+        finished.set()
+        crasher.join()
+    err = capsys.readouterr().err
+    assert status == 1, (out.getvalue(), err)
+    assert "mecanum-mav twin: ready." in out.getvalue()
     assert "mecanum-mav twin: the firmware exited (5)" in err
     assert "stand-in: crashed" in err and "\nbridge: " in err
 
