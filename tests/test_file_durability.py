@@ -15,7 +15,9 @@ whatever its name.
 
 from __future__ import annotations
 
+import logging
 import os
+import re
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -24,7 +26,8 @@ import pytest
 from support import RawPty
 
 from mecanum_mav.config.params import Params
-from mecanum_mav.io.atomicfile import write_atomic
+from mecanum_mav.io import atomicfile
+from mecanum_mav.io.atomicfile import remove_stale_temporaries, write_atomic
 from mecanum_mav.io.claims import InUseError, claim_ground_station, ground_station_claim
 from mecanum_mav.io.storage import FileStorage
 from mecanum_mav.protocol.dialect import mavlink
@@ -162,3 +165,67 @@ def test_one_serial_device_at_another_baud_rate_is_the_same_claim(
             pass
     finally:
         radio.close()
+
+
+def test_a_write_goes_to_a_hidden_temporary_file_beside_the_target_that_a_restart_removes(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch):
+    """atomicfile's docstring: the temporary file is ``.NAME.XXXXXXXX.tmp`` beside the target
+    (so a write cut short leaves it where :func:`remove_stale_temporaries` looks); only a
+    target's own temporaries are removed, and each one removed is named."""
+    target = tmp_path / "rover.parm"
+    target.write_bytes(b"old")
+    seen: list[str] = []
+    real_fsync = os.fsync
+
+    def looking(fd: int) -> None:  # (while the data is synced: the temporary file exists)
+        seen.extend(p.name for p in tmp_path.iterdir() if p != target)
+        real_fsync(fd)
+
+    monkeypatch.setattr(atomicfile.os, "fsync", looking)
+    write_atomic(target, b"new")
+    [temporary, *_] = seen
+    assert re.fullmatch(r"\.rover\.parm\.[A-Za-z0-9_]{8}\.tmp", temporary), seen
+    left = tmp_path / temporary
+    left.write_bytes(b"half")  # (what a kill -9 in the write would leave)
+    other = tmp_path / ".rover.waypoints.abcdefgh.tmp"
+    other.write_bytes(b"")
+    assert remove_stale_temporaries(target) == [left]
+    assert not left.exists() and other.exists() and target.read_bytes() == b"new"
+
+
+def test_a_restart_after_a_cut_save_removes_its_leftovers_saying_which(
+        tmp_path: Path, caplog: pytest.LogCaptureFixture):
+    param_path = tmp_path / "rover.parm"
+    left = tmp_path / ".rover.waypoints.k3j4h5g6.tmp"
+    left.write_bytes(b"QGC WPL 110\n")
+    with caplog.at_level(logging.WARNING, logger="mecanum_mav.io.storage"):
+        FileStorage(param_path)
+    assert not left.exists()
+    assert [r.getMessage() for r in caplog.records] == [
+        f"removed {left}, left by a save that was cut short"]
+
+
+def test_the_stored_mission_loads_saying_how_many_items_and_none_is_no_complaint(
+        tmp_path: Path, caplog: pytest.LogCaptureFixture):
+    storage = FileStorage(tmp_path / "rover.parm")
+    assert storage.load_mission() == ([], "")  # (no file yet: nothing to say)
+    items = [MissionItem(seq, mavlink.MAV_FRAME_LOCAL_NED, mavlink.MAV_CMD_NAV_WAYPOINT,
+                         x=seq * 10_000) for seq in range(3)]
+    storage.save_mission(items)
+    with caplog.at_level(logging.INFO, logger="mecanum_mav.io.storage"):
+        loaded, why = storage.load_mission()
+    assert (len(loaded), why) == (3, "")
+    assert [r.getMessage() for r in caplog.records] == [
+        f"mission of 3 items loaded from {storage.mission_path}"]
+
+
+def test_an_unreadable_mission_file_is_left_as_it_is_and_said_why(
+        tmp_path: Path, caplog: pytest.LogCaptureFixture):
+    storage = FileStorage(tmp_path / "rover.parm")
+    storage.mission_path.write_text("not a mission\n")
+    with caplog.at_level(logging.ERROR, logger="mecanum_mav.io.storage"):
+        assert storage.load_mission() == ([], "Mission file unreadable: rover.waypoints")
+    [record] = caplog.records
+    assert record.getMessage().startswith("mission not loaded: ")
+    assert str(storage.mission_path) in record.getMessage()
+    assert storage.mission_path.read_text() == "not a mission\n"
