@@ -18,6 +18,7 @@ import mecanum_mav
 from mecanum_mav.config.params import Params
 from mecanum_mav.control.core import RoverCore
 from mecanum_mav.io.links import mavlink
+from mecanum_mav.protocol import telemetry
 from mecanum_mav.sim.lockstep import Lockstep
 
 CMD = mavlink
@@ -165,6 +166,24 @@ def test_autopilot_version_claims_what_the_companion_honours_and_gives_its_versi
     sw = version.flight_sw_version
     major, minor, patch = (int(part) for part in mecanum_mav.__version__.split(".")[:3])
     assert (sw >> 24, sw >> 16 & 0xFF, sw >> 8 & 0xFF, sw & 0xFF) == (major, minor, patch, 255)
+    # what the companion has no value for is 0 (MAVLink: unknown)
+    assert (version.middleware_sw_version, version.os_sw_version, version.board_version,
+            version.vendor_id, version.product_id, version.uid) == (0, 0, 0, 0, 0, 0)
+    assert [list(version.flight_custom_version), list(version.middleware_custom_version),
+            list(version.os_custom_version)] == [[0] * 8] * 3
+    assert list(version.uid2) == [0] * 18
+
+
+@pytest.mark.parametrize(("package_version", "parts"), [("4.7.2", (4, 7, 2)),
+                                                         ("1.2.3.4", (1, 2, 3))])
+def test_autopilot_version_packs_major_minor_and_patch_of_any_version(
+        harness, monkeypatch, package_version, parts):
+    monkeypatch.setattr(telemetry, "__version__", package_version)
+    since = harness.gcs.mark()
+    harness.gcs.command(CMD.MAV_CMD_REQUEST_MESSAGE, CMD.MAVLINK_MSG_ID_AUTOPILOT_VERSION)
+    [version] = harness.gcs.received("AUTOPILOT_VERSION", since)
+    sw = version.flight_sw_version
+    assert (sw >> 24, sw >> 16 & 0xFF, sw >> 8 & 0xFF, sw & 0xFF) == (*parts, 255)
 
 
 @pytest.mark.parametrize("origin", [None, (473_977_420, 85_455_940, 488_123)],
@@ -183,6 +202,7 @@ def test_home_position_is_the_local_origin_at_its_latitude_and_longitude_once_kn
     [home] = h.gcs.received("HOME_POSITION", since)
     assert (home.latitude, home.longitude, home.altitude) == (origin or (0, 0, 0))
     assert (home.x, home.y, home.z) == (0.0, 0.0, 0.0)
+    assert (home.approach_x, home.approach_y, home.approach_z) == (0.0, 0.0, 0.0)  # (none)
     assert list(home.q) == [1.0, 0.0, 0.0, 0.0]
     assert 0 < home.time_usec <= 1e6 * h.now_s
 
