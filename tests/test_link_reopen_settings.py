@@ -26,6 +26,7 @@ import select
 import socket
 import termios
 import threading
+import time
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -74,6 +75,7 @@ def test_a_serial_device_reopened_after_an_unplug_runs_at_the_urls_baud_rate(
     back: RawPty | None = None
     try:
         assert line_speed(first.master) == (SPEEDS[baud], SPEEDS[baud])  # as first opened
+        as_first_opened = termios.tcgetattr(first.master)  # (no flow control: 8 bits raw)
         first.close()  # unplugged: the node vanishes, the link's end reads EIO
         link.send_rc_override(1, 1, [1500] * 4 + [65535] * 14)
         link.read()
@@ -83,6 +85,12 @@ def test_a_serial_device_reopened_after_an_unplug_runs_at_the_urls_baud_rate(
         assert reopen_until_up(link, clock)
         assert line_speed(back.master) == (SPEEDS[baud], SPEEDS[baud])
         assert line_speed(link.fileno()) == (SPEEDS[baud], SPEEDS[baud])
+        # every setting as first opened: no XON/XOFF (it would eat MAVLink's 0x11 and 0x13
+        # bytes), no RTS/CTS or DSR/DTR handshake (a board wires none)
+        assert termios.tcgetattr(back.master) == as_first_opened
+        started = time.monotonic()
+        assert link.read() == []  # nothing waits: the read returns at once, never blocks
+        assert time.monotonic() - started < 0.1
     finally:
         link.close()
         first.close()
