@@ -31,6 +31,7 @@ import os
 import select
 import selectors
 import socket
+import sys
 import threading
 import time
 import tty
@@ -530,3 +531,14 @@ class PeerPump:
         self.selector.close()
         self.gcs.close()
         self.fc.close()
+
+
+def not_installed(monkeypatch: Any, package: str, *also_gone: str) -> None:
+    """Make ``import package`` raise ImportError for the rest of the test, as on a machine
+    without it (its submodules and ``also_gone``, modules already imported that hold it,
+    forgotten too)."""
+    for name in [m for m in sys.modules if m == package or m.startswith(package + ".")]:
+        monkeypatch.delitem(sys.modules, name)
+    for name in also_gone:
+        monkeypatch.delitem(sys.modules, name, raising=False)
+    monkeypatch.setitem(sys.modules, package, None)

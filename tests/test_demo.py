@@ -12,7 +12,8 @@ from __future__ import annotations
 import functools
 import math
 import re
-import sys
+
+from support import not_installed
 
 from mecanum_mav.app import demo
 from mecanum_mav.app.cli import main
@@ -101,9 +102,7 @@ def test_demo_without_matplotlib_drives_and_reports_and_says_how_to_get_the_figu
     """(matplotlib is the `plot` extra: without it the demo still runs; the PNG is skipped
     with the install command, and the exit status is 0.)"""
     monkeypatch.setattr(demo, "run_demo", functools.partial(demo.run_demo, virtual=True))
-    for name in [m for m in sys.modules if m == "matplotlib" or m.startswith("matplotlib.")]:
-        monkeypatch.delitem(sys.modules, name)
-    monkeypatch.setitem(sys.modules, "matplotlib", None)  # (import matplotlib: ImportError)
+    not_installed(monkeypatch, "matplotlib")
     png = tmp_path / "demo.png"
     assert main(["demo", "--side", "0.6", "--png", str(png)]) == 0
     out, err = capsys.readouterr()

@@ -13,11 +13,11 @@ import io
 import itertools
 import math
 import struct
-import sys
 from collections.abc import Callable, Sequence
 from typing import Any
 
 import pytest
+from support import not_installed
 
 from mecanum_mav.app.cli import main
 from mecanum_mav.app.loganalysis import INPUT_TIMEOUT_S, OVERRIDE_TIMEOUT_S, analyse
@@ -534,9 +534,7 @@ def test_log_without_matplotlib_prints_the_summary_and_fails_only_a_png_asked_fo
     _, data = drive
     path = tmp_path / "drive.tlog"
     path.write_bytes(data)
-    for name in [m for m in sys.modules if m == "matplotlib" or m.startswith("matplotlib.")]:
-        monkeypatch.delitem(sys.modules, name)
-    monkeypatch.setitem(sys.modules, "matplotlib", None)  # (import matplotlib: ImportError)
+    not_installed(monkeypatch, "matplotlib")
     hint = "mecanum-mav log: no PNG: plotting needs matplotlib: pip install 'mecanum-mav[plot]'"
     assert main(["log", str(path)]) == 0
     out, err = capsys.readouterr()

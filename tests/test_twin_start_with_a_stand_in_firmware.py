@@ -15,7 +15,7 @@ import threading
 from pathlib import Path
 
 import pytest
-from support import wait_until
+from support import not_installed, wait_until
 
 from mecanum_mav.app.twin import run_twin
 from mecanum_mav.config.params import Params
@@ -217,9 +217,7 @@ def test_twin_command_reports_a_firmware_that_dies_while_the_twin_runs_and_exits
 
 def test_twin_command_without_the_physics_extra_says_how_to_install_it_and_exits_2(
         tmp_path, capsys, monkeypatch):
-    for name in ("mujoco", "mecanum_mav.sim.mujocochassis"):
-        monkeypatch.delitem(sys.modules, name, raising=False)
-    monkeypatch.setitem(sys.modules, "mujoco", None)  # (import mujoco: ImportError)
+    not_installed(monkeypatch, "mujoco", "mecanum_mav.sim.mujocochassis")
     status = run_twin(Params(), stand_in(tmp_path, "beat"), friction=0.8,
                       gcs="udpout:127.0.0.1:9")
     assert status == 2

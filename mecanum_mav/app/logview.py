@@ -300,10 +300,10 @@ def run_log(tlog: Path, png: Path | None, out: TextIO | None = None,
 
     if not viewing:
         report()
-        return 1 if asked_png_failed else 0
+        return int(asked_png_failed)
     from mecanum_mav.app.view import show_log
 
     # (the view first: a long log's summary comes while the viewer is already up)
     status = show_log(read.entries, params or Params(), rerun, view, web_port, out, err,
                       then=report)
-    return status or (1 if asked_png_failed else 0)
+    return status or int(asked_png_failed)

@@ -63,6 +63,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from itertools import chain, dropwhile
 from typing import NamedTuple
 
 from mecanum_mav.mecanum.geometry import body_to_ned, wrap_pi
@@ -209,10 +210,10 @@ class HeadingBias:
         apart. ``now`` is the newest sample (so the path has a first sample and a middle one,
         ``now`` at the latest: the path only grows)."""
         guard_s = start.time_s - TURN_GUARD_S
-        recent = [sample for sample in self._samples if sample.time_s >= guard_s]
-        first = recent[0]
+        recent = dropwhile(lambda sample: sample.time_s < guard_s, self._samples)
+        first = next(recent)
         half = (first.path_m + now.path_m) / 2.0
-        mid = next(sample for sample in recent if sample.path_m >= half)
+        mid = next(sample for sample in chain((first,), recent) if sample.path_m >= half)
         if mid is first or mid is now:
             return False
         before = math.atan2(mid.raw[1] - first.raw[1], mid.raw[0] - first.raw[0])
