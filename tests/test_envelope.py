@@ -79,12 +79,3 @@ def test_cartesian_square_stick_reaches_full_speed_on_cardinals_and_diagonals_al
     np.testing.assert_allclose(robot_speed("cartesian", 1.0, CARDINALS), 1.0)
     np.testing.assert_allclose(robot_speed("cartesian", 1.0, DIAGONALS), R2)
 
-
-def test_plot_writes_every_figure(tmp_path):
-    pytest.importorskip("matplotlib")
-    from mecanum_mav.app.plots import FIGURES, render_all
-
-    paths = render_all(tmp_path)
-    assert [p.name for p in paths] == [name for name, _ in FIGURES]
-    for path in paths:
-        assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

@@ -6,14 +6,16 @@ Needs matplotlib: ``pip install 'mecanum-mav[plot]'``. The numbers come from
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from mecanum_mav.mecanum.envelope import non_clipping_limit_2010, robot_speed, speed_grid
 
-__all__ = ["FIGURES", "render_all"]
+__all__ = ["FIGURES", "figures", "render_all"]
 
 ROTATION = 0.29
 SQRT2_2 = float(np.sqrt(0.5))
@@ -40,7 +42,7 @@ def _pyplot() -> Any:
     return plt
 
 
-def _surface(path: Path, algorithm: str, rotation: float, title: str) -> None:
+def _surface(algorithm: str, rotation: float, title: str) -> Any:
     plt = _pyplot()
     velocity, heading, speed = speed_grid(algorithm, rotation)
     h = np.radians(heading)
@@ -54,45 +56,40 @@ def _surface(path: Path, algorithm: str, rotation: float, title: str) -> None:
     ax.set_zlim(0.0, 1.0)
     ax.set_title(f"{title}\n{LABELS[algorithm]}, rotation {rotation:.2f}, peak {speed.max():.3f}")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    return fig
 
 
-def _limit(path: Path) -> None:
-    plt = _pyplot()
-    heading = np.linspace(0.0, 360.0, 721)
+def _speed_axes(plt: Any, title: str) -> tuple[Any, Any, NDArray[np.float64]]:
+    """A figure of robot speed (or velocity) against heading: 0-360 deg in half degrees."""
     fig, ax = plt.subplots(figsize=(7, 4))
-    for rotation in (0.0, 0.1, ROTATION, 0.5):
-        ax.plot(heading, non_clipping_limit_2010(heading, rotation), label=f"rotation {rotation}")
     ax.set_xlabel("heading (deg clockwise from nose)")
-    ax.set_ylabel("largest velocity without clipping")
     ax.set_xticks(range(0, 361, 45))
     ax.set_ylim(0.0, 1.05)
     ax.grid(True, alpha=0.3)
+    ax.set_title(title)
+    return fig, ax, np.linspace(0.0, 360.0, 721)
+
+
+def _limit(title: str) -> Any:
+    fig, ax, heading = _speed_axes(_pyplot(), f"{title}: 2010 algorithm non-clipping limit")
+    for rotation in (0.0, 0.1, ROTATION, 0.5):
+        ax.plot(heading, non_clipping_limit_2010(heading, rotation), label=f"rotation {rotation}")
+    ax.set_ylabel("largest velocity without clipping")
     ax.legend()
-    ax.set_title("Illustration 3: 2010 algorithm non-clipping limit")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    return fig
 
 
-def _curves(path: Path, series: list[tuple[str, float]], title: str) -> None:
-    plt = _pyplot()
-    heading = np.linspace(0.0, 360.0, 721)
-    fig, ax = plt.subplots(figsize=(7, 4))
+def _curves(series: list[tuple[str, float]], title: str) -> Any:
+    fig, ax, heading = _speed_axes(
+        _pyplot(), f"{title}: robot speed vs heading, rotation {ROTATION}")
     for (algorithm, velocity), style in zip(series, ("-", "--", ":", "-."), strict=False):
         ax.plot(heading, robot_speed(algorithm, velocity, heading, ROTATION), style,
                 label=f"{LABELS[algorithm]}, velocity {velocity:.2f}")
-    ax.set_xlabel("heading (deg clockwise from nose)")
     ax.set_ylabel("robot speed")
-    ax.set_xticks(range(0, 361, 45))
-    ax.set_ylim(0.0, 1.05)
-    ax.grid(True, alpha=0.3)
     ax.legend(fontsize=8)
-    ax.set_title(f"{title}: robot speed vs heading, rotation {ROTATION}")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    return fig
 
 
 FIGURES: tuple[tuple[str, str], ...] = (
@@ -108,25 +105,53 @@ FIGURES: tuple[tuple[str, str], ...] = (
     ("cartesian_rot0.png", "cartesian"),
     ("cartesian_rot029.png", "cartesian"),
 )
-"""(file name, title) of every figure :func:`render_all` writes, in order."""
+"""(file name, title) of every figure :func:`figures` builds and :func:`render_all` writes,
+in order."""
+
+
+def figures() -> Iterator[tuple[str, Any]]:
+    """Build each figure of :data:`FIGURES`, in order, as ``(file name, matplotlib Figure)``.
+
+    Built one at a time; the caller saves and closes each (``plt.close(fig)``).
+    Surfaces: robot speed (fraction of full wheel speed) over commanded velocity [0, 1] and
+    heading, drawn with x to the right and y forward. Curves: robot speed or the 2010
+    non-clipping velocity against heading, degrees clockwise from the nose.
+    """
+    surfaces = {
+        "illustration1_2010_rot0.png": ("holonomic_2010", 0.0),
+        "illustration2_2010_rot029.png": ("holonomic_2010", ROTATION),
+        "illustration4_2011_rot0.png": ("polar_2011", 0.0),
+        "illustration5_2011_rot029.png": ("polar_2011", ROTATION),
+        "max_speed_scaled_rot0.png": ("max_speed_scaled", 0.0),
+        "max_speed_scaled_rot029.png": ("max_speed_scaled", ROTATION),
+        "cartesian_rot0.png": ("cartesian", 0.0),
+        "cartesian_rot029.png": ("cartesian", ROTATION),
+    }
+    curves = {
+        # Seed 000: the 2011 algorithm at velocity 0.50 gives what 2010 gives at sqrt(2)/2.
+        "illustration6_speed_vs_heading_v050.png": [
+            ("polar_2011", 0.50), ("holonomic_2010", SQRT2_2)],
+        "illustration7_speed_vs_heading_v071.png": [
+            ("polar_2011", SQRT2_2), ("holonomic_2010", SQRT2_2),
+            ("max_speed_scaled", SQRT2_2), ("cartesian", SQRT2_2)],
+    }
+    for name, title in FIGURES:
+        if name in surfaces:
+            yield name, _surface(*surfaces[name], title)
+        elif name in curves:
+            yield name, _curves(curves[name], title)
+        else:
+            yield name, _limit(title)
 
 
 def render_all(out_dir: Path) -> list[Path]:
-    """Write every figure of :data:`FIGURES` into ``out_dir`` (created); return the paths."""
+    """Write every figure of :data:`FIGURES` into ``out_dir`` (created) as PNG at 110 dpi;
+    return the paths, in order."""
+    plt = _pyplot()
     out_dir.mkdir(parents=True, exist_ok=True)
-    paths = [out_dir / name for name, _ in FIGURES]
-    titles = [title for _, title in FIGURES]
-    surfaces = [
-        (0, "holonomic_2010", 0.0), (1, "holonomic_2010", ROTATION),
-        (3, "polar_2011", 0.0), (4, "polar_2011", ROTATION),
-        (7, "max_speed_scaled", 0.0), (8, "max_speed_scaled", ROTATION),
-        (9, "cartesian", 0.0), (10, "cartesian", ROTATION),
-    ]
-    for index, algorithm, rotation in surfaces:
-        _surface(paths[index], algorithm, rotation, titles[index])
-    _limit(paths[2])
-    # Seed 000: the 2011 algorithm at velocity 0.50 gives what 2010 gives at sqrt(2)/2.
-    _curves(paths[5], [("polar_2011", 0.50), ("holonomic_2010", SQRT2_2)], titles[5])
-    _curves(paths[6], [("polar_2011", SQRT2_2), ("holonomic_2010", SQRT2_2),
-                       ("max_speed_scaled", SQRT2_2), ("cartesian", SQRT2_2)], titles[6])
+    paths = []
+    for name, fig in figures():
+        fig.savefig(out_dir / name, dpi=110)
+        plt.close(fig)
+        paths.append(out_dir / name)
     return paths
