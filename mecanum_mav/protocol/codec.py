@@ -268,7 +268,7 @@ def _converter(cls: Any) -> _Convert:
         if not strings:
             return None
         return lambda t: _strings_rstripped(t, strings)
-    pick = itemgetter(*tips) if len(tips) > 1 else (lambda t: (t[tips[0]],))
+    pick = itemgetter(*tips)  # (two or more: a lone field is always in its place)
     if not strings:
         return pick
     return lambda t: _strings_rstripped(pick(t), strings)
