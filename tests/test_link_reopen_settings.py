@@ -88,6 +88,7 @@ def test_a_serial_device_reopened_after_an_unplug_runs_at_the_urls_baud_rate(
         # every setting as first opened: no XON/XOFF (it would eat MAVLink's 0x11 and 0x13
         # bytes), no RTS/CTS or DSR/DTR handshake (a board wires none)
         assert termios.tcgetattr(back.master) == as_first_opened
+        assert not os.get_inheritable(link.fileno())  # close-on-exec, as first opened
         started = time.monotonic()
         assert link.read() == []  # nothing waits: the read returns at once, never blocks
         assert time.monotonic() - started < 0.1
@@ -98,13 +99,49 @@ def test_a_serial_device_reopened_after_an_unplug_runs_at_the_urls_baud_rate(
             back.close()
 
 
+def test_a_serial_device_that_cannot_be_opened_yet_is_tried_again_and_says_why_in_the_log(
+        tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
+    """A device node that is there but not a terminal yet (udev still setting it up, no
+    permission): the reopen fails quietly (debug log: the link, the path and the error), the
+    link stays down and the next try opens it."""
+    device = tmp_path / "ttyFC"
+    clock = FakeClock()
+    first = RawPty(device)
+    link = open_link(f"{device},57600", source_system=255, source_component=190, name="fc",
+                     clock=clock)
+    back: RawPty | None = None
+    try:
+        first.close()
+        link.send_rc_override(1, 1, [1500] * 4 + [65535] * 14)
+        link.read()
+        assert link.down_reason == "device gone"
+        device.write_bytes(b"")  # a node, but not a terminal
+        clock.now = link.next_reopen_s
+        with caplog.at_level("DEBUG", logger="mecanum_mav"):
+            assert not link.reopen(clock.now)
+        (record,) = [r for r in caplog.records if "reopening" in r.getMessage()]
+        assert record.levelname == "DEBUG"
+        assert record.getMessage().startswith(f"fc: reopening {device} failed: ")
+        assert "Inappropriate ioctl for device" in record.getMessage()  # (ENOTTY)
+        assert link.down_reason == "device gone"
+        device.unlink()
+        back = RawPty(device)
+        assert reopen_until_up(link, clock)
+    finally:
+        link.close()
+        first.close()
+        if back is not None:
+            back.close()
+
+
 # --------------------------------------------------------------------------- TCP
 
 
-def socket_settings(sock: socket.socket) -> tuple[bool, bool]:
-    """(TCP_NODELAY set, non-blocking) of ``sock``, read from the kernel."""
+def socket_settings(sock: socket.socket) -> tuple[bool, bool, bool]:
+    """(TCP_NODELAY set, non-blocking, inherited by child processes) of ``sock``, read from
+    the kernel."""
     nodelay = sock.getsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY) != 0
-    return nodelay, not os.get_blocking(sock.fileno())
+    return nodelay, not os.get_blocking(sock.fileno()), os.get_inheritable(sock.fileno())
 
 
 def test_a_tcp_link_connected_again_has_nodelay_and_is_non_blocking_as_its_first_socket(
@@ -118,7 +155,7 @@ def test_a_tcp_link_connected_again_has_nodelay_and_is_non_blocking_as_its_first
     try:
         peers.append(server.accept()[0])
         first = socket_settings(link.conn.port)
-        assert first == (True, True)  # pymavlink's first connection
+        assert first == (True, True, False)  # pymavlink's first connection (close-on-exec)
         peers[0].close()  # the flight controller closes the connection; its server stays
         assert wait_until(lambda: (link.read(), not link.up)[1], 5.0,
                           pump=lambda s: select.select([link.fileno()], [], [], s))
@@ -172,7 +209,7 @@ def test_the_next_tcpin_client_gets_nodelay_and_a_non_blocking_socket_as_the_fir
             first.sendall(b"\x00")
             assert wait_until(taken, 5.0, pump=wait_readable)
             settings = socket_settings(link.conn.port)
-            assert settings == (True, True)
+            assert settings == (True, True, False)
         assert wait_until(lambda: read_returns(link) and not link.up, 5.0, pump=wait_readable)
         assert link.down_reason == "client left"
         with client(port) as second:  # (leaving, it ends a read a blocking socket holds)

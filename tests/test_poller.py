@@ -5,12 +5,14 @@ through a signal, and reports nothing for a descriptor it no longer watches."""
 
 from __future__ import annotations
 
+import gc
 import select
 import selectors
 import signal
 import socket
 import threading
 import time
+import weakref
 
 from mecanum_mav.io.poller import READABLE, Poller
 
@@ -28,6 +30,34 @@ def test_wait_gives_the_data_of_the_latest_registration_or_modify_with_its_event
         assert events & select.EPOLLIN and events & select.EPOLLOUT
         poller.unregister(a)
         assert poller.wait(0.0) == []
+
+
+def test_the_selector_keys_hold_the_data_of_the_latest_registration_or_modify():
+    """(links.follow and the loop read keys as from any selector.)"""
+    a, b = socket.socketpair()
+    with Poller() as poller, a, b:
+        assert poller.register(a, selectors.EVENT_READ, "reading").data == "reading"
+        key = poller.modify(a, selectors.EVENT_WRITE, "writing")
+        assert key.data == "writing" and poller.get_key(a).data == "writing"
+        assert poller.unregister(a).data == "writing"
+
+
+def test_the_poller_keeps_nothing_of_a_descriptor_it_no_longer_watches():
+    """A tcpin link's clients come and go for days: their links must not live on in it."""
+
+    class Data:
+        pass
+
+    a, b = socket.socketpair()
+    with Poller() as poller, a, b:
+        data = Data()
+        gone = weakref.ref(data)
+        poller.register(a, selectors.EVENT_READ, data)
+        poller.modify(a, selectors.EVENT_READ, data)
+        poller.unregister(a)
+        del data
+        gc.collect()
+        assert gone() is None
 
 
 def test_an_idle_wait_lasts_at_least_the_time_asked():

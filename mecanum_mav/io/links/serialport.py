@@ -31,7 +31,6 @@ import serial
 
 from mecanum_mav.io.links.base import READ_CHUNK
 from mecanum_mav.io.links.stream import PACING_LEAD_S, StreamLink, queued_bytes
-from mecanum_mav.protocol.dialect import mavutil
 
 log = logging.getLogger("mecanum_mav.io.links")
 
@@ -107,9 +106,9 @@ class SerialLink(StreamLink):
         conn = self.conn
         if not Path(conn.device).exists():
             return False
-        try:  # as pymavlink opens it: at 1200 baud first (a Linux driver bug), then the rate
-            port = serial.Serial(conn.device, 1200, timeout=0, dsrdtr=False, rtscts=False,
-                                 xonxoff=False)
+        try:  # as pymavlink opens it: at 1200 baud first (a Linux driver bug), then the rate;
+            # pyserial's defaults: no RTS/CTS, DSR/DTR or XON/XOFF flow control
+            port = serial.Serial(conn.device, 1200, timeout=0)
         except (OSError, ValueError) as exc:  # not ready yet (permissions, enumeration)
             log.debug("%s: reopening %s failed: %s", self.name, conn.device, exc)
             return False
@@ -117,9 +116,7 @@ class SerialLink(StreamLink):
             conn.port.close()
         conn.port = port
         conn.set_baudrate(conn.baud)
-        conn.fd = port.fileno()
-        mavutil.set_close_on_exec(conn.fd)
-        conn.portdead = False
+        conn.fd = port.fileno()  # (not inherited by child processes: Python's default)
         return True
 
     def _flush_out(self, linger_s: float) -> None:

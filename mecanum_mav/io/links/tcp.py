@@ -26,7 +26,6 @@ from typing import Any, ClassVar
 
 from mecanum_mav.io.links.base import READ_CHUNK, LinkDownError
 from mecanum_mav.io.links.stream import StreamLink, queued_bytes
-from mecanum_mav.protocol.dialect import mavutil
 
 log = logging.getLogger("mecanum_mav.io.links")
 
@@ -128,7 +127,6 @@ class TcpLink(_Tcp):
             sock.close()
             return False
         sock.setsockopt(socket.SOL_TCP, socket.TCP_NODELAY, 1)
-        mavutil.set_close_on_exec(sock.fileno())
         with contextlib.suppress(OSError):
             self.conn.port.close()
         self.conn.port = sock
@@ -183,7 +181,6 @@ class TcpServerLink(_Tcp):
             return False
         port.setsockopt(socket.SOL_TCP, socket.TCP_NODELAY, 1)
         port.setblocking(False)
-        mavutil.set_close_on_exec(port.fileno())
         conn.port = port
         conn.fd = port.fileno()
         self._port_fd = port.fileno()
