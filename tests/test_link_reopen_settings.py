@@ -63,24 +63,41 @@ def reopen_until_up(link: Link, clock: FakeClock, tries: int = 8) -> bool:
 # --------------------------------------------------------------------------- serial
 
 
+@contextlib.contextmanager
+def serial_fc(device: Path, baud: int, clock: FakeClock) -> Iterator[tuple[Link, list[RawPty]]]:
+    """A link opened on a pty reached by the symlink ``device`` (the list's first pty); the
+    link and every pty the test adds to the list closed after."""
+    ptys = [RawPty(device)]
+    link = open_link(f"{device},{baud}", source_system=255, source_component=190, name="fc",
+                     clock=clock)
+    try:
+        yield link, ptys
+    finally:
+        link.close()
+        for pty in ptys:
+            pty.close()
+
+
+def unplug(link: Link, pty: RawPty) -> None:
+    pty.close()  # unplugged: the node vanishes, the link's end reads EIO
+    link.send_rc_override(1, 1, [1500] * 4 + [65535] * 14)
+    link.read()
+    assert link.down_reason == "device gone"
+
+
 @pytest.mark.parametrize("baud", [9600, 57600, 230400])
 def test_a_serial_device_reopened_after_an_unplug_runs_at_the_urls_baud_rate(
         tmp_path: Path, baud: int) -> None:
     """Not pyserial's or pymavlink's default (115200), nor the 1200 the reopen starts at."""
     device = tmp_path / "ttyFC"  # a symlink, as /dev/serial/by-id names are
     clock = FakeClock()
-    first = RawPty(device)
-    link = open_link(f"{device},{baud}", source_system=255, source_component=190, name="fc",
-                     clock=clock)
-    back: RawPty | None = None
-    try:
+    with serial_fc(device, baud, clock) as (link, ptys):
+        first = ptys[0]
         assert line_speed(first.master) == (SPEEDS[baud], SPEEDS[baud])  # as first opened
         as_first_opened = termios.tcgetattr(first.master)  # (no flow control: 8 bits raw)
-        first.close()  # unplugged: the node vanishes, the link's end reads EIO
-        link.send_rc_override(1, 1, [1500] * 4 + [65535] * 14)
-        link.read()
-        assert link.down_reason == "device gone"
+        unplug(link, first)
         back = RawPty(device)  # plugged back: the same path, a new device
+        ptys.append(back)
         assert line_speed(back.master) != (SPEEDS[baud], SPEEDS[baud])  # (not yet set)
         assert reopen_until_up(link, clock)
         assert line_speed(back.master) == (SPEEDS[baud], SPEEDS[baud])
@@ -92,11 +109,6 @@ def test_a_serial_device_reopened_after_an_unplug_runs_at_the_urls_baud_rate(
         started = time.monotonic()
         assert link.read() == []  # nothing waits: the read returns at once, never blocks
         assert time.monotonic() - started < 0.1
-    finally:
-        link.close()
-        first.close()
-        if back is not None:
-            back.close()
 
 
 def test_a_serial_device_that_cannot_be_opened_yet_is_tried_again_and_says_why_in_the_log(
@@ -106,15 +118,8 @@ def test_a_serial_device_that_cannot_be_opened_yet_is_tried_again_and_says_why_i
     link stays down and the next try opens it."""
     device = tmp_path / "ttyFC"
     clock = FakeClock()
-    first = RawPty(device)
-    link = open_link(f"{device},57600", source_system=255, source_component=190, name="fc",
-                     clock=clock)
-    back: RawPty | None = None
-    try:
-        first.close()
-        link.send_rc_override(1, 1, [1500] * 4 + [65535] * 14)
-        link.read()
-        assert link.down_reason == "device gone"
+    with serial_fc(device, 57600, clock) as (link, ptys):
+        unplug(link, ptys[0])
         device.write_bytes(b"")  # a node, but not a terminal
         clock.now = link.next_reopen_s
         with caplog.at_level("DEBUG", logger="mecanum_mav"):
@@ -125,13 +130,8 @@ def test_a_serial_device_that_cannot_be_opened_yet_is_tried_again_and_says_why_i
         assert "Inappropriate ioctl for device" in record.getMessage()  # (ENOTTY)
         assert link.down_reason == "device gone"
         device.unlink()
-        back = RawPty(device)
+        ptys.append(RawPty(device))
         assert reopen_until_up(link, clock)
-    finally:
-        link.close()
-        first.close()
-        if back is not None:
-            back.close()
 
 
 # --------------------------------------------------------------------------- TCP
