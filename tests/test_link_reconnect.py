@@ -275,9 +275,10 @@ class _UnresolvableConnect(socket.socket):
 
 @pytest.mark.parametrize("failure", ["name", "files"])
 def test_a_tcp_link_whose_reconnect_cannot_resolve_or_open_a_socket_stays_down_and_tries_again(
-        failure: str, monkeypatch: pytest.MonkeyPatch) -> None:
+        failure: str, monkeypatch: pytest.MonkeyPatch,
+        caplog: pytest.LogCaptureFixture) -> None:
     """Reconnecting never raises into the loop: a name that does not resolve, or a process out
-    of descriptors, is a failed attempt like a refused one."""
+    of descriptors, is a failed attempt like a refused one, and the debug log says which."""
     from mecanum_mav.io.links import tcp
 
     with socket.socket() as server:
@@ -295,8 +296,13 @@ def test_a_tcp_link_whose_reconnect_cannot_resolve_or_open_a_socket_stays_down_a
                 def out_of_files(*args: object) -> socket.socket:
                     raise OSError(errno.EMFILE, "Too many open files")
                 monkeypatch.setattr(tcp.socket, "socket", out_of_files)
-            assert link.reopen(link.next_reopen_s) is False
+            with caplog.at_level("DEBUG", logger="mecanum_mav"):
+                assert link.reopen(link.next_reopen_s) is False
             assert not link.up
+            why = {"name": f"[Errno {socket.EAI_NONAME}] Name or service not known",
+                   "files": f"[Errno {errno.EMFILE}] Too many open files"}[failure]
+            assert [r.getMessage() for r in caplog.records if r.levelname == "DEBUG"] == [
+                f"fc: reconnecting failed: {why}"]
             monkeypatch.undo()
             assert wait_until(lambda: link.reopen(link.next_reopen_s), 2.0)  # (and it can)
             assert link.up

@@ -217,7 +217,7 @@ def test_a_serial_path_that_reappears_as_something_else_than_a_tty_keeps_the_lin
 
 
 def test_a_tcp_link_whose_server_is_gone_tries_to_connect_exactly_every_half_second(
-        tmp_path: Path) -> None:
+        tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
     clock = FakeClock()
     server = socket.create_server(("127.0.0.1", 0))
     address = server.getsockname()
@@ -234,8 +234,13 @@ def test_a_tcp_link_whose_server_is_gone_tries_to_connect_exactly_every_half_sec
             select.select([link.fileno()], [], [], 0.1)
         assert link.down_reason == "closed by the peer"
         assert link.next_reopen_s == START_S + HALF_SECOND
-        tried = step_reopen(link, clock, START_S + 2.1)
+        with caplog.at_level("DEBUG", logger="mecanum_mav"):
+            tried = step_reopen(link, clock, START_S + 2.1)
         assert tried == [START_S + k * HALF_SECOND for k in (1, 2, 3, 4)]  # each refused
+        said = [r.getMessage() for r in caplog.records if r.levelname == "DEBUG"]
+        assert len(said) == 4, said  # each try says why, in the debug log
+        for line in said:
+            assert line.startswith("fc: reconnecting failed: ") and "Connection refused" in line
         server = socket.create_server(address)  # back on the same port
         tried = step_reopen(link, clock, START_S + 5.0)
         # the next try connects; a connect still in flight then completes at the one after

@@ -18,6 +18,7 @@ from __future__ import annotations
 import contextlib
 import errno
 import logging
+import os
 import selectors
 import socket
 import time
@@ -105,25 +106,16 @@ class TcpLink(_Tcp):
             sock.close()
             sock = self._connecting = None
         if sock is None:
-            try:  # (a name that no longer resolves raises; so does a process out of files)
-                sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
-            except OSError as exc:
-                log.debug("%s: reconnecting failed: %s", self.name, exc)
-                return False
-            sock.setblocking(False)
-            try:
-                code = sock.connect_ex(self.conn.destination_addr)
-            except OSError as exc:
-                log.debug("%s: reconnecting failed: %s", self.name, exc)
-                code = -1
-            if code not in (0, errno.EINPROGRESS):
-                sock.close()
+            sock = self._start_connect()
+            if sock is None:
                 return False
             self._connecting, self._connect_s = sock, now_s
         if not _writable(sock):
             return False  # still connecting: the next attempt looks again
         self._connecting = None
-        if sock.getsockopt(socket.SOL_SOCKET, socket.SO_ERROR):  # refused, unreachable
+        code = sock.getsockopt(socket.SOL_SOCKET, socket.SO_ERROR)
+        if code:  # refused, unreachable
+            log.debug("%s: reconnecting failed: %s", self.name, os.strerror(code))
             sock.close()
             return False
         sock.setsockopt(socket.SOL_TCP, socket.TCP_NODELAY, 1)
@@ -132,6 +124,24 @@ class TcpLink(_Tcp):
         self.conn.port = sock
         self.conn.fd = sock.fileno()
         return True
+
+    def _start_connect(self) -> socket.socket | None:
+        """A non-blocking connect to the link's address, under way (None: it failed at once,
+        said in the debug log: refused, no route, a name that no longer resolves, a process
+        out of descriptors)."""
+        sock = None
+        try:
+            sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+            sock.setblocking(False)
+            code = sock.connect_ex(self.conn.destination_addr)
+            if code not in (0, errno.EINPROGRESS):
+                raise OSError(code, os.strerror(code))
+        except OSError as exc:
+            log.debug("%s: reconnecting failed: %s", self.name, exc)
+            if sock is not None:
+                sock.close()
+            return None
+        return sock
 
     def close(self, *, linger_s: float = 0.0) -> None:
         super().close(linger_s=linger_s)
