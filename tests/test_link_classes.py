@@ -73,6 +73,44 @@ def test_a_udpbcast_link_sends_to_the_address_that_answered_it():
         answering.close()
 
 
+@pytest.mark.parametrize("resolves", [True, False])
+def test_a_link_pymavlink_sends_for_takes_each_datagram_whole(
+        resolves: bool, monkeypatch: pytest.MonkeyPatch) -> None:
+    """MAVLink over UDP: each datagram carries whole packets, so a packet split over two
+    datagrams is refused, as by every UDP link. Here a broadcast link, and a ``udpout:`` link
+    whose host does not resolve when it opens (pymavlink then sends for it)."""
+    peer = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    peer.bind(("127.0.0.1", 0))
+    peer.settimeout(5.0)
+    if resolves:
+        link = opened(f"udpbcast:127.0.0.1:{peer.getsockname()[1]}")
+    else:
+        def unresolvable(host: str) -> str:
+            raise socket.gaierror(socket.EAI_NONAME, "Name or service not known")
+        with monkeypatch.context() as patch:
+            patch.setattr(socket, "gethostbyname", unresolvable)
+            link = opened(f"udpout:127.0.0.1:{peer.getsockname()[1]}")
+    try:
+        assert type(link) is (links.UdpBroadcastLink if resolves
+                              else links.PymavlinkDatagramLink)
+        assert link.send(link.mav.heartbeat_encode(10, 8, 0, 0, 4))
+        _, address = peer.recvfrom(1024)
+        station = mavlink.MAVLink(None, srcSystem=255, srcComponent=190)
+        packet = bytes(station.heartbeat_encode(6, 8, 0, 0, 4).pack(station))
+        peer.sendto(packet[:7], address)
+        peer.sendto(packet[7:], address)
+        peer.sendto(packet, address)
+        last = station.statustext_encode(6, b"last").pack(station)
+        peer.sendto(bytes(last), address)
+        got: list[str] = []
+        assert wait_until(
+            lambda: got.extend(m.get_type() for m in link.read()) or "STATUSTEXT" in got, 5.0)
+        assert got == ["HEARTBEAT", "STATUSTEXT"]
+    finally:
+        link.close()
+        peer.close()
+
+
 @pytest.mark.parametrize("url", ["udpout:127.0.0.1:9", "udpin:127.0.0.1:0"])
 def test_a_datagram_link_never_goes_down_and_nothing_waits_in_it(url):
     link = opened(url)

@@ -211,8 +211,8 @@ class PymavlinkDatagramLink(DatagramLink):
 
     def __init__(self, conn: Any, *, url: str, name: str, signing_key: bytes | None,
                  clock: Callable[[], float]) -> None:
-        # (set before the parser is made: whole datagrams only from a UDP URL)
-        self.parses_datagrams = url.startswith(("udp:", "udpin:", "udpout:", "udpbcast:"))
+        # (set before the parser is made: whole datagrams from UDP, unicast or multicast)
+        self.parses_datagrams = isinstance(conn, (mavutil.mavudp, mavutil.mavmcast))
         super().__init__(conn, url=url, name=name, signing_key=signing_key, clock=clock)
 
     def _put_datagram(self, data: bytes) -> None:
