@@ -267,7 +267,8 @@ def test_a_udpout_link_with_no_one_listening_fails_no_send_and_loses_none_once_o
         link.close()
 
 
-def test_a_udpout_link_whose_send_fails_connects_again_on_its_port_at_most_twice_a_second():
+def test_a_udpout_link_whose_send_fails_connects_again_on_its_port_at_most_twice_a_second(
+        caplog: pytest.LogCaptureFixture) -> None:
     clock = FakeClock()
     peer = _peer_socket()
     link = open_link(f"udpout:127.0.0.1:{peer.getsockname()[1]}", source_system=1,
@@ -280,7 +281,10 @@ def test_a_udpout_link_whose_send_fails_connects_again_on_its_port_at_most_twice
         local = link.conn.port.getsockname()
         beat = link.mav.heartbeat_encode(10, 8, 0, 0, 4)
         link._send = unreachable
-        assert not link.send(beat)  # failed, counted; connected again
+        with caplog.at_level("WARNING", logger="mecanum_mav"):
+            assert not link.send(beat)  # failed, counted; connected again
+        assert [r.getMessage() for r in caplog.records] == [  # the socket's own error
+            "gcs: send failed (1 so far): [Errno 101] Network is unreachable"]
         assert link.send(beat)
         assert peer.recvfrom(1024)[1] == local  # from the same port
         link._send = unreachable

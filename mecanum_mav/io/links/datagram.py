@@ -312,7 +312,7 @@ def _dissolve(sock: socket.socket) -> bool:
     """Undo a UDP socket's ``connect()``, which Python's socket module cannot express: the
     kernel forgets the peer, the route and the local address it chose for them, and the port
     it gave an unbound socket. True if it did."""
-    libc = ctypes.CDLL(None, use_errno=True)
+    libc = ctypes.CDLL(None)
     libc.connect.argtypes = [ctypes.c_int, ctypes.c_char_p, ctypes.c_uint32]
     return int(libc.connect(sock.fileno(), _UNSPECIFIED, len(_UNSPECIFIED))) == 0
 
