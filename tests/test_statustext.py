@@ -97,3 +97,15 @@ def test_chunks_survive_the_wire():
     back = [wire_round_trip(m) for m in chunks]
     assert [(m.severity, m.id, m.chunk_seq) for m in back] == [(2, 4242, 0), (2, 4242, 1)]
     assert "".join(m.text for m in back) == text
+
+
+@pytest.mark.parametrize("mavlink1", [False, True])
+def test_a_received_text_ends_at_its_nul_and_one_without_a_chunk_id_stands_alone(mavlink1):
+    """MAVLink: a char array shorter than its field ends at a NUL; what follows is not text.
+    A MAVLink 1 STATUSTEXT carries no id or chunk_seq: a whole text."""
+    from mecanum_mav.protocol.statustext import StatusChunks
+
+    mav = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
+    sent = mavlink.MAVLink_statustext_message(4, b"Mode HOLD\x00left over", 0, 0)
+    received = mavlink.MAVLink(None).decode(bytearray(sent.pack(mav, force_mavlink1=mavlink1)))
+    assert StatusChunks().add(2.5, received) == [(2.5, 4, "Mode HOLD")]

@@ -87,13 +87,12 @@ class StatusChunks:
         self._open: dict[tuple[int, int, int], tuple[float, int, dict[int, str]]] = {}
 
     def add(self, t: float, msg: Any) -> list[tuple[float, int, str]]:
-        """The (time, severity, text) completed by one STATUSTEXT at ``t``."""
-        text = str(msg.text).split("\x00", 1)[0]
-        ident = getattr(msg, "id", 0) or 0
+        """The (time, severity, text) completed by one STATUSTEXT at ``t`` (a pymavlink
+        message: its ``text`` ends at the first NUL; a MAVLink 1 one has ``id`` 0)."""
+        text, ident, seq = msg.text, msg.id, msg.chunk_seq
         if not ident:
             return [(t, msg.severity, text)]
         key = (msg.get_srcSystem(), msg.get_srcComponent(), ident)
-        seq = getattr(msg, "chunk_seq", 0) or 0
         done = []
         if key in self._open and seq in self._open[key][2]:
             done.append(self._close(key))
