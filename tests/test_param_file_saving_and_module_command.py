@@ -64,3 +64,42 @@ def test_the_documented_module_command_regenerates_the_committed_default_file(tm
     assert done.returncode == 0, done.stderr
     committed = Path(__file__).resolve().parent.parent / "params" / "default.parm"
     assert out.read_text(encoding="utf-8") == committed.read_text(encoding="utf-8")
+
+
+def test_saving_into_a_file_with_a_byte_order_mark_and_non_utf8_comments_changes_only_the_value(
+        tmp_path: Path):
+    """A file last saved by a Windows editor (a UTF-8 byte order mark) with a Latin-1 comment:
+    the first line is a parameter like any other, and every byte but the new value stays."""
+    path = tmp_path / "rover.parm"
+    old = b"\xef\xbb\xbfGEO_HALF_LEN 0.2\n# r\xe9glage de l'\xe9quipe\nOUT_RATE 25\n"
+    path.write_bytes(old)
+    save_keeping_layout(Params({"GEO_HALF_LEN": 0.25, "OUT_RATE": 25}), path)
+    assert path.read_bytes() == old.replace(b"0.2\n", b"0.25\n")
+    assert (tmp_path / "rover.parm.bak").read_bytes() == old
+    assert load(path) == Params({"GEO_HALF_LEN": 0.25, "OUT_RATE": 25})
+
+
+def test_saving_unchanged_parameters_into_a_file_with_a_byte_order_mark_leaves_it_alone(
+        tmp_path: Path):
+    path = tmp_path / "rover.parm"
+    path.write_bytes(b"\xef\xbb\xbfGEO_HALF_LEN 0.2\n# \xe9\n")
+    save_keeping_layout(Params({"GEO_HALF_LEN": 0.2}), path)
+    assert path.read_bytes() == b"\xef\xbb\xbfGEO_HALF_LEN 0.2\n# \xe9\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["rover.parm"]  # no .bak
+
+
+def test_the_module_commands_help_says_what_each_option_does(
+        capsys: pytest.CaptureFixture[str]):
+    with pytest.raises(SystemExit) as exit_:
+        main(["--help"])
+    assert exit_.value.code == 0
+    out = " ".join(capsys.readouterr().out.split())
+    assert "Generate files from the schema." in out
+    assert "--table print the parameter reference table" in out
+    assert "--write-defaults PATH write the defaults file" in out
+
+
+def test_the_written_header_has_no_trailing_spaces_on_its_blank_lines(tmp_path: Path):
+    text = format_text(Params(), header="first\n\nthird")
+    assert text.startswith("# first\n#\n# third\n")
+    assert all(line == line.rstrip() for line in text.splitlines())

@@ -18,6 +18,7 @@ defaults file from the schema.
 from __future__ import annotations
 
 import argparse
+import codecs
 import logging
 import os
 import re
@@ -186,19 +187,22 @@ def update_text(text: str, params: Mapping[str, Value]) -> str:
 
 def save_keeping_layout(params: Mapping[str, Value], path: str | os.PathLike[str]) -> None:
     """Save ``params`` into the existing file at ``path`` as :func:`update_text` does (only
-    changed values change), keeping the previous file as ``path`` + ``.bak``; a file that does
-    not exist yet is written whole (:func:`save`). Both writes are atomic."""
+    changed values change: every other byte stays, a UTF-8 byte order mark and bytes that
+    are not UTF-8 included), keeping the previous file as ``path`` + ``.bak``; a file that
+    does not exist yet is written whole (:func:`save`). Both writes are atomic."""
     target = Path(path)
     try:
         old = target.read_bytes()
     except FileNotFoundError:
         save(params, target)
         return
-    new = update_text(old.decode("utf-8-sig", errors="replace"), params)
-    if new.encode("utf-8") == old:
+    bom = codecs.BOM_UTF8 if old.startswith(codecs.BOM_UTF8) else b""
+    text = old[len(bom):].decode("utf-8", errors="surrogateescape")
+    new = bom + update_text(text, params).encode("utf-8", errors="surrogateescape")
+    if new == old:
         return
     write_atomic(target.with_name(target.name + ".bak"), old)
-    write_atomic(target, new.encode("utf-8"))
+    write_atomic(target, new)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
