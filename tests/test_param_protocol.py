@@ -78,6 +78,20 @@ def test_param_request_read_by_name_and_by_index(harness):
     assert [(m.param_id, m.param_index) for m in by_index] == [(SCHEMA[0].name, 0)]
 
 
+def test_a_read_by_the_last_index_answers_and_one_past_it_gets_no_answer(harness):
+    h = harness
+    last = len(SCHEMA) - 1
+    since = h.gcs.mark()
+    for index in (last, last + 1, 32767):
+        h.gcs.mav.param_request_read_send(1, 1, b"", index)
+    h.run_for(1.0)
+    h.gcs.mark()
+    got = h.gcs.received("PARAM_VALUE", since)
+    assert [(m.param_id, m.param_index) for m in got] == [(SCHEMA[last].name, last)]
+    assert status_texts(h, since) == []  # a request like any other, not an error
+    assert not h.core.faulted
+
+
 def test_unknown_parameter_names_get_no_answer(harness):
     h = harness
     since = h.gcs.mark()

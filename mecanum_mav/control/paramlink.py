@@ -77,9 +77,10 @@ class ParamLink:
         """PARAM_SET from the pilot: validated, answered, applied and kept (module docstring)."""
         if not (self._for_us(msg.target_system, msg.target_component) and self._from_pilot(msg)):
             return
-        value, problem = self.service.set(msg.param_id, msg.param_value)
-        if value is None:
+        answer = self.service.set(msg.param_id, msg.param_value)
+        if answer is None:
             return  # unknown name: no answer, as the protocol specifies
+        value, problem = answer
         self._send_param(value)
         name = value.param_id.decode()
         if problem:

@@ -59,23 +59,22 @@ class ParamService:
         return [self.value(spec.name) for spec in SCHEMA]
 
     def read(self, param_id: str, param_index: int) -> ParamValue | None:
-        """PARAM_REQUEST_READ: by index, or by name when ``param_index`` is -1; else None."""
+        """PARAM_REQUEST_READ: by index, or by name (as pymavlink gives it) when
+        ``param_index`` is -1; else None (an index past the last, an unknown name)."""
         if param_index >= 0:
             return self.value(SCHEMA[param_index].name) if param_index < len(SCHEMA) else None
-        name = param_id.rstrip("\x00")
-        return self.value(name) if name in SPECS else None
+        return self.value(param_id) if param_id in SPECS else None
 
-    def set(self, param_id: str, param_value: float) -> tuple[ParamValue | None, str]:
-        """PARAM_SET: ``(reply, problem)``.
+    def set(self, param_id: str, param_value: float) -> tuple[ParamValue, str] | None:
+        """PARAM_SET: None for an unknown name (no answer is sent), else ``(reply, problem)``:
+        ``problem`` is "" when the value was stored, else the reason it was refused (the reply
+        then holds the old value).
 
-        ``reply`` is None for an unknown name (no answer is sent); ``problem`` is "" when the
-        value was stored, else the reason it was refused (the reply then holds the old value).
-        """
-        name = param_id.rstrip("\x00")
-        if name not in SPECS:
-            return None, ""
+        Names as pymavlink gives them (``param_id`` ends at its NUL)."""
+        if param_id not in SPECS:
+            return None
         try:
-            self.params.set(name, param_value)
+            self.params.set(param_id, param_value)
         except ParamError as exc:
-            return self.value(name), str(exc)
-        return self.value(name), ""
+            return self.value(param_id), str(exc)
+        return self.value(param_id), ""
