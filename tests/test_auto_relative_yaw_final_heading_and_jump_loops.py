@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 
+import pytest
 from conftest import lockstep
 from missionitems import JUMP, SPEED, YAW, do, local_wp, renumber
 
@@ -77,12 +78,24 @@ def test_relative_condition_yaws_in_a_row_add_up_even_before_the_rover_has_turne
     assert abs(wrap_pi(run.pose.yaw_rad - math.pi)) <= YAW_ACCEPT_RAD
 
 
-def test_a_relative_turn_of_more_than_half_a_circle_keeps_its_asked_direction():
+@pytest.mark.parametrize("direction", [1.0, -1.0])
+@pytest.mark.parametrize("angle", [270.0, 180.0])
+def test_a_relative_turn_of_half_a_circle_or_more_keeps_its_asked_direction(
+        angle: float, direction: float) -> None:
     """param3 1 (clockwise) with 270 degrees relative: the rover turns clockwise through south
-    to -90, not 90 degrees the short way."""
-    run = PerfectRover([HOME, do(0, YAW, 270.0, 0.0, 1.0, 1.0)]).until_done()
-    assert max(run.turned) > math.radians(260.0) and min(run.turned) >= 0.0
-    assert abs(wrap_pi(run.pose.yaw_rad + math.pi / 2)) <= YAW_ACCEPT_RAD
+    to -90, not 90 degrees the short way; param3 -1 counter-clockwise to +90. Half a circle
+    has no shorter way: it turns the way asked too."""
+    run = PerfectRover([HOME, do(0, YAW, angle, 0.0, direction, 1.0)]).until_done()
+    turned = [direction * t for t in run.turned]  # (in the asked direction)
+    assert max(turned) > math.radians(angle - 10.0) and min(turned) >= 0.0
+    assert abs(wrap_pi(run.pose.yaw_rad - direction * math.radians(angle))) <= YAW_ACCEPT_RAD
+
+
+def test_a_small_positive_relative_angle_without_a_direction_turns_clockwise():
+    run = PerfectRover([HOME, do(0, YAW, 0.5, 0.0, 0.0, 1.0)])
+    for _ in range(int(1.0 / DT)):
+        run.step()
+    assert max(run.turned) == pytest.approx(math.radians(0.5)) and min(run.turned) >= 0.0
 
 
 def test_a_relative_turn_under_half_a_circle_with_a_direction_turns_that_way():

@@ -166,7 +166,7 @@ class MissionExecutor:
         """How early the turn at a waypoint passed at speed begins, s (0: at the waypoint)."""
         self._step: _Step | None = None
         self._speed: float | None = None
-        self._yaw: float | None = None
+        self._yaw = 0.0  # the heading to hold, rad NED (the rover's own at start)
         self._yaw_dir = 0
         self._yaw_rate_max: float | None = None
         self._last_s: float | None = None
@@ -314,7 +314,7 @@ class MissionExecutor:
         if step.exit_speed > 0.0:
             velocity = corner_lead(step.leg, step.next_direction, here, velocity,
                                    step.exit_speed, self.corner_lead_s)
-        if step.yaw_from is not None and self._yaw is not None:
+        if step.yaw_from is not None:
             un, ue = step.leg.direction  # the speed along as commanded last tick (slewed)
             along_mps = max(0.0, velocity_ned[0] * un + velocity_ned[1] * ue)
             yaw, rate = heading_schedule(step.leg, here, step.yaw_from, self._yaw, along_mps)
@@ -385,7 +385,7 @@ class MissionExecutor:
             if cmd == mavlink.MAV_CMD_DO_CHANGE_SPEED:
                 self._change_speed(item)
             elif cmd == mavlink.MAV_CMD_CONDITION_YAW:
-                self._condition_yaw(item, pose)
+                self._condition_yaw(item)
                 if not self._leads_somewhere(seq + 1, start):
                     self._step = _Step(seq, start, Leg(start, start), 0.0, 0.0, 0.0,
                                        turn_only=True)
@@ -417,7 +417,7 @@ class MissionExecutor:
         radius = item.param2 if waypoint and item.param2 > 0.0 else self.config.radius_m
         yaw_from = None
         if waypoint and math.isfinite(item.param4):
-            if self._yaw is not None and self._yaw_dir == 0 and leg.length_m > 2 * radius:
+            if self._yaw_dir == 0 and leg.length_m > 2 * radius:
                 yaw_from = self._yaw
             self._yaw, self._yaw_dir = math.radians(item.param4), 0
         elif self.config.face_along_legs and leg.length_m > 2 * radius:
@@ -490,16 +490,15 @@ class MissionExecutor:
                            Severity.WARNING)
             self._speed = min(speed, limit)
 
-    def _condition_yaw(self, item: MissionItem, pose: Pose2d) -> None:
+    def _condition_yaw(self, item: MissionItem) -> None:
         angle, rate, direction, relative = item.params
         direction = 0 if math.isnan(direction) else int(direction)
-        base = self._yaw if self._yaw is not None else pose.yaw_rad
         if relative == 1.0:
             step = math.radians(abs(angle)) * (direction or (1 if angle >= 0 else -1))
-            self._yaw = wrap_pi(base + step)
-            self._yaw_dir = 1 if step > 0 else -1 if step < 0 else 0
-            if abs(step) < math.pi:
-                self._yaw_dir = 0  # the shorter way is the asked way
+            self._yaw = wrap_pi(self._yaw + step)
+            # under half a circle the shorter way is the asked way; from half a circle on,
+            # the way asked is kept
+            self._yaw_dir = 0 if abs(step) < math.pi else (1 if step > 0 else -1)
         else:
             self._yaw = wrap_pi(math.radians(angle))
             self._yaw_dir = direction
@@ -515,7 +514,7 @@ class MissionExecutor:
 
     def _yaw_target(self, pose: Pose2d) -> float:
         """The heading to command; a forced turn direction leads by a quarter turn."""
-        target = pose.yaw_rad if self._yaw is None else self._yaw
+        target = self._yaw
         if self._yaw_dir:
             delta = wrap_pi(target - pose.yaw_rad)
             if delta * self._yaw_dir < 0.0 and abs(delta) > YAW_ACCEPT_RAD:
