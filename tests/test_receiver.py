@@ -219,6 +219,30 @@ def test_with_fs_thr_enable_off_a_failing_receiver_still_stops_the_wheels_but_ke
     assert h.core.vehicle.mode is Mode.MANUAL and h.core.vehicle.armed
 
 
+@pytest.mark.parametrize("fs_thr_enable", [0, 1])
+def test_a_failing_receiver_frame_stops_the_wheels_at_once_not_at_the_next_refresh(
+        fs_thr_enable: int) -> None:
+    """The wheels stop "now, whatever the action" (control/fclink.py): the neutral override
+    goes out as the failing frame arrives, even with OUT_RATE at its slowest (a refresh every
+    half second), and a failing receiver is no error of the companion's."""
+    h = receiver_harness(FS_THR_ENABLE=fs_thr_enable, OUT_RATE=2)
+    arm_by_switch(h)
+    rx(h, ch7=2000, ch3=2000)
+    assert h.run_until(lambda: wheels(h) == (2000,) * 4, 0.5)
+    rx(h, ch7=2000, ch3=900)  # below FS_THR_VALUE 910
+    assert h.run_until(lambda: wheels(h) == (1500,) * 4, 0.06)  # the next frame (25 Hz)
+    assert not h.core.faulted
+    assert not any("Error" in t for t in texts(h))
+
+
+def test_the_arm_switch_says_it_disarmed():
+    h = receiver_harness()
+    arm_by_switch(h)
+    rx(h, ch7=1000)
+    assert h.run_until(lambda: not h.core.vehicle.armed, 0.4)
+    assert "Disarmed: by RC switch" in texts(h)
+
+
 def test_a_ground_stations_override_that_leaves_the_stick_channels_alone_is_not_a_stick():
     """(MAVProxy's ``rc 6 1500``: channel 6 only; 65535 leaves the others, ch 1-8.)"""
     h = receiver_harness()

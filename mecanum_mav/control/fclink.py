@@ -146,10 +146,10 @@ class FcLink:
         vehicle = self.vehicle
         vehicle.on_receiver(frame.problem, now_s)
         gcs_driving = now_s - ctx.gcs_stick_s <= vehicle.config.input_timeout_s
+        # (A changed output goes out at once: every message makes the next tick look.)
         if frame.stick is None:
             if not gcs_driving:
                 ctx.stick = NEUTRAL_STICK  # the wheels stop now, whatever the action
-                ctx.new_input = True
             return
         if frame.mode is not None:
             vehicle.request_mode(frame.mode, now_s)
@@ -162,7 +162,6 @@ class FcLink:
             ctx.stick = frame.stick
             ctx.faulted = False
             vehicle.on_stick_input(now_s)
-            ctx.new_input = True
 
     def on_param_value(self, msg: FcParamValueMsg, now_s: float) -> None:
         """The board's PARAM_VALUE: an answer for the setup check (which may ask again)."""
