@@ -10,7 +10,7 @@ from hypothesis import example, given
 from hypothesis import strategies as st
 
 from mecanum_mav.config.params import Params
-from mecanum_mav.control.pwm import PwmMap, WheelOutput
+from mecanum_mav.control.pwm import DEAD_BAND_LIVE, PwmMap, WheelOutput
 from mecanum_mav.mecanum.shaping import deadband, expo, shape_stick, square_to_circle
 
 unit = st.floats(-1.0, 1.0, allow_nan=False)
@@ -210,6 +210,31 @@ def test_vector_pwm_matches_scalar_pwm_with_a_dead_band(wheels, band, jump):
     # kills pwm-dead-band-array, pwm-dead-band-array-jump
     out = dead_band_map(band, MOT_RL_REV=1, MOT_DZ_TYPE=jump)
     assert tuple(out.pulses_us_array(np.array([wheels]))[0]) == out.pulses_us(wheels)
+
+
+_WHEEL = st.tuples(st.integers(800, 1499), st.integers(1, 300), st.integers(1, 300),
+                   st.booleans()).map(
+    lambda t: {"trim": t[0] + 100, "low": t[0] + 100 - t[1], "high": t[0] + 100 + t[2],
+               "rev": t[3]})
+_COMMAND = st.one_of(st.floats(allow_nan=True, allow_infinity=True),
+                     st.sampled_from([DEAD_BAND_LIVE, -DEAD_BAND_LIVE, 0.0, -0.0, 1.0, -1.0]))
+
+
+@given(st.lists(_COMMAND, min_size=4, max_size=4), st.lists(_WHEEL, min_size=4, max_size=4),
+       st.floats(0.0, 0.3), st.booleans())
+@example([DEAD_BAND_LIVE, -DEAD_BAND_LIVE, 0.5, -0.5],
+         [{"trim": 1500, "low": 1100, "high": 1700, "rev": False}] * 4, 0.1, False)
+def test_the_vector_pwm_of_any_wheels_and_commands_is_the_scalar_pwm_as_integers(
+        wheels, spans, band, jump):
+    """Each wheel's own minimum, trim, maximum (asymmetric spans) and direction, any dead
+    band, commands on the dead band's live edge: the vectorized pulses are the scalar ones,
+    as integers (microseconds)."""
+    out = PwmMap(tuple(WheelOutput(channel=k + 1, minimum=w["low"], trim=w["trim"],
+                                   maximum=w["high"], reversed=w["rev"])
+                       for k, w in enumerate(spans)), band, jump)
+    vector = out.pulses_us_array(np.array([wheels, wheels]))
+    assert vector.dtype.kind == "i" and vector.shape == (2, 4)
+    assert tuple(int(p) for p in vector[1]) == out.pulses_us(wheels)
 
 
 @given(st.floats(-1.0, 1.0), st.floats(0.0, 0.3))
