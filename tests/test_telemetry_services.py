@@ -13,6 +13,7 @@ from typing import Any
 
 import pytest
 from conftest import lockstep
+from support import status_texts
 
 import mecanum_mav
 from mecanum_mav.config.params import Params
@@ -205,6 +206,51 @@ def test_home_position_is_the_local_origin_at_its_latitude_and_longitude_once_kn
     assert (home.approach_x, home.approach_y, home.approach_z) == (0.0, 0.0, 0.0)  # (none)
     assert list(home.q) == [1.0, 0.0, 0.0, 0.0]
     assert 0 < home.time_usec <= 1e6 * h.now_s
+
+
+def test_set_gps_global_origin_is_answered_with_the_origin_and_said():
+    """GPS_GLOBAL_ORIGIN echoes the origin taken (1e-7 deg, mm) with the time since boot
+    (us), as ArduPilot answers SET_GPS_GLOBAL_ORIGIN; the pilot sees it in a STATUSTEXT."""
+    h = lockstep()
+    assert h.gcs.wait("HEARTBEAT", timeout_s=1.5) is not None  # (some time since boot)
+    since = h.gcs.mark()
+    h.gcs.mav.set_gps_global_origin_send(1, 473_977_420, 85_455_940, 488_123)
+    answer = h.gcs.wait("GPS_GLOBAL_ORIGIN", timeout_s=1.0, since=since)
+    assert answer is not None
+    assert (answer.latitude, answer.longitude, answer.altitude) == (
+        473_977_420, 85_455_940, 488_123)
+    assert 1e6 <= answer.time_usec <= 1e6 * h.now_s
+    assert "Origin 47.3977420 8.5455940" in status_texts(h, since)
+
+
+def test_the_origins_time_is_counted_from_the_companions_start() -> None:
+    """time_usec is time since boot, for a core started at any clock reading (the companion's
+    monotonic clock is seconds since the machine booted)."""
+    core = RoverCore(Params(), now_s=5000.0)
+    station = mavlink.MAVLink(None, srcSystem=255, srcComponent=190)
+    msg = station.set_gps_global_origin_encode(1, 473_977_420, 85_455_940, 0)
+    msg.pack(station)  # (as received: the header names the sender)
+    out = core.handle(msg, 5002.5)
+    [answer] = [m for m in out.gcs if m.get_type() == "GPS_GLOBAL_ORIGIN"]
+    assert answer.time_usec == 2_500_000
+
+
+@pytest.mark.parametrize("sender, target", [(200, 1), (255, 7)],
+                         ids=["not the pilot's ground station", "for another system"])
+def test_an_origin_from_another_ground_station_or_for_another_system_is_ignored(
+        sender: int, target: int) -> None:
+    h = lockstep({"SYSID_MYGCS": 255})
+    h.gcs.mav.srcSystem = sender
+    since = h.gcs.mark()
+    h.gcs.mav.set_gps_global_origin_send(target, 473_977_420, 85_455_940, 0)
+    h.run_for(0.5)
+    h.gcs.mark()
+    assert h.gcs.received("GPS_GLOBAL_ORIGIN", since) == []
+    h.gcs.mav.srcSystem = 255
+    since = h.gcs.mark()
+    h.gcs.command(CMD.MAV_CMD_REQUEST_MESSAGE, CMD.MAVLINK_MSG_ID_HOME_POSITION)
+    [home] = h.gcs.received("HOME_POSITION", since)
+    assert (home.latitude, home.longitude) == (0, 0)  # (no origin taken)
 
 
 def test_request_message_for_an_unknown_message_is_denied(harness):
