@@ -59,3 +59,61 @@ def test_a_mode_or_arm_switch_beyond_the_channel_count_is_not_read_and_the_stick
         assert got.mode is None and got.arm is None
     within = frames(18)[-1]  # (the same pulses within the count: a mode)
     assert within.mode is not None
+
+
+def test_no_channels_and_rssi_0_are_the_radio_failsafe_and_say_which():
+    params = Params()
+    config, sticks = ReceiverConfig.from_params(params), RcInputConfig.from_params(params)
+    assert ReceiverInput().frame(0, CENTRED, 255, config, sticks, 0.0).problem == "no channels"
+    assert ReceiverInput().frame(18, CENTRED, 0, config, sticks, 0.0).problem == "RSSI 0"
+    assert ReceiverInput().frame(1, CENTRED, 255, config, sticks, 0.0).problem is not None
+
+
+def test_a_throttle_channel_beyond_the_count_reads_as_no_pulse_below_fs_thr_value():
+    throttle = int(Params()["RCMAP_THROTTLE"])
+    assert frame(CENTRED, chancount=throttle - 1).problem == "throttle 0 us < FS_THR_VALUE"
+
+
+def test_a_throttle_at_fs_thr_value_is_valid_and_one_microsecond_below_is_the_failsafe():
+    """ArduPilot: the throttle failsafe is a pulse below FS_THR_VALUE."""
+    value = int(Params()["FS_THR_VALUE"])
+    pulses = CENTRED.copy()
+    pulses[int(Params()["RCMAP_THROTTLE"]) - 1] = value
+    assert frame(pulses).problem is None
+    pulses[int(Params()["RCMAP_THROTTLE"]) - 1] = value - 1
+    assert frame(pulses).problem == f"throttle {value - 1} us < FS_THR_VALUE"
+
+
+@pytest.mark.parametrize("pulse", [800, 2200])
+def test_a_stick_pulse_at_the_ends_of_the_valid_range_is_read(pulse):
+    pulses = CENTRED.copy()
+    pulses[int(Params()["RCMAP_STEER"]) - 1] = pulse
+    got = frame(pulses)
+    assert got.problem is None and got.stick is not None and abs(got.stick[2]) == 1.0
+
+
+def _arm_frames(times: list[float], arm_ch: int = 8, chancount: int = 18) -> list:
+    """Frames at ``times``: the arm switch (``arm_ch``) low at the first, high after."""
+    params = Params()
+    params.update({"RCIN_ARM_CH": arm_ch, "MODE_CH": 0})
+    receiver = ReceiverInput()
+    config, sticks = ReceiverConfig.from_params(params), RcInputConfig.from_params(params)
+    out = []
+    for k, t in enumerate(times):
+        pulses = CENTRED.copy()
+        pulses[arm_ch - 1] = 1000 if k == 0 else 2000
+        out.append(receiver.frame(chancount, pulses, 255, config, sticks, t))
+    return out
+
+
+def test_an_arm_switch_change_counts_once_held_the_debounce_time_and_not_before():
+    """ArduPilot SWITCH_DEBOUNCE_TIME_MS (200 ms): a new position counts once held that long
+    (0.3 s to 0.5 s is 0.2 s, whatever the floating point sum says)."""
+    first, changed, early, held = _arm_frames([0.0, 0.3, 0.4999, 0.5])
+    assert [f.arm for f in (first, changed, early)] == [None, None, None]
+    assert held.arm is True
+
+
+def test_an_arm_switch_on_the_last_channel_the_receiver_sends_is_read():
+    *_, held = _arm_frames([0.0, 0.3, 0.5], arm_ch=8, chancount=8)
+    assert held.arm is True
