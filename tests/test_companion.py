@@ -267,7 +267,36 @@ def test_set_mode_hold_by_command_and_by_message(harness):
     ack = h.gcs.wait("COMMAND_ACK", lambda m: m.command == mavlink.MAVLINK_MSG_ID_SET_MODE,
                      1.0, since)
     assert ack is not None and ack.result == ACCEPTED
+    # (as ArduPilot: no progress, no result detail, addressed to the sender)
+    assert (ack.progress, ack.result_param2) == (0, 0)
+    assert (ack.target_system, ack.target_component) == (h.gcs.mav.srcSystem,
+                                                         h.gcs.mav.srcComponent)
     assert heartbeat(h, lambda m: m.custom_mode == Mode.MANUAL)
+
+
+def test_set_mode_auto_by_message_starts_the_mission_as_the_command_does():
+    h = armed(lockstep(mission=renumber([local_wp(0, 0.0, 0.0), local_wp(0, 1.0, 0.0)])))
+    since = h.gcs.mark()
+    h.gcs.mav.set_mode_send(1, CUSTOM, int(Mode.AUTO))
+    ack = h.gcs.wait("COMMAND_ACK", lambda m: m.command == mavlink.MAVLINK_MSG_ID_SET_MODE,
+                     1.0, since)
+    assert ack is not None and ack.result == ACCEPTED
+    assert h.gcs.wait("MISSION_ITEM_REACHED", lambda m: m.seq == 1, 10.0, since)
+    assert not h.core.faulted
+
+
+@pytest.mark.parametrize(("sender", "target"), [(200, 1), (255, 7)],
+                         ids=["not the pilot's ground station", "for another system"])
+def test_set_mode_from_another_ground_station_or_for_another_system_is_ignored(
+        sender: int, target: int) -> None:
+    h = lockstep({"SYSID_MYGCS": 255})
+    h.gcs.mav.srcSystem = sender
+    since = h.gcs.mark()
+    h.gcs.mav.set_mode_send(target, CUSTOM, int(Mode.HOLD))
+    h.run_for(0.5)
+    h.gcs.mark()
+    assert h.gcs.received("COMMAND_ACK", since) == []
+    assert h.core.vehicle.mode is Mode.MANUAL
 
 
 @pytest.mark.parametrize(("mode", "name"), [(int(Mode.AUTO), "AUTO"), (3, "3")])
