@@ -192,8 +192,18 @@ def test_each_receiver_failsafe_stops_the_wheels_and_switches_to_hold(how):
     assert h.run_until(lambda: wheels(h) == (1500,) * 4, limit), how
     assert h.core.vehicle.rc_failsafe and h.core.vehicle.mode is Mode.HOLD
     assert h.core.vehicle.armed
-    assert any(t.startswith("Radio failsafe") for t in texts(h))
+    why = {"silence": "no RC_CHANNELS",
+           "chancount 0": "no channels", "rssi 0": "RSSI 0",
+           "throttle low": "throttle 900 us < FS_THR_VALUE"}[how]
+    assert [t for t in texts(h) if t.startswith("Radio failsafe")] == [
+        f"Radio failsafe: {why}"]
     assert h.now_s - start <= limit
+    rx(h, ch7=2000)  # the receiver back, sticks centred
+    h.board.rssi = 255
+    h.board._rc_channels.period_s = h.board._rc_channels.next_s = 0.04
+    assert h.run_until(lambda: not h.core.vehicle.rc_failsafe, 0.6)
+    assert "Radio receiver OK, mode HOLD" in texts(h)
+    assert not h.core.faulted
 
 
 def test_the_receiver_failsafe_can_disarm_and_blocks_arming_until_the_receiver_is_back():
@@ -201,6 +211,7 @@ def test_the_receiver_failsafe_can_disarm_and_blocks_arming_until_the_receiver_i
     arm_by_switch(h)
     h.board.rssi = 0
     assert h.run_until(lambda: not h.core.vehicle.armed, 0.2)
+    assert "Disarmed: radio failsafe" in texts(h)
     assert h.gcs.command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 1).result == (
         mavlink.MAV_RESULT_DENIED)
     h.board.rssi = 255

@@ -122,7 +122,7 @@ class Commands:
             return _result(self.vehicle.request_arm(
                 now_s, self._ctx.prearm_problems(), force=p[1] == FORCE_ARM_MAGIC))
         if p[0] == 0.0:
-            return _result(self.vehicle.request_disarm(now_s, "by command"))
+            return _result(self.vehicle.request_disarm("by command"))
         self.refuse(Refusal.COMMAND, f"Arm/disarm: param1 must be 0 or 1, got {p[0]}")
         return Result.DENIED
 

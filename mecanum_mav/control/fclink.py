@@ -157,7 +157,7 @@ class FcLink:
             vehicle.update(now_s)
             vehicle.request_arm(now_s, ctx.prearm_problems(frame.stick))
         elif frame.arm is False:
-            vehicle.request_disarm(now_s, "by RC switch")
+            vehicle.request_disarm("by RC switch")
         if not gcs_driving:
             ctx.stick = frame.stick
             ctx.faulted = False

@@ -151,7 +151,7 @@ class Vehicle:
         self._say(Severity.CRITICAL, f"Radio failsafe: {problem}")
         if self.armed:
             if self.config.receiver_action_disarm:
-                self.request_disarm(now_s, "radio failsafe")
+                self.request_disarm("radio failsafe")
             else:
                 self.request_mode(Mode.HOLD, now_s)
 
@@ -194,11 +194,12 @@ class Vehicle:
         self._say(Severity.INFO, f"Armed, mode {self.mode.name}")
         return Decision(True)
 
-    def request_disarm(self, now_s: float, reason: str = "") -> Decision:
-        """Disarm (always allowed). Disarming when disarmed is accepted."""
+    def request_disarm(self, reason: str) -> Decision:
+        """Disarm (always allowed), saying why ("Disarmed: by command"). Disarming when
+        disarmed is accepted."""
         if self.armed:
             self.armed = False
-            self._say(Severity.INFO, f"Disarmed{': ' + reason if reason else ''}")
+            self._say(Severity.INFO, f"Disarmed: {reason}")
         return Decision(True)
 
     def request_mode(self, mode_number: int, now_s: float) -> Decision:
@@ -233,14 +234,14 @@ class Vehicle:
             self.fc_lost = True
             self._say(Severity.CRITICAL, "Flight controller link lost")
         if self.fc_lost and self.armed:
-            self.request_disarm(now_s, "flight controller link lost")
+            self.request_disarm("flight controller link lost")
         gcs_late = self.gcs_seen_s is not None and now_s - self.gcs_seen_s > c.gcs_timeout_s
         if gcs_late and not self.gcs_failsafe:
             self.gcs_failsafe = True
             self._say(Severity.CRITICAL, "GCS link lost: failsafe")
             if self.armed:
                 if c.gcs_action_disarm:
-                    self.request_disarm(now_s, "GCS failsafe")
+                    self.request_disarm("GCS failsafe")
                 else:
                     self.request_mode(Mode.HOLD, now_s)
         rc_s = self.rc_seen_s
