@@ -14,6 +14,7 @@ from missionitems import JUMP, SPEED, YAW, do, local_wp, renumber
 
 from mecanum_mav.config.params import Params
 from mecanum_mav.control.executor import YAW_ACCEPT_RAD, ExecutorEvent, MissionExecutor
+from mecanum_mav.control.guided import Setpoint
 from mecanum_mav.io.links import mavlink
 from mecanum_mav.mecanum.geometry import Pose2d, wrap_pi
 from mecanum_mav.protocol.mission import MissionItem
@@ -31,17 +32,19 @@ class PerfectRover:
     setpoint's heading at :data:`TURN_RATE` (so only the heading logic is exercised); the
     headings it passed through, unwrapped, in :attr:`turned`."""
 
-    def __init__(self, items: list[MissionItem]) -> None:
+    def __init__(self, items: list[MissionItem], start: Pose2d | None = None) -> None:
         self.ex = MissionExecutor(Params())
         self.ex.load(renumber(items))
-        self.pose, self.t = Pose2d(0.0, 0.0, 0.0), 0.0
+        self.pose, self.t = start or Pose2d(0.0, 0.0, 0.0), 0.0
         self.turned = [0.0]
         self.events: list[ExecutorEvent] = []
+        self.setpoints: list[Setpoint] = []
         assert self.ex.start(self.pose, 0.0, None) is None
         self.events += self.ex.take_events()
 
     def step(self) -> None:
         setpoint = self.ex.update(self.pose, (0.0, 0.0), self.t)
+        self.setpoints.append(setpoint)
         self.events += self.ex.take_events()
         if setpoint.yaw is not None:
             error = wrap_pi(setpoint.yaw - self.pose.yaw_rad)
@@ -119,6 +122,24 @@ def test_the_mission_completes_only_once_the_last_waypoints_heading_is_reached()
     texts = [e.text for e in run.events if e.kind == "say"]
     assert texts[-1] == "Mission complete"
     assert [e.kind for e in run.events].count("finished") == 1
+
+
+def test_the_last_turn_in_place_holds_where_the_rover_arrived_and_so_does_the_end():
+    """Arrived at the last waypoint facing north, its heading 120: the turn in place holds
+    the position (a position setpoint, no velocity), and the mission's end holds it too."""
+    arrived = (1.5, -0.5)
+    run = PerfectRover([HOME, local_wp(0, *arrived, param4=120.0)],
+                       start=Pose2d(*arrived, 0.0))
+    while "reached" not in [e.kind for e in run.events] and run.t < 1.0:
+        run.step()
+    assert run.ex.running and abs(math.degrees(run.pose.yaw_rad)) < 10.0  # (yet to turn)
+    turning = len(run.setpoints)
+    run.until_done()
+    assert len(run.setpoints) - turning > 10  # (it turned for a while)
+    for setpoint in run.setpoints[turning:]:
+        assert setpoint.velocity_ned is None and setpoint.position_ned == arrived
+    after = run.ex.update(run.pose, (0.0, 0.0), run.t)
+    assert after.position_ned == arrived and after.velocity_ned is None
 
 
 def test_a_jump_loop_without_a_navigation_item_stops_the_mission_with_an_error():
