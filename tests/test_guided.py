@@ -237,3 +237,41 @@ def test_accelerations_flagged_as_ignored_are_accepted_and_z_is_ignored():
 def test_an_absurd_yaw_rate_is_rejected(rate):
     with pytest.raises(SetpointError):
         decode(1, IGNORE_POS | IGNORE_VEL | IGNORE_ACC | IGNORE_YAW, rate=rate)
+
+
+@pytest.mark.parametrize(("sender", "system", "component", "obeyed"), [
+    (255, 1, 1, True), (255, 1, 0, True), (255, 0, 0, True),  # the rover, or everyone
+    (255, 2, 1, False), (255, 1, 5, False), (200, 1, 1, False)],
+    ids=["to the rover", "to all its components", "to everyone", "to another system",
+         "to another component", "from another ground station"])
+def test_a_setpoint_is_obeyed_only_from_the_pilot_and_addressed_to_the_rover(
+        sender: int, system: int, component: int, obeyed: bool) -> None:
+    """MAVLink addressing: target 0 is everyone; SYSID_MYGCS names the ground station whose
+    setpoints are obeyed (here 255)."""
+    h = lockstep({"SYSID_MYGCS": 255})
+    h.gcs.arm()
+    assert h.gcs.set_mode(Mode.GUIDED) == mavlink.MAV_RESULT_ACCEPTED
+    h.gcs.mav.srcSystem = sender
+    stop = h.every(SETPOINT_PERIOD_S, lambda now: h.gcs.mav.set_position_target_local_ned_send(
+        0, system, component, NED, VELOCITY_ONLY, 0, 0, 0, 0.5, 0.0, 0, 0, 0, 0, 0, 0))
+    h.run_for(1.0)
+    stop()
+    assert (h.truth().pose.x_m > 0.2) is obeyed
+
+
+@pytest.mark.parametrize(("sender", "system", "component", "obeyed"), [
+    (255, 1, 1, True), (255, 0, 0, True), (255, 2, 1, False), (255, 1, 5, False),
+    (200, 1, 1, False)],
+    ids=["to the rover", "to everyone", "to another system", "to another component",
+         "from another ground station"])
+def test_an_rc_override_drives_only_from_the_pilot_and_addressed_to_the_rover(
+        sender: int, system: int, component: int, obeyed: bool) -> None:
+    h = lockstep({"SYSID_MYGCS": 255})
+    h.gcs.arm()
+    h.gcs.mav.srcSystem = sender
+    forward = [65535, 65535, 1750, 65535, 65535, 65535, 65535, 65535]  # "rc 3 1750"
+    stop = h.every(SETPOINT_PERIOD_S, lambda now: h.gcs.mav.rc_channels_override_send(
+        system, component, *forward))
+    h.run_for(1.0)
+    stop()
+    assert (h.truth().pose.x_m > 0.2) is obeyed
