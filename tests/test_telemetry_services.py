@@ -295,16 +295,20 @@ def test_set_home_to_here_resets_the_odometry_origin_and_counter(harness):
     h.run_for(2.0)  # input timeout: neutral; the rover stops
     assert h.core.estimator.pose.x_m > 1.0  # it went somewhere
     before = h.core.estimator.reset_counter
+    said = h.gcs.mark()
     ack = h.gcs.command(CMD.MAV_CMD_DO_SET_HOME, 1)
     assert ack.result == ACCEPTED
+    assert "Home and odometry origin set here" in status_texts(h, said)
     assert h.core.estimator.reset_counter == before + 1
     since = h.gcs.mark()
     odom = h.gcs.wait("ODOMETRY", timeout_s=0.1 + h.dt_s, since=since)  # the next one
     assert odom is not None and odom.reset_counter == before + 1
     # (the origin is where it stood: any motion since is the chassis settling, sub-micrometre)
     assert (odom.x, odom.y) == pytest.approx((0.0, 0.0), abs=1e-6)
+    said = h.gcs.mark()
     assert h.gcs.command(CMD.MAV_CMD_DO_SET_HOME, 0).result == DENIED
     assert h.core.estimator.reset_counter == before + 1
+    assert "Set home: only 'use current position' (param1=1)" in status_texts(h, said)
 
 
 def test_servo_output_raw_shows_the_commanded_pwm(harness):
