@@ -169,3 +169,25 @@ def test_a_jump_loop_without_a_navigation_item_ends_auto_in_hold_saying_why():
     assert h.gcs.wait("STATUSTEXT", lambda m: m.text == "Mission stopped: DO_JUMP loop without "
                       "a waypoint" and m.severity == mavlink.MAV_SEVERITY_ERROR, 1.0, since)
     assert all(o.channels[:4] == [1500] * 4 for o in h.overrides_since(0.0))
+
+
+def _yaw_reached_at_heading_deg(next_wp: tuple[float, float]) -> float:
+    """A rover at (5, 3) facing north; CONDITION_YAW to 90 then a waypoint at ``next_wp``:
+    the heading (deg) the rover had when the yaw item was reported reached."""
+    run = PerfectRover([HOME, do(0, YAW, 90.0, 0.0, 0.0, 0.0), local_wp(0, *next_wp)],
+                       start=Pose2d(5.0, 3.0, 0.0))
+    while not any(e.kind == "reached" and e.seq == 1 for e in run.events):
+        run.step()
+        assert run.t < 5.0, "the yaw item was never reached"
+    return math.degrees(run.pose.yaw_rad)
+
+
+def test_a_condition_yaw_before_a_waypoint_where_the_rover_stands_is_turned_first():
+    """Nothing to drive to (the next waypoint within its radius of the rover): the heading is
+    turned in place, and the yaw item reached once it is."""
+    assert abs(_yaw_reached_at_heading_deg((5.02, 3.0)) - 90.0) <= math.degrees(YAW_ACCEPT_RAD)
+
+
+def test_a_condition_yaw_before_a_waypoint_farther_away_is_turned_on_the_way():
+    """(The mission moves on at once; the rover turns while it drives.)"""
+    assert abs(_yaw_reached_at_heading_deg((8.0, 3.0))) < 5.0
