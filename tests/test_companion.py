@@ -686,7 +686,7 @@ def test_a_stick_lane_that_raises_leaves_the_stick_to_the_general_path(monkeypat
 
 
 def test_an_exception_in_a_message_handler_latches_neutral_until_the_next_valid_stick(
-        monkeypatch):
+        monkeypatch, caplog):
     from mecanum_mav.control import gcsinput
 
     h = armed(lockstep({"FS_INPUT_TMO": 5.0}))
@@ -703,8 +703,13 @@ def test_an_exception_in_a_message_handler_latches_neutral_until_the_next_valid_
     monkeypatch.setattr(gcsinput, "stick_from_manual_control", once)
     monkeypatch.setattr(h.core, "_lane", broken)  # (the stick lane decodes inline: fails too)
     since = h.gcs.mark()
-    o = drive(h, 1000)
+    with caplog.at_level("ERROR", logger="mecanum_mav"):
+        o = drive(h, 1000)
     assert o is not None and wheels(o) == NEUTRAL  # at once, in the step it arrived
+    # the log names the message and keeps the traceback, for the bug report
+    [record] = [r for r in caplog.records if r.levelname == "ERROR"]
+    assert record.getMessage() == "error handling MANUAL_CONTROL"
+    assert record.exc_info is not None and str(record.exc_info[1]) == "bug"
     h.gcs.mark()
     error = [m for m in h.gcs.received("STATUSTEXT", since) if m.text.startswith("Error")]
     assert [m.text for m in error] == ["Error handling MANUAL_CONTROL: neutral"]

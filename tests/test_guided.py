@@ -164,7 +164,10 @@ def test_a_velocity_setpoint_lapses_and_the_rover_stops(rover):
     ("fields", "reason"),
     [({"frame": 3}, "frame 3 not supported"), ({"vx": math.nan}, "velocity not finite"),
      ({"vx": 500.0}, "velocity absurd"), ({"mask": VELOCITY_ONLY | 8}, "give both"),
-     ({"mask": 0xFFF}, "nothing usable")],
+     ({"mask": 0xFFF}, "nothing usable"),
+     ({"mask": VELOCITY_ONLY & ~IGNORE_YAW, "yaw": math.nan}, "yaw not finite"),
+     ({"mask": VELOCITY_ONLY & ~IGNORE_RATE, "rate": math.inf},
+      "yaw rate not finite or absurd")],
 )
 def test_bad_setpoints_are_rejected_with_a_reason_and_never_move_it(rover, fields, reason):
     h = rover

@@ -280,9 +280,14 @@ def test_file_transfer_requests_are_refused_as_file_not_found(harness):
     replies = h.gcs.received("FILE_TRANSFER_PROTOCOL", since)
     assert len(replies) == 1
     reply = replies[0]
-    assert (reply.target_system, reply.target_component) == (255, 190)
+    assert (reply.target_network, reply.target_system, reply.target_component) == (0, 255, 190)
     payload = bytes(reply.payload)
     assert payload[0] | payload[1] << 8 == 8  # seq + 1
+    since = h.gcs.mark()
+    h.gcs.mav.file_transfer_protocol_send(0, 1, 5, request + [0] * (251 - len(request)))
+    h.step()  # (for another component of system 1: not ours to answer)
+    h.gcs.mark()
+    assert h.gcs.received("FILE_TRANSFER_PROTOCOL", since) == []
     assert (payload[3], payload[4], payload[5], payload[12]) == (129, 1, 4, 10)
 
 

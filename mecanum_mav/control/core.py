@@ -337,7 +337,7 @@ class RoverCore(OutputStage):
         :meth:`Vehicle.on_gcs_link_down`); returns what to send (on the other link)."""
         self.now_s = now_s
         self._unsettle()
-        self.say(Severity.WARNING, f"{_LINK_LABELS.get(link, link)} link down: {reason}; "
+        self.say(Severity.WARNING, f"{_LINK_LABELS[link]} link down: {reason}; "
                                    f"reconnecting")
         if link == "fc":
             self.vehicle.on_fc_link_down(now_s)
@@ -352,7 +352,7 @@ class RoverCore(OutputStage):
         (driving needs the flight controller's HEARTBEAT and arming again)."""
         self.now_s = now_s
         self._unsettle()
-        self.say(Severity.NOTICE, f"{_LINK_LABELS.get(link, link)} link reconnected")
+        self.say(Severity.NOTICE, f"{_LINK_LABELS[link]} link reconnected")
         if link == "fc":
             return self._take(self._override(self.pwm.neutral(), now_s))
         return self._take(None)
