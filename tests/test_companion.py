@@ -764,6 +764,7 @@ def test_a_flood_of_distinct_bad_sticks_is_said_once_a_second_and_counted_whole(
 
 def test_each_kind_of_refusal_is_said_on_its_own_clock_and_named_in_the_status_line():
     h = armed(lockstep())
+    assert h.core.status_line().endswith("refused 0 (none)")
     since = h.gcs.mark()
     h.gcs.mav.manual_control_send(1, 2000, 0, 500, 0, 0)
     h.gcs.mav.param_set_send(1, 1, b"OUT_RATE", math.nan, mavlink.MAV_PARAM_TYPE_REAL32)

@@ -181,11 +181,36 @@ def test_only_accepted_sets_are_saved_and_a_failed_save_is_reported():
     assert "Param save failed: No space left on device" in status_texts(h, since)
 
 
-def test_parameter_messages_for_another_system_are_ignored(harness):
+@pytest.mark.parametrize(("system", "component"), [(9, 1), (1, 5)],
+                         ids=["another system", "another component"])
+def test_parameter_messages_for_another_system_or_component_are_ignored(
+        harness, system: int, component: int) -> None:
     h = harness
     since = h.gcs.mark()
-    h.gcs.mav.param_request_list_send(9, 1)
-    h.gcs.mav.param_set_send(9, 1, b"INP_EXPO", 0.5, REAL32)
+    h.gcs.mav.param_request_list_send(system, component)
+    h.gcs.mav.param_request_read_send(system, component, b"INP_EXPO", -1)
+    h.gcs.mav.param_set_send(system, component, b"INP_EXPO", 0.5, REAL32)
+    h.run_for(1.0)
+    h.gcs.mark()
+    assert h.gcs.received("PARAM_VALUE", since) == []
+    assert h.core.params["INP_EXPO"] == 0.0
+
+
+def test_parameter_messages_to_every_component_are_answered(harness):
+    """(target_component 0: all components, as MAVProxy's param fetch sends it.)"""
+    h = harness
+    since = h.gcs.mark()
+    h.gcs.mav.param_request_read_send(1, 0, b"INP_EXPO", -1)
+    h.gcs.mav.param_set_send(1, 0, b"INP_EXPO", 0.5, REAL32)
+    got = answers(h, since)
+    assert [(m.param_id, m.param_value) for m in got] == [("INP_EXPO", 0.0), ("INP_EXPO", 0.5)]
+
+
+def test_a_parameter_set_from_another_ground_station_is_ignored():
+    h = lockstep({"SYSID_MYGCS": 255})
+    h.gcs.mav.srcSystem = 200
+    since = h.gcs.mark()
+    h.gcs.mav.param_set_send(1, 1, b"INP_EXPO", 0.5, REAL32)
     h.run_for(1.0)
     h.gcs.mark()
     assert h.gcs.received("PARAM_VALUE", since) == []
