@@ -107,9 +107,10 @@ def test_non_finite_wheel_command_gives_trim(bad):
     assert wheel.pulse_us(bad) == 1500
 
 
-def test_out_of_range_wheel_command_is_limited():
+@pytest.mark.parametrize("beyond", [1.0001, 1.5, 7.0])
+def test_out_of_range_wheel_command_is_limited(beyond):
     wheel = WheelOutput(channel=1, minimum=1000, trim=1500, maximum=2000)
-    assert (wheel.pulse_us(7.0), wheel.pulse_us(-7.0)) == (2000, 1000)
+    assert (wheel.pulse_us(beyond), wheel.pulse_us(-beyond)) == (2000, 1000)
 
 
 @given(st.lists(st.floats(allow_nan=True, allow_infinity=True), min_size=4, max_size=4))
