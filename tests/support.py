@@ -31,6 +31,7 @@ import os
 import select
 import selectors
 import socket
+import struct
 import sys
 import threading
 import time
@@ -542,3 +543,15 @@ def not_installed(monkeypatch: Any, package: str, *also_gone: str) -> None:
     for name in also_gone:
         monkeypatch.delitem(sys.modules, name, raising=False)
     monkeypatch.setitem(sys.modules, package, None)
+
+
+def png_size_and_dpi(path: Path) -> tuple[int, int, float]:
+    """(width px, height px, dots per inch) of the PNG at ``path``, from its header and its
+    pHYs chunk (what matplotlib writes for ``dpi``)."""
+    data = path.read_bytes()
+    assert data[:8] == b"\x89PNG\r\n\x1a\n"
+    width, height = struct.unpack(">II", data[16:24])
+    phys = data.index(b"pHYs")
+    per_metre, _, unit = struct.unpack(">IIB", data[phys + 4:phys + 13])
+    assert unit == 1  # metres
+    return width, height, per_metre * 0.0254

@@ -17,7 +17,7 @@ from collections.abc import Callable, Sequence
 from typing import Any
 
 import pytest
-from support import not_installed
+from support import not_installed, png_size_and_dpi
 
 from mecanum_mav.app.cli import main
 from mecanum_mav.app.loganalysis import INPUT_TIMEOUT_S, OVERRIDE_TIMEOUT_S, analyse
@@ -122,9 +122,10 @@ def test_mecanum_mav_log_prints_the_summary_and_writes_the_png_beside_the_tlog(
     assert "worst cross-track cm" in out.out
     png = tmp_path / "drive.png"
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    other = tmp_path / "out" / "x.png"
+    other = tmp_path / "out" / "drives" / "x.png"  # (folders made as needed)
     assert main(["log", str(path), "--png", str(other)]) == 0
     assert other.stat().st_size > 10_000
+    assert png_size_and_dpi(other)[2] == pytest.approx(80, abs=0.1)
 
 
 def test_a_truncated_tlog_names_the_byte_it_stops_at_and_the_rest_is_summarized(

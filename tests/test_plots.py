@@ -3,14 +3,14 @@
 
 from __future__ import annotations
 
-import struct
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
 
 pytest.importorskip("matplotlib")
+
+from support import png_size_and_dpi
 
 from mecanum_mav.app.plots import FIGURES, figures, render_all
 from mecanum_mav.mecanum.envelope import (
@@ -52,22 +52,12 @@ def built() -> Any:
         plt.close(fig)
 
 
-def _png_size_and_dpi(path: Path) -> tuple[int, int, float]:
-    data = path.read_bytes()
-    assert data[:8] == b"\x89PNG\r\n\x1a\n"
-    width, height = struct.unpack(">II", data[16:24])
-    phys = data.index(b"pHYs")
-    per_metre, _, unit = struct.unpack(">IIB", data[phys + 4:phys + 13])
-    assert unit == 1  # metres
-    return width, height, per_metre * 0.0254
-
-
 def test_plot_writes_every_figure_in_order_as_a_110_dpi_png_into_a_new_folder(tmp_path):
     out = tmp_path / "new" / "figures"
     paths = render_all(out)
     assert paths == [out / name for name, _ in FIGURES]
     for path in paths:
-        width, height, dpi = _png_size_and_dpi(path)
+        width, height, dpi = png_size_and_dpi(path)
         assert dpi == pytest.approx(110, abs=0.1)
         # 7 inches wide; surfaces 5.5 inches high, curves 4.
         assert (width, height) == ((770, 605) if path.name in SURFACES else (770, 440))
