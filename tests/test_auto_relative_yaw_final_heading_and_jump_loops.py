@@ -122,6 +122,8 @@ def test_the_mission_completes_only_once_the_last_waypoints_heading_is_reached()
     texts = [e.text for e in run.events if e.kind == "say"]
     assert texts[-1] == "Mission complete"
     assert [e.kind for e in run.events].count("finished") == 1
+    # MISSION_ITEM_REACHED names items of the mission only: the turn is no item of its own
+    assert [e.seq for e in run.events if e.kind == "reached"] == [1]
 
 
 def test_the_last_turn_in_place_holds_where_the_rover_arrived_and_so_does_the_end():

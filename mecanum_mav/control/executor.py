@@ -355,7 +355,8 @@ class MissionExecutor:
 
     def _finish_item(self, step: _Step, pose: Pose2d,
                      velocity_ned: Vec = (0.0, 0.0)) -> None:
-        self._emit("reached", step.seq)
+        if step.seq < len(self.items):  # (the turn in place after the last item is no item)
+            self._emit("reached", step.seq)
         self._hold = step.target
         self._begin(step.seq + 1, pose, from_point=step.target,
                     velocity_ned=velocity_ned)
