@@ -271,3 +271,37 @@ def test_after_a_mission_ends_in_hold_the_autopilot_has_no_timer_left_and_the_lo
     h.run_for(1.0)
     assert h.core.autopilot.next_due_s() == math.inf
     assert h.core.next_due_s() > h.now_s
+
+
+def test_return_to_launch_has_no_hold_time_whatever_its_param1_holds():
+    """MAV_CMD_NAV_RETURN_TO_LAUNCH's params are all empty: a 3 in param1 (a planner's
+    leftover) is no hold; the mission ends on arrival, as one ending with a waypoint at home
+    does."""
+    there = [HOME, local_wp(0, 0.5, 0.0)]
+    by_waypoint = Run([*there, local_wp(0, 0.0, 0.0)]).until_done().t
+    for held in (0.0, 3.0):
+        by_rtl = Run([*there, MissionItem(0, 2, RTL, param1=held)]).until_done().t
+        assert by_rtl == pytest.approx(by_waypoint, abs=DT / 2), held
+
+
+def test_facing_along_legs_turns_the_shorter_way_to_a_leg_behind_the_left_shoulder():
+    """WP_YAW_BEHAVIOR 1, facing north, a leg to the west: counter-clockwise by 90 degrees,
+    not clockwise by 270."""
+    run = Run([HOME, local_wp(0, 0.0, -1.5)], WP_YAW_BEHAVIOR=1).until_done()
+    poses = [p for _, p, _ in run.track]
+    turned = list(itertools.accumulate(wrap_pi(b.yaw_rad - a.yaw_rad) for a, b in pairwise(poses)))
+    assert max(turned) < math.radians(5.0) and min(turned) > math.radians(-100.0)
+    assert math.degrees(run.pose.yaw_rad) == pytest.approx(-90.0, abs=2.0)
+
+
+def test_a_waypoint_on_a_straight_line_is_passed_at_cruise_speed():
+    """The next leg starts from the speed the rover has (its velocity along the new leg), so a
+    waypoint between two legs in line is no stop."""
+    run = Run([HOME, local_wp(0, 0.0, 2.0), local_wp(0, 0.0, 4.0)])  # (east)
+    while 1 not in run.reached() and run.t < 20.0:
+        run.step()
+    at_waypoint = len(run.speeds)
+    for _ in range(int(0.5 / DT)):
+        run.step()
+    cruise = float(run.params["WP_SPEED"])
+    assert min(run.speeds[at_waypoint - 5:]) > 0.9 * cruise
