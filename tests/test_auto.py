@@ -95,6 +95,19 @@ def test_corner_speed_stops_for_right_angles_and_carries_speed_through_straight_
     assert shallow == pytest.approx(math.sqrt(0.04) / math.sin(math.atan(0.2)))
 
 
+@pytest.mark.parametrize("heading_deg", [0.0, 30.0, 135.0, -100.0])
+@pytest.mark.parametrize("turn_deg", [20.0, -20.0])
+def test_the_corner_speed_is_its_formula_for_the_same_turn_from_any_heading(
+        heading_deg: float, turn_deg: float) -> None:
+    """v = sqrt(2 * accel * overshoot) / sin(turn), for a turn of 20 degrees either way,
+    whatever the heading it starts from (WP_ACCEL 0.5, WP_OVERSHOOT 0.05)."""
+    h, t = math.radians(heading_deg), math.radians(heading_deg + turn_deg)
+    a = Leg((0.0, 0.0), (math.cos(h), math.sin(h)))
+    b = Leg(a.end_ned, (a.end_ned[0] + math.cos(t), a.end_ned[1] + math.sin(t)))
+    assert corner_speed(a, b, 5.0, 0.5, 0.05) == pytest.approx(
+        math.sqrt(2.0 * 0.5 * 0.05) / math.sin(math.radians(20.0)))
+
+
 def test_leg_follower_pulls_back_to_the_line_and_never_exceeds_cruise_along_it():
     leg, follower = Leg((0.0, 0.0), (5.0, 0.0)), LegFollower()
     for _ in range(100):

@@ -146,6 +146,14 @@ def test_corner_lead_moves_the_speed_onto_the_next_leg_as_the_waypoint_nears():
     assert corner_lead(leg, (0.0, 0.0), (0.95, 0.0), north, 0.5, 0.2) == north  # no next leg
 
 
+def test_corner_lead_of_no_length_changes_nothing_and_past_the_end_the_turn_is_whole():
+    leg, north, east = Leg((0.0, 0.0), (1.0, 0.0)), (0.5, 0.0), (0.0, 1.0)
+    assert corner_lead(leg, east, (0.95, 0.0), north, 0.5, 0.0) == north  # (lead time 0)
+    assert corner_lead(leg, east, (1.2, 0.0), north, 0.5, 0.0) == north  # (and past the end)
+    assert corner_lead(leg, east, (0.95, 0.0), north, 0.0, 0.2) == north  # (a stop)
+    assert corner_lead(leg, east, (1.2, 0.0), north, 0.5, 0.2) == pytest.approx((0.0, 0.5))
+
+
 def test_a_rover_stalled_inside_the_radius_of_a_stop_goes_on_after_the_settle_timeout():
     params = Params()
     executor = MissionExecutor(params)

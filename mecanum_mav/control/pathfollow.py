@@ -148,7 +148,7 @@ def corner_lead(leg: Leg, next_direction: Vec, position_ned: Vec, velocity_ned: 
     remaining = leg.length_m - leg.errors(position_ned)[0]
     if remaining >= lead_m:
         return velocity_ned
-    share = min(1.0, 1.0 - max(remaining, 0.0) / lead_m)
+    share = 1.0 - max(remaining, 0.0) / lead_m  # (0 at the lead's start, 1 at the end and past)
     un, ue = leg.direction
     return (velocity_ned[0] + share * exit_speed * (next_direction[0] - un),
             velocity_ned[1] + share * exit_speed * (next_direction[1] - ue))
