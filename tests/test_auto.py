@@ -108,6 +108,30 @@ def test_the_corner_speed_is_its_formula_for_the_same_turn_from_any_heading(
         math.sqrt(2.0 * 0.5 * 0.05) / math.sin(math.radians(20.0)))
 
 
+def test_leg_follower_brakes_to_its_exit_speed_at_accel_over_the_distance_left():
+    """v^2 = exit^2 + 2 a d: 2 m before the end, exit 0.5 m/s, accel 0.5: 1.5 m/s along."""
+    follower = LegFollower()
+    follower.reset(5.0)
+    vn, ve = follower.velocity_ned(Leg((0.0, 0.0), (10.0, 0.0)), (8.0, 0.0), 0.02, cruise=5.0,
+                                   accel=0.5, exit_speed=0.5, gain=1.0)
+    assert (vn, ve) == pytest.approx((1.5, 0.0))
+
+
+def test_leg_follower_ramps_up_from_rest_at_accel_even_to_a_slow_cruise():
+    follower = LegFollower()
+    speeds = [follower.velocity_ned(Leg((0.0, 0.0), (0.0, 10.0)), (0.0, 0.0), 0.02, cruise=0.8,
+                                    accel=0.5, exit_speed=0.0, gain=1.0)[1] for _ in range(3)]
+    assert speeds == pytest.approx([0.01, 0.02, 0.03])
+
+
+def test_leg_follower_holds_a_leg_of_no_length_as_a_point():
+    follower = LegFollower()
+    here, point = (0.3, -0.2), (1.0, 2.0)
+    got = follower.velocity_ned(Leg(point, point), here, 0.02, cruise=1.0, accel=0.5,
+                                exit_speed=0.0, gain=1.5)
+    assert got == pytest.approx((sqrt_controller(0.7, 1.5, 0.5), sqrt_controller(2.2, 1.5, 0.5)))
+
+
 def test_leg_follower_pulls_back_to_the_line_and_never_exceeds_cruise_along_it():
     leg, follower = Leg((0.0, 0.0), (5.0, 0.0)), LegFollower()
     for _ in range(100):
