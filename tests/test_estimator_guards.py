@@ -115,6 +115,60 @@ def test_positions_far_off_re_anchor_the_track_only_after_20_in_a_row():
     assert est.pose.x_m == pytest.approx(0.1 * gain, rel=1e-9)
 
 
+def test_each_fused_position_pulls_one_minus_exp_of_minus_dt_over_tau_of_the_way():
+    """ODOM_POS_TAU is the fusion's time constant: a position 0.2 s after the last, 10 cm
+    east of the odometry, pulls it 1 - exp(-0.2 / 2) of the way with tau 2 s."""
+    est = fused(tau_s=2.0)
+    est.on_position(0.0, 0.1, 0.2)
+    assert est.pose.y_m == pytest.approx(0.1 * (1.0 - math.exp(-0.1)), rel=1e-9)
+
+
+@pytest.mark.parametrize(("north", "east"), [(0.0, math.nan), (math.nan, 0.0), (0.0, 2e7),
+                                             (-2e7, 0.0)])
+def test_a_position_with_either_coordinate_not_a_number_or_absurd_is_not_one(north, east):
+    est = fused(tau_s=1.0)
+    assert est.on_position(north, east, 0.1) is None
+    assert est.pose == (0.0, 0.0, 0.0)
+    est.on_position(0.0, 0.1, 0.2)  # the next good one is fused as if it had not come
+    assert est.pose.y_m == pytest.approx(0.1 * (1.0 - math.exp(-0.2)), rel=1e-9)
+
+
+def test_one_good_position_starts_the_count_of_far_ones_again_and_so_does_a_re_anchoring():
+    gain = 1.0 - math.exp(-0.1)
+    est = fused()
+    for k in range(1, 11):  # 10 far, one good, then 19 far: never 20 in a row
+        est.on_position(3.0, 0.0, 0.1 * k)
+    est.on_position(0.0, 0.0, 1.1)
+    for k in range(12, 31):
+        est.on_position(3.0, 0.0, 0.1 * k)
+    est.on_position(0.1, 0.0, 3.1)  # near the old anchor: fused
+    assert est.pose.x_m == pytest.approx(0.1 * gain, rel=1e-9)
+
+    est = fused()
+    for k in range(1, 21):  # 20 in a row: re-anchored 3 m north
+        est.on_position(3.0, 0.0, 0.1 * k)
+    est.on_position(3.0, 0.0, 2.1)  # (anchors it)
+    for k in range(22, 41):  # 19 more far from the new anchor: not 20 in a row
+        est.on_position(9.0, 0.0, 0.1 * k)
+    est.on_position(3.1, 0.0, 4.1)  # near the new anchor: fused
+    assert est.pose.x_m == pytest.approx(0.1 * gain, rel=1e-9)
+
+
+def test_the_flight_controllers_track_is_anchored_where_the_odometry_is_at_its_first_position():
+    """The flight controller's origin does not matter: its first position, wherever the rover
+    has got to by then, is where the odometry is; later ones are fused relative to it."""
+    est = estimator(ODOM_POS_TAU=1.0, ODOM_YAW_BIAS=0)
+    est.on_attitude(math.pi / 2, 0.0, 0.0)  # facing east
+    for k in range(1, 51):  # 1 m east on the wheels
+        est.on_commanded([1.0] * 4, 0.02, 0.02 * k)
+    assert est.pose.y_m == pytest.approx(1.0)
+    est.on_position(5.0, 7.0, 1.0)  # the flight controller's own frame: anchors here
+    # 0.1 s on, the odometry is carried 10 cm further at its 1 m/s: 20 cm is 10 cm ahead
+    est.on_position(5.0, 7.2, 1.1)
+    assert est.pose.y_m == pytest.approx(1.0 + 0.1 * (1.0 - math.exp(-0.1)), rel=1e-9)
+    assert est.pose.x_m == pytest.approx(0.0, abs=1e-12)
+
+
 # ---------------------------------------------------------------------------- heading bias
 
 def rotated(north_m: float, east_m: float, angle_deg: float) -> tuple[float, float]:
