@@ -263,3 +263,23 @@ def test_after_a_gap_of_more_than_a_second_in_the_fixes_the_window_starts_again(
     before = drive(bias, [k / 10 for k in range(21)])
     after = drive(bias, [3.0])  # 1.0 s without: the window reaches back across it
     assert after[0] == before[-1] + 1
+
+
+def test_following_the_odometry_before_the_first_position_changes_nothing():
+    """HeadingBias.follow: "before the first position, or after a restart, it changes
+    nothing: the next position starts the window" (also after a gap in the fixes)."""
+    steps = STEADY * 3
+    plain = one_window(steps, 1.0)
+    followed = HeadingBias()
+    followed.follow(4.0, -2.0)  # (an odometry reset, say, before any position)
+    along, t = 0.0, 0.0
+    followed.on_position(0.0, 0.0, 0.0, 0.0, 0.0, t, follows_yaw=False)
+    for step in steps:
+        along, t = along + step, t + 0.1
+        followed.on_position(along, 0.0, *rotated(along, 0.0, 2.0), 0.0, t, follows_yaw=False)
+    assert followed.measurements == plain.measurements > 0
+    assert followed.bias_rad == plain.bias_rad
+    followed.restart()
+    followed.follow(1.0, 1.0)
+    followed.on_position(0.0, 0.0, 0.0, 0.0, 0.0, 5.0, follows_yaw=False)  # starts a window
+
