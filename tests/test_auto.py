@@ -342,3 +342,19 @@ def test_a_waypoint_on_a_straight_line_is_passed_at_cruise_speed():
         run.step()
     cruise = float(run.params["WP_SPEED"])
     assert min(run.speeds[at_waypoint - 5:]) > 0.9 * cruise
+
+
+def test_the_tick_that_passes_a_waypoint_at_speed_already_drives_the_next_leg():
+    """No tick of holding the point passed: the update that reaches a pass-through waypoint
+    returns the next leg's velocity (a rover that does exactly what it is told never stops)."""
+    ex = MissionExecutor(Params())
+    ex.load(renumber([HOME, local_wp(0, 1.0, 0.0), local_wp(0, 2.0, 0.0)]))
+    pose, t, velocity = Pose2d(0.0, 0.0, 0.0), 0.0, (0.0, 0.0)
+    assert ex.start(pose, t, None) is None
+    while ex.current == 1 and t < 10.0:
+        t += DT
+        setpoint = ex.update(pose, velocity, t)
+        assert setpoint.velocity_ned is not None and setpoint.position_ned is None, t
+        velocity = setpoint.velocity_ned
+        pose = Pose2d(pose.x_m + velocity[0] * DT, pose.y_m + velocity[1] * DT, 0.0)
+    assert ex.current == 2 and velocity[0] > 0.5 * float(Params()["WP_SPEED"])

@@ -39,10 +39,12 @@ class PerfectRover:
         self.turned = [0.0]
         self.events: list[ExecutorEvent] = []
         self.setpoints: list[Setpoint] = []
+        self.poses: list[Pose2d] = []  # (the pose each setpoint was asked with)
         assert self.ex.start(self.pose, 0.0, None) is None
         self.events += self.ex.take_events()
 
     def step(self) -> None:
+        self.poses.append(self.pose)
         setpoint = self.ex.update(self.pose, (0.0, 0.0), self.t)
         self.setpoints.append(setpoint)
         self.events += self.ex.take_events()
@@ -91,6 +93,10 @@ def test_a_relative_turn_of_half_a_circle_or_more_keeps_its_asked_direction(
     run = PerfectRover([HOME, do(0, YAW, angle, 0.0, direction, 1.0)]).until_done()
     turned = [direction * t for t in run.turned]  # (in the asked direction)
     assert max(turned) > math.radians(angle - 10.0) and min(turned) >= 0.0
+    if angle > 180.0:  # the way asked is the long way: the heading leads by a quarter turn
+        first = run.setpoints[0].yaw
+        assert first is not None
+        assert wrap_pi(first - run.poses[0].yaw_rad) == pytest.approx(direction * math.pi / 2)
     assert abs(wrap_pi(run.pose.yaw_rad - direction * math.radians(angle))) <= YAW_ACCEPT_RAD
 
 

@@ -169,7 +169,7 @@ class MissionExecutor:
         self._yaw = 0.0  # the heading to hold, rad NED (the rover's own at start)
         self._yaw_dir = 0
         self._yaw_rate_max: float | None = None
-        self._last_s: float | None = None
+        self._last_s = 0.0  # the last update's time (s; the start's before the first)
         self._hold: Vec = (0.0, 0.0)
 
     # ------------------------------------------------------------------ mission and state
@@ -296,7 +296,7 @@ class MissionExecutor:
         At most one item completes per call, so a mission that loops over points the rover
         already stands on advances one item per control tick instead of spinning.
         """
-        dt = 0.0 if self._last_s is None else max(0.0, now_s - self._last_s)
+        dt = max(0.0, now_s - self._last_s)  # (read only while running: after a start)
         self._last_s = now_s
         here = (pose.x_m, pose.y_m)
         step = self._step
