@@ -199,3 +199,31 @@ def test_a_condition_yaw_before_a_waypoint_where_the_rover_stands_is_turned_firs
 def test_a_condition_yaw_before_a_waypoint_farther_away_is_turned_on_the_way():
     """(The mission moves on at once; the rover turns while it drives.)"""
     assert abs(_yaw_reached_at_heading_deg((8.0, 3.0))) < 5.0
+
+
+def test_a_mission_ending_in_a_do_item_holds_the_last_waypoint():
+    end = (1.5, -0.5)
+    run = PerfectRover([HOME, local_wp(0, *end), do(0, SPEED, 1.0, 0.3)],
+                       start=Pose2d(*end, 0.0)).until_done()
+    after = run.ex.update(run.pose, (0.0, 0.0), run.t)
+    assert after.position_ned == end and after.velocity_ned is None
+
+
+def test_a_long_way_turn_asked_before_a_leg_is_turned_the_long_way_while_driving_it():
+    """CONDITION_YAW 270 clockwise (relative), then a waypoint 3 m north: the mission moves on
+    at once and the heading turns clockwise through south while the rover drives."""
+    run = PerfectRover([HOME, do(0, YAW, 270.0, 0.0, 1.0, 1.0), local_wp(0, 3.0, 0.0)])
+    for _ in range(int(8.0 / DT)):
+        run.step()
+    assert run.ex.current == 2
+    assert max(run.turned) > math.radians(260.0) and min(run.turned) >= 0.0
+
+
+def test_a_condition_yaws_rate_limit_holds_on_a_leg_that_turns_to_a_waypoints_heading():
+    """CONDITION_YAW's rate (param2, deg/s) limits the turns that follow, also the heading
+    scheduled along a leg to a waypoint's own heading (param4)."""
+    run = PerfectRover([HOME, do(0, YAW, 0.0, 10.0, 0.0, 0.0), local_wp(0, 3.0, 0.0, param4=90.0)])
+    for _ in range(5):
+        run.step()
+    assert [s.yaw_rate_max for s in run.setpoints[1:]] == pytest.approx(
+        [math.radians(10.0)] * 4)
