@@ -11,7 +11,8 @@ import pytest
 from conftest import lockstep
 from support import status_texts
 
-from mecanum_mav.control.guided import SetpointError, decode_setpoint
+from mecanum_mav.config.params import Params
+from mecanum_mav.control.guided import GuidedController, Setpoint, SetpointError, decode_setpoint
 from mecanum_mav.io.links import mavlink
 from mecanum_mav.mecanum.geometry import Pose2d
 from mecanum_mav.protocol.modes import Mode
@@ -278,3 +279,15 @@ def test_an_rc_override_drives_only_from_the_pilot_and_addressed_to_the_rover(
     h.run_for(1.0)
     stop()
     assert (h.truth().pose.x_m > 0.2) is obeyed
+
+
+def test_a_setpoint_without_heading_holds_the_heading_the_rover_had_when_it_came():
+    """GuidedController.accept: "its heading is held if it sets none", the heading at that
+    moment (not the one GUIDED started with): a rover pushed off it turns back to it."""
+    guided = GuidedController(Params())
+    guided.start(Pose2d(0.0, 0.0, 0.0), 0.0)
+    guided.accept(Setpoint(None, (0.5, 0.0), None, None, 1.0), Pose2d(0.0, 0.0, 0.3))
+    pushed = guided.update(Pose2d(0.0, 0.0, 0.5), 1.02)
+    assert pushed.yaw_rate < 0.0  # back counter-clockwise, towards 0.3
+    held = guided.update(Pose2d(0.0, 0.0, 0.3), 1.04)
+    assert held.yaw_rate == 0.0
