@@ -252,6 +252,15 @@ def test_setup_signing_from_the_link_is_refused_the_key_comes_from_the_file():
     assert h.core.refusals.counts[Refusal.COMMAND] == 1
 
 
+def test_setup_signing_for_another_component_is_not_ours_to_refuse():
+    h = lockstep()
+    since = h.gcs.mark()
+    h.gcs.mav.setup_signing_send(1, 5, list(KEY), NOW)
+    h.run_for(0.1)
+    assert h.gcs.received("STATUSTEXT", since) == []
+    assert h.core.refusals.counts[Refusal.COMMAND] == 0
+
+
 # --------------------------------------------------------------------------- the signed rover
 # The lockstep harness with the ground-station link signed (as --signing-key does): the scripted
 # ground station is the pilot, signing with KEY; everything else is put on the wire by hand.
