@@ -181,11 +181,15 @@ def test_a_jump_loop_without_a_navigation_item_ends_auto_in_hold_saying_why():
 
 def _yaw_reached_at_heading_deg(next_wp: tuple[float, float]) -> float:
     """A rover at (5, 3) facing north; CONDITION_YAW to 90 then a waypoint at ``next_wp``:
-    the heading (deg) the rover had when the yaw item was reported reached."""
+    the heading (deg) the rover had when the yaw item was reported reached. While the yaw
+    item is current the rover holds where it is."""
     run = PerfectRover([HOME, do(0, YAW, 90.0, 0.0, 0.0, 0.0), local_wp(0, *next_wp)],
                        start=Pose2d(5.0, 3.0, 0.0))
     while not any(e.kind == "reached" and e.seq == 1 for e in run.events):
         run.step()
+        if run.ex.current == 1:
+            assert run.setpoints[-1].position_ned == (5.0, 3.0)
+            assert run.setpoints[-1].velocity_ned is None
         assert run.t < 5.0, "the yaw item was never reached"
     return math.degrees(run.pose.yaw_rad)
 
