@@ -388,8 +388,7 @@ class MissionExecutor:
             elif cmd == mavlink.MAV_CMD_CONDITION_YAW:
                 self._condition_yaw(item)
                 if not self._leads_somewhere(seq + 1, start):
-                    self._step = _Step(seq, start, Leg(start, start), 0.0, 0.0, 0.0,
-                                       turn_only=True)
+                    self._turn_in_place(seq, start)
                     return
             else:
                 self._emit("say", seq, f"Skipped item {seq}: {command_name(cmd)} unsupported",
@@ -459,12 +458,16 @@ class MissionExecutor:
         target = self._target(following, here)
         return math.hypot(target[0] - here[0], target[1] - here[1]) > self.config.radius_m
 
+    def _turn_in_place(self, seq: int, point: Vec) -> None:
+        """Hold ``point`` (north, east m) while the heading turns (item ``seq``; the number
+        past the last item for the last heading): a step of no leg, done once the heading is
+        reached (:meth:`_done`)."""
+        self._step = _Step(seq, point, Leg(point, point), 0.0, 0.0, 0.0, turn_only=True)
+
     def _end(self, pose: Pose2d, here: Vec) -> None:
         if abs(wrap_pi(self._yaw_target(pose) - pose.yaw_rad)) > YAW_ACCEPT_RAD and (
                 self._step is None or not self._step.turn_only):
-            # finish the heading in place before reporting the end
-            self._step = _Step(len(self.items), here, Leg(here, here), 0.0, 0.0, 0.0,
-                               turn_only=True)
+            self._turn_in_place(len(self.items), here)  # the heading before the end
             return
         self.running = False
         self.complete = True
