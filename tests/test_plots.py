@@ -44,9 +44,11 @@ LABELS = {
 
 @pytest.fixture(scope="module")
 def built() -> Any:
-    figs = dict(figures())  # (selects matplotlib's file-only backend first)
-    import matplotlib.pyplot as plt
+    from mecanum_mav.app.plots import _pyplot
 
+    plt = _pyplot()  # (matplotlib's file-only backend)
+    plt.close("all")  # (figures other tests left open count towards pyplot's warning)
+    figs = dict(figures())
     yield figs
     for fig in figs.values():
         plt.close(fig)
