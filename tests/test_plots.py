@@ -12,7 +12,7 @@ pytest.importorskip("matplotlib")
 
 from support import png_size_and_dpi
 
-from mecanum_mav.app.plots import FIGURES, figures, render_all
+from mecanum_mav.app.plots import FIGURES, figure, figures, render_all
 from mecanum_mav.mecanum.envelope import (
     non_clipping_limit_2010,
     robot_speed,
@@ -42,13 +42,21 @@ LABELS = {
 }
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture
 def built() -> Any:
+    """The figures a test asks for (``built[name]``), each built when first asked for and
+    closed after the test."""
     from mecanum_mav.app.plots import _pyplot
 
     plt = _pyplot()  # (matplotlib's file-only backend)
     plt.close("all")  # (figures other tests left open count towards pyplot's warning)
-    figs = dict(figures())
+
+    class Built(dict):
+        def __missing__(self, name: str) -> Any:
+            self[name] = figure(name)
+            return self[name]
+
+    figs = Built()
     yield figs
     for fig in figs.values():
         plt.close(fig)
@@ -57,6 +65,7 @@ def built() -> Any:
 def test_plot_writes_every_figure_in_order_as_a_110_dpi_png_into_a_new_folder(tmp_path):
     out = tmp_path / "new" / "figures"
     paths = render_all(out)
+    assert render_all(out) == paths  # (again into the same folder: the figures replaced)
     assert paths == [out / name for name, _ in FIGURES]
     for path in paths:
         width, height, dpi = png_size_and_dpi(path)
@@ -65,9 +74,25 @@ def test_plot_writes_every_figure_in_order_as_a_110_dpi_png_into_a_new_folder(tm
         assert (width, height) == ((770, 605) if path.name in SURFACES else (770, 440))
 
 
-def test_builds_every_figure_once_and_in_the_order_of_the_table(built):
-    assert list(built) == [name for name, _ in FIGURES]
-    assert len(FIGURES) == 11
+def test_builds_every_figure_in_the_order_of_the_table_each_titled_with_what_it_shows():
+    from mecanum_mav.app.plots import _pyplot
+
+    plt = _pyplot()
+    names = []
+    for name, fig in figures():
+        names.append(name)
+        title = fig.axes[0].get_title()
+        plt.close(fig)
+        assert title.startswith(dict(FIGURES)[name]), name
+        if name in SURFACES:
+            algorithm, rotation = SURFACES[name]
+            assert f"{LABELS[algorithm]}, rotation {rotation:.2f}, peak " in title, name
+    assert names == [name for name, _ in FIGURES] and len(names) == 11
+
+
+def test_a_figure_not_in_the_table_is_a_key_error():
+    with pytest.raises(KeyError):
+        figure("illustration8.png")
 
 
 @pytest.mark.parametrize("name", list(SURFACES))
@@ -83,8 +108,8 @@ def test_each_surface_is_robot_speed_at_its_velocity_and_heading_x_right_y_forwa
     assert x.max() == pytest.approx(1.0) and x.min() == pytest.approx(-1.0)
     assert y.max() == pytest.approx(1.0) and y.min() == pytest.approx(-1.0)
     assert ax.get_zlim() == (0.0, 1.0)
-    assert "right" in ax.get_xlabel() and "sin(heading)" in ax.get_xlabel()
-    assert "forward" in ax.get_ylabel() and "cos(heading)" in ax.get_ylabel()
+    assert ax.get_xlabel() == "velocity x sin(heading)  (right)"
+    assert ax.get_ylabel() == "velocity x cos(heading)  (forward)"
     assert ax.get_zlabel() == "robot speed"
     title = dict(FIGURES)[name]
     peak = speed_grid(algorithm, rotation)[2].max()

@@ -15,7 +15,7 @@ from numpy.typing import NDArray
 
 from mecanum_mav.mecanum.envelope import non_clipping_limit_2010, robot_speed, speed_grid
 
-__all__ = ["FIGURES", "figures", "render_all"]
+__all__ = ["FIGURES", "figure", "figures", "render_all"]
 
 ROTATION = 0.29
 SQRT2_2 = float(np.sqrt(0.5))
@@ -109,14 +109,15 @@ FIGURES: tuple[tuple[str, str], ...] = (
 in order."""
 
 
-def figures() -> Iterator[tuple[str, Any]]:
-    """Build each figure of :data:`FIGURES`, in order, as ``(file name, matplotlib Figure)``.
+def figure(name: str) -> Any:
+    """Build the figure of :data:`FIGURES` whose file name is ``name`` (a matplotlib Figure;
+    the caller saves and closes it: ``plt.close(fig)``). KeyError for another name.
 
-    Built one at a time; the caller saves and closes each (``plt.close(fig)``).
     Surfaces: robot speed (fraction of full wheel speed) over commanded velocity [0, 1] and
     heading, drawn with x to the right and y forward. Curves: robot speed or the 2010
     non-clipping velocity against heading, degrees clockwise from the nose.
     """
+    title = dict(FIGURES)[name]
     surfaces = {
         "illustration1_2010_rot0.png": ("holonomic_2010", 0.0),
         "illustration2_2010_rot029.png": ("holonomic_2010", ROTATION),
@@ -135,13 +136,18 @@ def figures() -> Iterator[tuple[str, Any]]:
             ("polar_2011", SQRT2_2), ("holonomic_2010", SQRT2_2),
             ("max_speed_scaled", SQRT2_2), ("cartesian", SQRT2_2)],
     }
-    for name, title in FIGURES:
-        if name in surfaces:
-            yield name, _surface(*surfaces[name], title)
-        elif name in curves:
-            yield name, _curves(curves[name], title)
-        else:
-            yield name, _limit(title)
+    if name in surfaces:
+        return _surface(*surfaces[name], title)
+    if name in curves:
+        return _curves(curves[name], title)
+    return _limit(title)
+
+
+def figures() -> Iterator[tuple[str, Any]]:
+    """Each figure of :data:`FIGURES`, in order, as ``(file name, Figure)``, built one at a
+    time (:func:`figure`); the caller saves and closes each."""
+    for name, _ in FIGURES:
+        yield name, figure(name)
 
 
 def render_all(out_dir: Path) -> list[Path]:
