@@ -41,12 +41,19 @@ def tcp_link(server: socket.socket, clock: FakeClock) -> Link:
 
 def open_sockets() -> set[int]:
     """The descriptors of this process that are sockets."""
-    fds = set()
+    return set(socket_inodes())
+
+
+def socket_inodes() -> dict[int, str]:
+    """Each socket descriptor of this process, with its socket's kernel name
+    (``socket:[inode]``: a new socket has a new one, whatever descriptor number it gets)."""
+    sockets = {}
     for path in Path("/proc/self/fd").iterdir():
         with contextlib.suppress(OSError):  # (the listing's own descriptor, gone now)
-            if str(path.readlink()).startswith("socket:"):
-                fds.add(int(path.name))
-    return fds
+            target = str(path.readlink())
+            if target.startswith("socket:"):
+                sockets[int(path.name)] = target
+    return sockets
 
 
 def readable(sock: socket.socket, wait_s: float) -> None:
@@ -125,11 +132,19 @@ def connecting_link(clock: FakeClock) -> Iterator[tuple[Link, socket.socket, soc
 
 def test_a_tcp_connect_pending_longer_than_the_connect_timeout_is_abandoned_and_started_anew():
     clock = FakeClock()
-    with connecting_link(clock) as (link, server, _holder):
+    before = set(socket_inodes().values())
+    with connecting_link(clock) as (link, server, holder):
+        theirs = {socket_inodes()[server.fileno()], socket_inodes()[holder.fileno()]}
+        pending = set(socket_inodes().values()) - before - theirs
+        assert len(pending) == 1  # the connect under way
         started_s = clock.now
         for tries in range(1, 7):  # up to exactly the timeout: that connect may still complete
             clock.now = started_s + tries * links.REOPEN_PERIOD_S
+            began = time.monotonic()
             assert not link.reopen(clock.now), clock.now - started_s
+            assert time.monotonic() - began < 0.2  # a look at the connect, never a wait
+            # the same connect goes on: no second one, no socket left behind
+            assert set(socket_inodes().values()) - before - theirs == pending
         assert clock.now - started_s == links.TCP_CONNECT_TIMEOUT_S
         queued, _ = server.accept()  # the server takes connections again
         try:
