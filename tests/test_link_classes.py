@@ -93,6 +93,7 @@ def test_a_link_pymavlink_sends_for_takes_each_datagram_whole(
     try:
         assert type(link) is (links.UdpBroadcastLink if resolves
                               else links.PymavlinkDatagramLink)
+        assert link.name == "gcs" and link.url.endswith(f":{peer.getsockname()[1]}")
         assert link.send(link.mav.heartbeat_encode(10, 8, 0, 0, 4))
         _, address = peer.recvfrom(1024)
         station = mavlink.MAVLink(None, srcSystem=255, srcComponent=190)
@@ -106,6 +107,21 @@ def test_a_link_pymavlink_sends_for_takes_each_datagram_whole(
         assert wait_until(
             lambda: got.extend(m.get_type() for m in link.read()) or "STATUSTEXT" in got, 5.0)
         assert got == ["HEARTBEAT", "STATUSTEXT"]
+    finally:
+        link.close()
+        peer.close()
+
+
+def test_a_link_pymavlink_sends_for_signs_with_the_key_it_was_given():
+    peer = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    peer.bind(("127.0.0.1", 0))
+    peer.settimeout(5.0)
+    link = opened(f"udpbcast:127.0.0.1:{peer.getsockname()[1]}", signing_key=KEY)
+    try:
+        assert link.send(link.mav.heartbeat_encode(10, 8, 0, 0, 4))
+        data, _ = peer.recvfrom(1024)
+        assert data[0] == 0xFD and data[2] & mavlink.MAVLINK_IFLAG_SIGNED  # MAVLink 2, signed
+        assert len(data) == 10 + data[1] + 2 + 13  # header, payload, CRC, signature
     finally:
         link.close()
         peer.close()

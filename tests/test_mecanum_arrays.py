@@ -154,9 +154,9 @@ def test_pose_exp_array_keeps_non_finite_rows_to_themselves_and_returns_float64(
     assert tuple(got[0]) == (1.0, 0.0, 0.0)
     assert not np.isfinite(got[1]).all() and not np.isfinite(got[2]).all()
     assert not np.isfinite(got[3]).all()
-    with pytest.raises(ValueError, match="^poses and twists need a last axis of length 3$"):
+    with pytest.raises(ValueError, match=r"^poses and twists need a last axis of length 3$"):
         pose_exp_array(np.zeros(2), np.zeros(3))
-    with pytest.raises(ValueError, match="^poses and twists need a last axis of length 3$"):
+    with pytest.raises(ValueError, match=r"^poses and twists need a last axis of length 3$"):
         pose_exp_array(np.zeros(3), np.zeros(2))
 
 
