@@ -145,7 +145,7 @@ def socket_settings(sock: socket.socket) -> tuple[bool, bool, bool]:
 
 
 def test_a_tcp_link_connected_again_has_nodelay_and_is_non_blocking_as_its_first_socket(
-        ) -> None:
+        caplog: pytest.LogCaptureFixture) -> None:
     clock = FakeClock()
     server = socket.create_server(("127.0.0.1", 0))
     address = server.getsockname()
@@ -157,9 +157,11 @@ def test_a_tcp_link_connected_again_has_nodelay_and_is_non_blocking_as_its_first
         first = socket_settings(link.conn.port)
         assert first == (True, True, False)  # pymavlink's first connection (close-on-exec)
         peers[0].close()  # the flight controller closes the connection; its server stays
-        assert wait_until(lambda: (link.read(), not link.up)[1], 5.0,
-                          pump=lambda s: select.select([link.fileno()], [], [], s))
+        with caplog.at_level("INFO", logger="mecanum_mav"):
+            assert wait_until(lambda: (link.read(), not link.up)[1], 5.0,
+                              pump=lambda s: select.select([link.fileno()], [], [], s))
         assert link.down_reason == "closed by the peer"
+        assert "fc: closed by the peer: end of stream" in caplog.messages
         assert reopen_until_up(link, clock)
         peers.append(server.accept()[0])
         assert socket_settings(link.conn.port) == first
@@ -189,7 +191,7 @@ def read_returns(link: Link, timeout_s: float = 2.0) -> bool:
 
 
 def test_the_next_tcpin_client_gets_nodelay_and_a_non_blocking_socket_as_the_first(
-        ) -> None:
+        caplog: pytest.LogCaptureFixture) -> None:
     probe = socket.socket()
     probe.bind(("127.0.0.1", 0))
     port = probe.getsockname()[1]
@@ -210,8 +212,12 @@ def test_the_next_tcpin_client_gets_nodelay_and_a_non_blocking_socket_as_the_fir
             assert wait_until(taken, 5.0, pump=wait_readable)
             settings = socket_settings(link.conn.port)
             assert settings == (True, True, False)
-        assert wait_until(lambda: read_returns(link) and not link.up, 5.0, pump=wait_readable)
+        with caplog.at_level("INFO", logger="mecanum_mav"):
+            assert wait_until(lambda: read_returns(link) and not link.up, 5.0,
+                              pump=wait_readable)
         assert link.down_reason == "client left"
+        assert "fc: client left: end of stream" in caplog.messages
+        assert not link.send(link.mav.heartbeat_encode(6, 8, 0, 0, 4))  # nobody to send to
         with client(port) as second:  # (leaving, it ends a read a blocking socket holds)
             second.sendall(b"\x00")
             assert wait_until(taken, 5.0, pump=wait_readable)
