@@ -179,7 +179,7 @@ class GuidedController:
         if setpoint.yaw is None and setpoint.yaw_rate is None:
             self.hold_yaw = pose.yaw_rad
 
-    def arrived(self, pose: Pose2d, tolerance_m: float = 0.05) -> bool:
+    def arrived(self, pose: Pose2d, tolerance_m: float) -> bool:
         """Whether a position target exists and the rover is within ``tolerance_m`` of it."""
         sp = self.setpoint
         if sp is None or sp.position_ned is None:
