@@ -30,6 +30,32 @@ def test_a_stick_lane_packet_the_kernel_refuses_is_counted_as_failed_not_sent():
         link.close()
 
 
+def test_a_stick_lane_packet_sent_is_counted_once_on_the_wire_and_recorded_whole(tmp_path):
+    sink = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    sink.bind(("127.0.0.1", 0))
+    sink.settimeout(5.0)
+    link = open_link(f"udpout:127.0.0.1:{sink.getsockname()[1]}", source_system=1,
+                     source_component=191, name="gcs")
+    tlog = (tmp_path / "lane.tlog").open("wb")
+    try:
+        link.record_to(tlog)
+        lane = mavlink.MAVLink(None, srcSystem=1, srcComponent=191)
+        stick = bytes(lane.manual_control_encode(1, 0, 0, 500, 0, 0).pack(lane))
+        sent = link.sent
+        link.send_packet(stick)
+        link.send_packet(stick)
+        assert link.sent == sent + 2 and link.send_errors == 0
+        assert sink.recv(1024) == stick and sink.recv(1024) == stick
+        tlog.flush()
+        records = (tmp_path / "lane.tlog").read_bytes()
+        assert records[8:8 + len(stick)] == stick  # stamp, then the packet as it went
+        assert len(records) == 2 * (8 + len(stick))
+    finally:
+        link.close()
+        tlog.close()
+        sink.close()
+
+
 def test_send_all_of_messages_none_of_which_can_be_packed_puts_no_datagram_on_the_wire():
     sink = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     sink.bind(("127.0.0.1", 0))
