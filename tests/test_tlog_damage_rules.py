@@ -115,3 +115,19 @@ def test_a_good_record_whose_timestamp_ends_in_a_start_byte_is_not_lost_after_da
     assert read.problems == [skipped(len(good), len(good) + len(junk))]
     assert [e.offset for e in read.entries][3] == len(good) + len(junk)
     assert read.entries[3].time_s == stamp_us / 1e6
+
+
+def test_a_tlog_read_names_its_file_and_size_in_what_it_says():
+    data = good_log(2) + b"\x00" * 9
+    read = parse_tlog(data)
+    assert (read.name, read.size, len(read.entries)) == ("tlog", len(data), 2)
+    assert read.problems[0].startswith("tlog: ")  # (no file name given: "tlog")
+
+
+def test_a_tlog_that_cannot_be_read_is_no_entries_and_one_problem_naming_it(tmp_path):
+    from mecanum_mav.io.tlog import read_tlog
+
+    path = tmp_path / "gone.tlog"
+    read = read_tlog(path)
+    assert (read.name, read.size, read.entries) == (str(path), 0, [])
+    assert read.problems == [f"{path}: cannot read: No such file or directory"]

@@ -117,8 +117,10 @@ class _Decoder:
         if not _plausible(stamp):
             return None
         length = _packet_len(data, at + STAMP_LEN)
-        end = at + STAMP_LEN + (length or 0)
-        if length is None or end > len(data):
+        if length is None:
+            return None
+        end = at + STAMP_LEN + length
+        if end > len(data):
             return None
         packet = data[at + STAMP_LEN:end]
         fast = decode_datagram(packet)
