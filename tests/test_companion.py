@@ -482,6 +482,20 @@ def test_ground_station_rc_override_drives_like_a_stick(harness):
     assert o is not None and wheels(o) == NEUTRAL
 
 
+@pytest.mark.parametrize(("pulse", "expected"), [(2200, FORWARD), (800, [1000] * 4)])
+def test_ground_station_rc_override_at_the_ends_of_the_valid_range_drives(
+        harness, pulse: int, expected: list[int]) -> None:
+    """800 and 2200 us are pulses (RC_CHANNELS_OVERRIDE's valid range, as ArduPilot's): full
+    deflection, clamped beyond RCIN_MIN/MAX."""
+    h = armed(harness)
+    t = arrival(h)
+    h.gcs.mav.rc_channels_override_send(1, 1, 65535, 65535, pulse, 65535, 65535, 65535, 65535,
+                                        65535)
+    h.step()
+    o = answer_at(h, t)
+    assert o is not None and wheels(o) == expected
+
+
 def test_ground_station_rc_override_with_an_absurd_pulse_is_rejected(harness):
     h = armed(harness)
     since = h.gcs.mark()

@@ -76,7 +76,8 @@ def test_the_mode_switch_has_ardupilots_six_bands(pulse, position):
 
 
 @pytest.mark.parametrize("pulse, position", [
-    (801, 0), (1199, 0), (1200, 1), (1800, 1), (1801, 2), (2199, 2), (800, None), (0, None)])
+    (801, 0), (1199, 0), (1200, 1), (1800, 1), (1801, 2), (2199, 2), (800, None), (0, None),
+    (2200, None), (2201, None)])
 def test_the_arm_switch_is_low_below_1200_and_high_above_1800(pulse, position):
     assert arm_switch_position(pulse) == position
 
