@@ -164,7 +164,8 @@ def test_a_velocity_setpoint_lapses_and_the_rover_stops(rover):
 @pytest.mark.parametrize(
     ("fields", "reason"),
     [({"frame": 3}, "frame 3 not supported"), ({"vx": math.nan}, "velocity not finite"),
-     ({"vx": 300.0, "vy": 400.0}, "velocity absurd (500)"), ({"mask": VELOCITY_ONLY | 8}, "give both"),
+     ({"vx": 300.0, "vy": 400.0}, "velocity absurd (500)"),
+     ({"mask": VELOCITY_ONLY | 8}, "give both"),
      ({"mask": 0xFFF}, "nothing usable"),
      ({"mask": VELOCITY_ONLY & ~IGNORE_YAW, "yaw": math.nan}, "yaw not finite"),
      ({"mask": VELOCITY_ONLY & ~IGNORE_RATE, "rate": math.inf},

@@ -151,7 +151,7 @@ class Commands:
         if p[0] != 1.0:
             self.refuse(Refusal.COMMAND, "Set home: only 'use current position' (param1=1)")
             return Result.DENIED
-        self.estimator.reset(now_s=now_s)
+        self.estimator.reset(now_s)
         self._ctx.say(Severity.INFO, "Home and odometry origin set here")
         return Result.ACCEPTED
 

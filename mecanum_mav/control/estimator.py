@@ -368,11 +368,11 @@ class WheelOdometryEstimator:
         turn_rate = wrap_pi(after.yaw_rad - before.yaw_rad) / dt
         self.yaw_rate = self._yaw_rate_gyro if gyro_yaw is not None else turn_rate
 
-    def reset(self, pose: Pose2d | None = None, now_s: float = 0.0) -> None:
-        """Move the origin: the pose becomes ``pose`` (default the origin, heading kept)."""
-        heading = self.odometry.pose.yaw_rad
-        pose = pose or Pose2d(0.0, 0.0, heading)
-        self.odometry.reset(pose, self._virtual, self._yaw_if_used(now_s))
-        self._origin = (self.odometry.pose.x_m, self.odometry.pose.y_m)
+    def reset(self, now_s: float) -> None:
+        """Move the origin here at ``now_s`` (DO_SET_HOME): the position becomes (0, 0), the
+        heading is kept, and the odometry's :attr:`reset_counter` counts it."""
+        self.odometry.reset(Pose2d(0.0, 0.0, self.odometry.pose.yaw_rad), self._virtual,
+                            self._yaw_if_used(now_s))
+        self._origin = (0.0, 0.0)
         self.heading_bias.restart()
         self._fc_anchor = None  # (the next position anchors the flight controller's track)
