@@ -300,6 +300,7 @@ def test_set_home_to_here_resets_the_odometry_origin_and_counter(harness):
     h.run_for(2.0)  # input timeout: neutral; the rover stops
     assert h.core.estimator.pose.x_m > 1.0  # it went somewhere
     before = h.core.estimator.reset_counter
+    heading = h.core.estimator.pose.yaw_rad
     said = h.gcs.mark()
     ack = h.gcs.command(CMD.MAV_CMD_DO_SET_HOME, 1)
     assert ack.result == ACCEPTED
@@ -310,6 +311,7 @@ def test_set_home_to_here_resets_the_odometry_origin_and_counter(harness):
     assert odom is not None and odom.reset_counter == before + 1
     # (the origin is where it stood: any motion since is the chassis settling, sub-micrometre)
     assert (odom.x, odom.y) == pytest.approx((0.0, 0.0), abs=1e-6)
+    assert h.core.estimator.pose.yaw_rad == pytest.approx(heading, abs=1e-6)  # (kept)
     said = h.gcs.mark()
     assert h.gcs.command(CMD.MAV_CMD_DO_SET_HOME, 0).result == DENIED
     assert h.core.estimator.reset_counter == before + 1
