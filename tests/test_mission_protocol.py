@@ -244,7 +244,11 @@ def test_clear_all_cancels_an_upload():
     svc.on_count(GCS, 3, MISSION, 0.0)
     item(svc, wp(0))
     # another ground station clears: the uploader is told its upload is over
+    svc.take_events()
     assert svc.on_clear_all(OTHER, MISSION, 0.1) == [ack(CANCELLED), ack(ACCEPTED, OTHER)]
+    events = svc.take_events()
+    assert events[0] == ("error", "Mission upload cancelled: mission cleared")
+    assert [kind for kind, _ in events[1:]] == ["cleared"]
     assert not svc.uploading and svc.next_due_s() == math.inf
     assert svc.items == () and svc.version == 1
     assert item(svc, wp(1)) == [ack(CANCELLED)]  # the uploader goes on: still cancelled
