@@ -179,6 +179,7 @@ def test_a_refused_sender_gets_the_signed_heartbeat_and_the_reason_and_nothing_e
     check = SignatureCheck(KEY, ticks_from_unix(time.time()) - 10**6)
     assert all(check.check(m.get_msgbuf()) is Check.ACCEPTED for m in got)  # signed with KEY
     assert [m.get_seq() for m in received(pilot)] == [0, 1, 2]  # the pilot's, no gap
+    assert [m.get_seq() for m in got] == [0, 1]  # the hints' own numbers, from 0
     assert link.hints_sent == 1
 
 
@@ -211,6 +212,7 @@ def test_a_flood_of_refused_addresses_keeps_the_newest_eight_told(link, sockets)
     link.send(rover_heartbeat())
     told = [bool(received(sock, 0.1)) for sock in strangers]
     assert told == [False] * 4 + [True] * MAX_REFUSED_SENDERS
+    assert link.hints_sent == MAX_REFUSED_SENDERS  # one each
     assert link.refused_senders is not None and len(link.refused_senders) == MAX_REFUSED_SENDERS
 
 
