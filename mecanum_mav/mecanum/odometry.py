@@ -95,10 +95,10 @@ class MecanumOdometry:
         self._kinematics = kinematics
         self.reset_counter: int = 0
         """Number of :meth:`reset` calls so far (for MAVLink ODOMETRY ``reset_counter``)."""
-        self._distances: tuple[float, ...] = (0.0, 0.0, 0.0, 0.0)
-        self._pose: Pose2d = _ORIGIN
-        self._yaw_offset: float | None = None
-        self._set_state(pose, wheel_distances_m, yaw_rad)
+        self._distances: tuple[float, ...]
+        self._pose: Pose2d
+        self._yaw_offset: float | None
+        self._set_state(pose, wheel_distances_m, yaw_rad)  # (sets all three, or raises)
 
     @property
     def pose(self) -> Pose2d:
