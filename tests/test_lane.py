@@ -337,3 +337,11 @@ def test_a_lane_is_not_built_for_a_deadband_or_expo_the_shaping_cannot_use(deadb
     config = replace(InputConfig.from_params(Params()), deadband=deadband, expo=expo)
     with pytest.raises(ValueError, match="out of range"):
         compile_stick_lane(config, PwmMap.from_params(Params()), IDENTITY, FC_LINK_COMPID)
+
+
+def test_stick_sent_without_a_packet_from_the_lane_is_a_caller_error():
+    """RoverCore.stick_sent records the packet stick_lane returned: called with none, it
+    raises instead of recording a stick nobody sent."""
+    core = RoverCore(Params(), now_s=0.0)
+    with pytest.raises(RuntimeError, match="stick_sent without a packet from stick_lane"):
+        core.stick_sent()

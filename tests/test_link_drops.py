@@ -74,3 +74,12 @@ def test_a_broken_ground_station_link_brings_the_wheels_to_neutral_at_once_and_h
     said = status_texts(h, since)
     assert said[0] == "GCS link down: closed by the peer; reconnecting"
     assert "GCS link lost: failsafe" in said
+
+
+def test_a_ground_station_link_back_is_said_and_changes_no_output(harness):
+    """(A tcp: or serial ground-station link that broke and came back: said once; the
+    wheels keep their output, which the GCS failsafe governs, not the link's return.)"""
+    h = harness
+    outbox = h.core.link_up("gcs", h.now_s)
+    assert outbox.override is None
+    assert [m.text for m in outbox.gcs] == ["GCS link reconnected"]

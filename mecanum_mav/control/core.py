@@ -305,7 +305,7 @@ class RoverCore(OutputStage):
         then taken, at the lane's time."""
         answer, now_s = self._lane_answer, self._lane_s
         if answer is None:
-            return
+            raise RuntimeError("stick_sent without a packet from stick_lane")
         self._lane_answer = None
         _, stick, wheels, pulses, fields = answer
         self.now_s = now_s
@@ -392,7 +392,3 @@ class RoverCore(OutputStage):
         """Where local (0, 0) is on the earth: SET_GPS_GLOBAL_ORIGIN, else ORIGIN_LAT/LON."""
         return self._gcs.origin()
 
-    @property
-    def origin_set(self) -> GlobalOrigin | None:
-        """The global origin from SET_GPS_GLOBAL_ORIGIN (overrides ORIGIN_LAT/LON)."""
-        return self._gcs.origin_set
