@@ -11,7 +11,7 @@ import select
 import socket
 
 import pytest
-from test_links import failing_link
+from test_links import _peer_socket, failing_link
 
 from mecanum_mav.io.links import mavlink, mavutil, open_link
 from mecanum_mav.io.links.datagram import fixed_destination
@@ -31,9 +31,7 @@ def test_a_stick_lane_packet_the_kernel_refuses_is_counted_as_failed_not_sent():
 
 
 def test_a_stick_lane_packet_sent_is_counted_once_on_the_wire_and_recorded_whole(tmp_path):
-    sink = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    sink.bind(("127.0.0.1", 0))
-    sink.settimeout(5.0)
+    sink = _peer_socket()
     link = open_link(f"udpout:127.0.0.1:{sink.getsockname()[1]}", source_system=1,
                      source_component=191, name="gcs")
     tlog = (tmp_path / "lane.tlog").open("wb")

@@ -7,6 +7,7 @@ import socket
 
 import pytest
 from support import RawPty, wait_until
+from test_links import _peer_socket
 
 from mecanum_mav.io import links
 from mecanum_mav.io.links import Link, open_link
@@ -79,9 +80,7 @@ def test_a_link_pymavlink_sends_for_takes_each_datagram_whole(
     """MAVLink over UDP: each datagram carries whole packets, so a packet split over two
     datagrams is refused, as by every UDP link. Here a broadcast link, and a ``udpout:`` link
     whose host does not resolve when it opens (pymavlink then sends for it)."""
-    peer = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    peer.bind(("127.0.0.1", 0))
-    peer.settimeout(5.0)
+    peer = _peer_socket()
     if resolves:
         link = opened(f"udpbcast:127.0.0.1:{peer.getsockname()[1]}")
     else:
@@ -113,9 +112,7 @@ def test_a_link_pymavlink_sends_for_takes_each_datagram_whole(
 
 
 def test_a_link_pymavlink_sends_for_signs_with_the_key_it_was_given():
-    peer = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    peer.bind(("127.0.0.1", 0))
-    peer.settimeout(5.0)
+    peer = _peer_socket()
     link = opened(f"udpbcast:127.0.0.1:{peer.getsockname()[1]}", signing_key=KEY)
     try:
         assert link.send(link.mav.heartbeat_encode(10, 8, 0, 0, 4))
