@@ -187,3 +187,46 @@ def test_a_control_pass_that_comes_late_starts_the_grid_again_instead_of_a_burst
     late = tick(10 * period)  # the loop was held up for ten periods: one tick now,
     assert tick(10.5 * period) is late  # the next a whole period after it, not at once
     assert tick(11 * period) is not late
+
+
+@pytest.mark.parametrize(("ticks_short", "reached"), [(0.4, True), (0.6, False)])
+def test_a_waypoint_passed_at_speed_counts_at_the_tick_nearest_the_line_through_it(
+        ticks_short: float, reached: bool):
+    """The docstring's rule: passed at speed, a waypoint is reached at the tick nearest to
+    where the rover crosses the line through it square to the leg, i.e. when it is within
+    half a tick's travel short of that line (the next tick would be further past it)."""
+    params = Params()
+    params.update({"WP_SPEED": 1.0})
+    ex = MissionExecutor(params)
+    ex.load(renumber([HOME, local_wp(0, 2.0, 0.0), local_wp(0, 4.0, 0.0)]))
+    assert ex.start(Pose2d(0.0, 0.0, 0.0), 0.0, None) is None
+    north, t, velocity = 0.0, 0.0, (0.0, 0.0)
+    while north < 1.5:  # an ideal rover: it moves exactly as commanded, at 1 m/s by now
+        t += DT
+        north += velocity[0] * DT
+        velocity = ex.update(Pose2d(north, 0.0, 0.0), velocity, t).velocity_ned
+    assert velocity == pytest.approx((1.0, 0.0))
+    t += DT  # one tick's travel: 2 cm
+    ex.update(Pose2d(2.0 - ticks_short * 1.0 * DT, 0.0, 0.0), velocity, t)
+    assert (ex.current == 2) is reached
+
+
+@pytest.mark.parametrize(("north", "east"), [(2.0, 0.0), (0.0, 2.0), (-2.0, 0.0), (0.0, -2.0)])
+def test_a_waypoint_headings_rate_is_fed_forward_at_the_speed_along_its_leg_whichever_way(
+        north: float, east: float):
+    """heading_schedule: the heading turns in proportion to the distance driven and its rate,
+    turn / length x the speed along the leg, is fed forward, on a leg pointing any way."""
+    params = Params()
+    params.update({"WP_SPEED": 0.5})
+    ex = MissionExecutor(params)
+    ex.load(renumber([HOME, local_wp(0, north, east, param4=90.0)]))
+    assert ex.start(Pose2d(0.0, 0.0, 0.0), 0.0, None) is None
+    here, t, velocity = (0.0, 0.0), 0.0, (0.0, 0.0)
+    while math.hypot(*here) < 1.0:  # an ideal rover, to the middle of the 2 m leg
+        t += DT
+        here = (here[0] + velocity[0] * DT, here[1] + velocity[1] * DT)
+        setpoint = ex.update(Pose2d(*here, 0.0), velocity, t)
+        velocity = setpoint.velocity_ned
+    along = math.hypot(*velocity)
+    assert along == pytest.approx(0.5)
+    assert setpoint.yaw_rate_ff == pytest.approx(math.radians(90.0) / 2.0 * along, rel=0.05)

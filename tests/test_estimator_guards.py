@@ -12,6 +12,7 @@ import pytest
 from mecanum_mav.config.params import Params
 from mecanum_mav.control.estimator import WheelOdometryEstimator
 from mecanum_mav.control.headingbias import HeadingBias
+from mecanum_mav.mecanum.geometry import wrap_pi
 
 
 def estimator(**values: float) -> WheelOdometryEstimator:
@@ -283,3 +284,23 @@ def test_following_the_odometry_before_the_first_position_changes_nothing():
     followed.follow(1.0, 1.0)
     followed.on_position(0.0, 0.0, 0.0, 0.0, 0.0, 5.0, follows_yaw=False)  # starts a window
 
+
+
+# ------------------------------------------------------------------ a new origin (DO_SET_HOME)
+
+def test_a_new_origin_while_turning_keeps_the_heading_on_the_flight_controllers_yaw():
+    """reset() (DO_SET_HOME) moves the origin and "the heading is kept": the flight
+    controller's yaw keeps steering it from that moment, including the step right after, even
+    when the wheels slip and say the rover does not turn."""
+    est = estimator()
+    offsets = []
+    for k in range(0, 61):  # 1.5 s turning clockwise at 1 rad/s on wheels that roll straight
+        t = k / 40  # (each tick beyond COMMANDED_UPDATE_S: each moves the odometry)
+        assert est.on_attitude(t, 1.0, t) is None
+        est.on_commanded([1.0] * 4, 0.025, t)
+        if k == 40:
+            est.reset(t)  # the new origin at 1 s
+            assert (est.pose.x_m, est.pose.y_m) == (0.0, 0.0)
+        offsets.append(est.pose.yaw_rad - wrap_pi(t))
+    assert est.reset_counter == 1
+    assert offsets == pytest.approx([0.0] * len(offsets), abs=1e-9)
