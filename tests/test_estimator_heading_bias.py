@@ -11,7 +11,7 @@ import pytest
 
 from mecanum_mav.config.params import Params
 from mecanum_mav.control.estimator import WheelOdometryEstimator
-from mecanum_mav.control.headingbias import REFUSE_AFTER, HeadingBias
+from mecanum_mav.control.headingbias import REFUSE_AFTER, SETTLED_COUNT, HeadingBias
 
 Track = Callable[[float], tuple[float, float]]
 """Time (s) -> position (north, east m)."""
@@ -143,6 +143,73 @@ def test_a_bias_beyond_10_degrees_is_not_corrected_and_said_once():
     said = feed(bias, straight, rotated(straight, 15.0), 20.0)
     assert bias.bias_rad == 0.0 and bias.rejected >= REFUSE_AFTER
     assert said == ["Heading: FC yaw +15.0 deg off its track, beyond 10: not corrected"]
+
+
+def said_at(bias: HeadingBias, fc: Track, odometry: Track, seconds: float, count: str,
+            start_s: float = 0.0) -> list[tuple[int, str]]:
+    """Like :func:`feed` at 10 Hz; each notice with the bias's counter ``count`` then."""
+    said = []
+    for k in range(round(seconds * 10.0) + 1):
+        t = start_s + k / 10.0
+        update = bias.on_position(*fc(t), *odometry(t), 0.0, t)
+        if update.notice is not None:
+            said.append((getattr(bias, count), update.notice))
+    return said
+
+
+def test_the_estimate_is_said_with_its_tenth_measurement_and_settled_from_then_on():
+    """SETTLED_COUNT: "measurements before the estimate is said" (and ``settled``)."""
+    bias = HeadingBias()
+    settled_at = []
+    for k in range(41):
+        t = k / 10.0
+        update = bias.on_position(*straight(t), *rotated(straight, 2.0)(t), 0.0, t)
+        settled_at.append((bias.measurements, bias.settled))
+        if update.notice is not None:
+            assert bias.measurements == SETTLED_COUNT == 10
+            assert update.notice == "Heading: FC yaw +2.0 deg off its track: corrected"
+    assert all(settled is (count >= SETTLED_COUNT) for count, settled in settled_at)
+    assert settled_at[-1][0] > SETTLED_COUNT  # (measured past it: said once)
+
+
+def test_a_bias_beyond_the_bound_is_said_at_the_twentieth_window_in_a_row():
+    """REFUSE_AFTER: measurements beyond MAX_BIAS_RAD in a row before it is said."""
+    said = said_at(HeadingBias(), straight, rotated(straight, 15.0), 20.0, "rejected")
+    assert [count for count, _ in said] == [REFUSE_AFTER] == [20]
+
+
+def test_from_the_tenth_measurement_on_a_window_far_off_the_estimate_is_an_outlier():
+    """"Once settled, a measurement further than OUTLIER_RAD from the estimate is an
+    outlier": the window right after the tenth measurement, 4 degrees off, moves nothing."""
+    bias = HeadingBias()
+    t = 0.0
+    while bias.measurements < SETTLED_COUNT:
+        t += 0.1
+        bias.on_position(*straight(t), *rotated(straight, 2.0)(t), 0.0, t)
+    start_s = t + 2.0  # a gap (the window starts over, the estimate stays), then a new track
+    drive_s = 0.0
+    while bias.outliers == 0 and bias.measurements == SETTLED_COUNT:
+        bias.on_position(*straight(drive_s), *rotated(straight, 6.0)(drive_s), 0.0,
+                         start_s + drive_s)
+        drive_s += 0.1
+    assert (bias.outliers, bias.measurements) == (1, SETTLED_COUNT)
+    assert math.degrees(bias.bias_rad) == pytest.approx(2.0, abs=1e-6)
+
+
+def test_a_moved_bias_is_learnt_again_after_twenty_outliers_in_a_row():
+    """Once settled, a measurement more than OUTLIER_RAD off is an outlier; REFUSE_AFTER of
+    them in a row mean the bias moved: the estimate starts over from the next measurement."""
+    bias = HeadingBias()
+    feed(bias, straight, rotated(straight, 2.0), 4.0)
+    assert bias.settled
+    outliers_seen = []
+    for k in range(41):
+        t = 4.1 + k / 10.0
+        bias.on_position(*straight(t), *rotated(straight, 6.0)(t), 0.0, t)
+        outliers_seen.append((bias.outliers, bias.measurements))
+    first_restart = next(i for i, (_, measured) in enumerate(outliers_seen) if measured == 0)
+    assert outliers_seen[first_restart - 1][0] == REFUSE_AFTER - 1  # 19 outliers, then the 20th
+    assert math.degrees(bias.bias_rad) == pytest.approx(6.0, abs=1e-6)
 
 
 def test_a_flight_controller_position_that_jumps_sideways_does_not_move_a_settled_estimate():
