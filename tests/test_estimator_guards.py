@@ -84,6 +84,9 @@ def test_a_position_further_than_half_a_metre_from_the_odometrys_is_not_fused():
     assert est.pose == (0.0, 0.0, 0.0)
     est.on_position(0.0, 0.45, 0.2)
     assert est.pose.y_m == pytest.approx(0.45 * (1.0 - math.exp(-0.1)), rel=1e-9)
+    at_the_gate = fused(tau_s=1.0)  # exactly 0.5 m off is not "further than" it: fused
+    at_the_gate.on_position(0.0, 0.5, 0.1)
+    assert at_the_gate.pose.y_m == pytest.approx(0.5 * (1.0 - math.exp(-0.1)), rel=1e-9)
 
 
 def test_positions_far_off_re_anchor_the_track_only_after_20_in_a_row():

@@ -3,11 +3,12 @@
 
 from __future__ import annotations
 
+import logging
 import socket
 
 import pytest
 from support import RawPty, wait_until
-from test_links import _peer_socket
+from test_links import FakeClock, _peer_socket
 
 from mecanum_mav.io import links
 from mecanum_mav.io.links import Link, open_link
@@ -106,6 +107,36 @@ def test_a_link_pymavlink_sends_for_takes_each_datagram_whole(
         assert wait_until(
             lambda: got.extend(m.get_type() for m in link.read()) or "STATUSTEXT" in got, 5.0)
         assert got == ["HEARTBEAT", "STATUSTEXT"]
+    finally:
+        link.close()
+        peer.close()
+
+
+def test_a_link_pymavlink_sends_for_warns_of_failed_sends_once_a_second_on_its_clock(
+        monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture) -> None:
+    """Link: every timer of a link runs on the clock it was given, the send-failure
+    warning's rate among them, and a send never raises; here a ``udpout:`` link whose host
+    did not resolve (pymavlink sends for it) and whose sends fail."""
+    peer = _peer_socket()
+    clock = FakeClock()
+
+    def unresolvable(host: str) -> str:
+        raise socket.gaierror(socket.EAI_NONAME, "Name or service not known")
+    with monkeypatch.context() as patch:
+        patch.setattr(socket, "gethostbyname", unresolvable)
+        link = opened(f"udpout:127.0.0.1:{peer.getsockname()[1]}", clock=clock)
+
+    def refused(data: bytes) -> None:
+        raise OSError("refused")
+    try:
+        assert type(link) is links.PymavlinkDatagramLink
+        link.conn.write = refused
+        with caplog.at_level(logging.WARNING, logger="mecanum_mav.io.links"):
+            for _ in range(30):  # 1.5 s of failures at 20 Hz on the link's clock
+                assert not link.send(link.mav.heartbeat_encode(6, 8, 0, 0, 4))
+                clock.now += 0.05
+        assert link.send_errors == 30
+        assert len([r for r in caplog.records if "send failed" in r.getMessage()]) == 2
     finally:
         link.close()
         peer.close()

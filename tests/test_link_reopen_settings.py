@@ -111,6 +111,25 @@ def test_a_serial_device_reopened_after_an_unplug_runs_at_the_urls_baud_rate(
         assert time.monotonic() - started < 0.1
 
 
+def test_a_serial_device_whose_old_port_fails_to_close_is_reopened_all_the_same(
+        tmp_path: Path) -> None:
+    """Closing the unplugged device's old port can fail (EIO: the device is gone); the
+    replugged device is opened and used all the same."""
+    device = tmp_path / "ttyFC"
+    clock = FakeClock()
+    with serial_fc(device, 57600, clock) as (link, ptys):
+        unplug(link, ptys[0])
+        old = link.conn.port
+
+        def gone() -> None:
+            raise OSError(5, "Input/output error")
+        old.close = gone
+        back = RawPty(device)
+        ptys.append(back)
+        assert reopen_until_up(link, clock)
+        assert link.down_reason is None and link.conn.port is not old
+
+
 def test_a_serial_device_that_cannot_be_opened_yet_is_tried_again_and_says_why_in_the_log(
         tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
     """A device node that is there but not a terminal yet (udev still setting it up, no

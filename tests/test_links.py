@@ -300,6 +300,32 @@ def test_a_udpout_link_whose_send_fails_connects_again_on_its_port_at_most_twice
         link.close()
 
 
+def test_a_udpout_link_whose_connection_cannot_be_undone_goes_on_sending_unconnected(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """UdpoutLink._reconnect: "If it cannot be made again, the link goes on unconnected
+    (sendto, recvfrom), as pymavlink's own": here the kernel refuses to undo the connection
+    (the socket stays connected to the destination, so sendto reaches it)."""
+    clock = FakeClock()
+    peer = _peer_socket()
+    link = open_link(f"udpout:127.0.0.1:{peer.getsockname()[1]}", source_system=1,
+                     source_component=1, name="gcs", clock=clock)
+
+    def unreachable(data: bytes) -> int:
+        raise OSError(errno.ENETUNREACH, "Network is unreachable")
+
+    try:
+        beat = link.mav.heartbeat_encode(10, 8, 0, 0, 4)
+        link._send = unreachable
+        monkeypatch.setattr(links.datagram, "_dissolve", lambda sock: False)
+        assert not link.send(beat)  # failed; the connection could not be undone
+        assert link.send(beat) and link.send(beat)  # unconnected: sendto
+        assert [peer.recvfrom(1024)[0][7] for _ in range(2)] == [0, 0]  # two HEARTBEATs
+        assert link.send_errors == 1
+    finally:
+        peer.close()
+        link.close()
+
+
 def test_dissolving_a_connected_udp_socket_forgets_its_peer_and_its_local_address():
     # What lets a udpout link choose its route and source address anew (a connected socket
     # keeps the ones it chose, and connecting it again reuses them).

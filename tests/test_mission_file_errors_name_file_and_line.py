@@ -9,6 +9,7 @@ from pathlib import Path
 import pytest
 
 from mecanum_mav.io.missionfile import MissionFileError, load_mission
+from mecanum_mav.io.storage import FileStorage
 
 HEADER = "QGC WPL 110"
 ITEM_0 = "0\t1\t3\t16\t0\t0\t0\t0\t47.3977000\t8.5456000\t0\t1"
@@ -48,3 +49,23 @@ def test_the_first_bad_item_is_named_by_its_line_and_what_is_wrong(tmp_path: Pat
                                                                   bad_line: str, problem: str):
     text = "\n".join([HEADER, ITEM_0, "", bad_line, "garbage after it"]) + "\n"
     assert refusal(tmp_path, text) == f"4: {problem}"
+
+
+def test_bytes_that_are_not_utf8_text_are_refused_naming_their_line(tmp_path: Path):
+    """A damaged file (or one a tool wrote in another encoding) is a MissionFileError with
+    its line like any other problem, not an exception the companion does not expect."""
+    path = tmp_path / "rover.waypoints"
+    text = "\n".join([HEADER, ITEM_0, ITEM_1]).encode("utf-8")
+    path.write_bytes(text + b"\n2\t0\t3\t16\t0\t0\t0\t0\t47.39\xff\t8.54\t0\t1\n")
+    with pytest.raises(MissionFileError) as caught:
+        load_mission(path)
+    assert str(caught.value) == f"{path}:4: not UTF-8 text (byte 0xff)"
+
+
+def test_a_mission_file_that_is_not_utf8_leaves_the_rover_without_a_mission_and_says_so(
+        tmp_path: Path):
+    """The rover's stored mission (io/storage.py): an unreadable file is logged and said,
+    and the rover starts without a mission instead of failing."""
+    storage = FileStorage(tmp_path / "rover.parm")
+    storage.mission_path.write_bytes(HEADER.encode() + b"\n\xc3\x28\n")
+    assert storage.load_mission() == ([], "Mission file unreadable: rover.waypoints")

@@ -129,7 +129,7 @@ class Context:
                 self.refuse(event.refusal, event.text)
 
     def refuse_unsigned(self, rejected: Mapping[Check, int], now_s: float, *,
-                        from_fc: bool = False) -> None:
+                        from_fc: bool) -> None:
         """Packets a link's signature check dropped before they became messages (per kind,
         :meth:`~mecanum_mav.protocol.signing.SignatureCheck.take_rejections`): counted as
         :attr:`Refusal.SIGNATURE`; none of them reached the core's ``handle``, so none armed, drove

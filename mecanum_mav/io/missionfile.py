@@ -57,11 +57,19 @@ def load_mission(path: str | os.PathLike[str]) -> list[MissionItem]:
     """Read a QGC WPL 110 file; every item is checked as an upload would be.
 
     Raises:
-        MissionFileError: ``file:line: what is wrong`` for the first problem found.
+        MissionFileError: ``file:line: what is wrong`` for the first problem found (bytes
+            that are not UTF-8 text included).
         OSError: the file cannot be read.
     """
     source = Path(path)
-    lines = source.read_text(encoding="utf-8").splitlines()
+    data = source.read_bytes()
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:  # a damaged file, or one a tool wrote in another code
+        line = data.count(b"\n", 0, exc.start) + 1
+        raise MissionFileError(f"{source}:{line}: not UTF-8 text (byte "
+                               f"0x{data[exc.start]:02x})") from None
+    lines = text.splitlines()
     if not lines or lines[0].strip() != _HEADER:
         raise MissionFileError(f"{source}:1: not a mission file (first line must be {_HEADER})")
     items: list[MissionItem] = []
