@@ -273,12 +273,55 @@ class _UnresolvableConnect(socket.socket):
         raise socket.gaierror(socket.EAI_NONAME, "Name or service not known")
 
 
-@pytest.mark.parametrize("failure", ["name", "files"])
+class _NoRouteConnect(socket.socket):
+    """A socket whose non-blocking connect fails at once (the kernel has no route to the
+    address: ENETUNREACH comes back from connect itself, not later)."""
+
+    def connect_ex(self, address: object) -> int:
+        return errno.ENETUNREACH
+
+
+class _ImmediateConnect(socket.socket):
+    """A socket whose non-blocking connect completes at once (return code 0, which a kernel
+    may give for a local address)."""
+
+    def connect_ex(self, address: object) -> int:
+        self.settimeout(1.0)  # (blocking, but never for ever)
+        try:
+            return super().connect_ex(address)
+        finally:
+            self.setblocking(False)
+
+
+def test_a_tcp_reconnect_that_completes_at_once_brings_the_link_up(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """A non-blocking connect may complete at once (code 0): that try connected, the link is
+    up on it."""
+    from mecanum_mav.io.links import tcp
+
+    with socket.socket() as server:
+        server.bind(("127.0.0.1", 0))
+        server.listen(1)
+        link = open_link(f"tcp:127.0.0.1:{server.getsockname()[1]}", source_system=255,
+                         source_component=190, name="fc")
+        try:
+            board, _ = server.accept()
+            board.close()
+            assert wait_until(lambda: link.read() == [] and not link.up, 2.0)
+            monkeypatch.setattr(tcp.socket, "socket", _ImmediateConnect)
+            assert wait_until(lambda: link.reopen(link.next_reopen_s), 2.0)
+            assert link.up
+        finally:
+            link.close()
+
+
+@pytest.mark.parametrize("failure", ["name", "files", "no route"])
 def test_a_tcp_link_whose_reconnect_cannot_resolve_or_open_a_socket_stays_down_and_tries_again(
         failure: str, monkeypatch: pytest.MonkeyPatch,
         caplog: pytest.LogCaptureFixture) -> None:
-    """Reconnecting never raises into the loop: a name that does not resolve, or a process out
-    of descriptors, is a failed attempt like a refused one, and the debug log says which."""
+    """Reconnecting never raises into the loop: a name that does not resolve, a process out
+    of descriptors, or no route, is a failed attempt like a refused one, and the debug log says
+    which."""
     from mecanum_mav.io.links import tcp
 
     with socket.socket() as server:
@@ -292,6 +335,8 @@ def test_a_tcp_link_whose_reconnect_cannot_resolve_or_open_a_socket_stays_down_a
             assert wait_until(lambda: link.read() == [] and not link.up, 2.0)
             if failure == "name":
                 monkeypatch.setattr(tcp.socket, "socket", _UnresolvableConnect)
+            elif failure == "no route":
+                monkeypatch.setattr(tcp.socket, "socket", _NoRouteConnect)
             else:
                 def out_of_files(*args: object) -> socket.socket:
                     raise OSError(errno.EMFILE, "Too many open files")
@@ -300,7 +345,8 @@ def test_a_tcp_link_whose_reconnect_cannot_resolve_or_open_a_socket_stays_down_a
                 assert link.reopen(link.next_reopen_s) is False
             assert not link.up
             why = {"name": f"[Errno {socket.EAI_NONAME}] Name or service not known",
-                   "files": f"[Errno {errno.EMFILE}] Too many open files"}[failure]
+                   "files": f"[Errno {errno.EMFILE}] Too many open files",
+                   "no route": f"[Errno {errno.ENETUNREACH}] Network is unreachable"}[failure]
             assert [r.getMessage() for r in caplog.records if r.levelname == "DEBUG"] == [
                 f"fc: reconnecting failed: {why}"]
             monkeypatch.undo()

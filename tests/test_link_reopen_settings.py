@@ -191,6 +191,38 @@ def test_a_tcp_link_connected_again_has_nodelay_and_is_non_blocking_as_its_first
         server.close()
 
 
+class _FailsToClose:
+    """A connection whose close fails (EIO), standing in for the one that broke."""
+
+    def close(self) -> None:
+        raise OSError(5, "Input/output error")
+
+
+def test_a_tcp_link_whose_old_connection_fails_to_close_is_connected_again_all_the_same(
+        ) -> None:
+    clock = FakeClock()
+    server = socket.create_server(("127.0.0.1", 0))
+    address = server.getsockname()
+    link = open_link(f"tcp:{address[0]}:{address[1]}", source_system=255,
+                     source_component=190, name="fc", clock=clock)
+    peers: list[socket.socket] = []
+    try:
+        peers.append(server.accept()[0])
+        peers[0].close()
+        assert wait_until(lambda: (link.read(), not link.up)[1], 5.0,
+                          pump=lambda s: select.select([link.fileno()], [], [], s))
+        link.conn.port = _FailsToClose()
+        assert reopen_until_up(link, clock)
+        peers.append(server.accept()[0])
+        assert link.send(link.mav.heartbeat_encode(6, 8, 0, 0, 4))
+        assert wait_until(lambda: bool(select.select([peers[1]], [], [], 0.05)[0]), 5.0)
+    finally:
+        link.close()
+        for peer in peers:
+            peer.close()
+        server.close()
+
+
 @contextlib.contextmanager
 def client(port: int) -> Iterator[socket.socket]:
     sock = socket.create_connection(("127.0.0.1", port), timeout=5.0)
