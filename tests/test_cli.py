@@ -154,6 +154,28 @@ def test_params_save_writes_a_loadable_file(capsys, tmp_path):
     assert code == 0 and "INP_EXPO 0.25  # changed" in out
 
 
+def test_params_prints_each_parameter_marking_only_those_not_at_their_default(capsys):
+    """docs/commands.md (params): every parameter, ``# changed`` on those not at their
+    default; one ``NAME VALUE`` line each, as in a parameter file."""
+    code, out, _ = run(capsys, "params", "--set", "INP_EXPO=0.25")
+    assert code == 0
+    lines = out.splitlines()
+    assert [line.split()[0] for line in lines] == list(Params().names())
+    assert [line for line in lines if line.endswith("  # changed")] == [
+        "INP_EXPO 0.25  # changed"]
+    for line in lines:
+        if not line.endswith("# changed"):
+            name, value = line.split(" ")  # nothing after the value
+            assert float(value) == Params()[name]
+
+
+def test_params_save_says_how_many_parameters_it_wrote_and_where(capsys, tmp_path):
+    path = tmp_path / "saved.parm"
+    code, out, _ = run(capsys, "params", "--save", str(path))
+    assert code == 0
+    assert out == f"saved {len(Params().names())} parameters to {path}\n"
+
+
 def test_console_script_runs_as_a_module():
     done = subprocess.run([sys.executable, "-m", "mecanum_mav.app.cli", "mix", "-x", "1", "--json"],
                           capture_output=True, text=True, timeout=60, check=False)

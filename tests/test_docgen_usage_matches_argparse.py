@@ -24,11 +24,24 @@ def toy_parser() -> argparse.ArgumentParser:
     files.add_argument("--some", nargs="+", metavar="F", help="one or more")
     files.add_argument("--point", nargs=2, type=float, metavar=("X", "Y"), help="two numbers")
     files.add_argument("--pair", nargs=2, help="two of the same")
+    files.add_argument("--once", nargs=1, help="a list of one")
+    files.add_argument("--named", metavar=("NAME",), help="a one-name tuple metavar")
+    files.add_argument("--chain", nargs="+", metavar=("FIRST", "NEXT"), help="first, then more")
+    files.add_argument("--extra", nargs="*", metavar=("A", "B"), help="perhaps A, then Bs")
     files.add_argument("--hidden", help=argparse.SUPPRESS)
     files.add_argument("first", help="one file")
     files.add_argument("maybe", nargs="?", help="perhaps another")
     files.add_argument("rest", nargs=argparse.REMAINDER, help="the rest, as given")
+    sub.add_parser("reset", help="start again", description=LONG_DESCRIPTION)
+    sub.add_parser("quiet")  # (no one-line help)
+    sub.add_parser("blank", help=None)
     return parser
+
+
+LONG_DESCRIPTION = (  # (--params-reset straddles the wrap column; the address is longer than it)
+    "Check each parameter file this command reads as a whole; when one is wrong, start with "
+    "--params-reset and a fresh file. See https://example.com/" + "rover/" * 16
+    + "reset.html for more.")
 
 
 @pytest.fixture
@@ -72,3 +85,17 @@ def test_a_command_line_without_a_description_goes_straight_to_its_command_table
     intro_end = page.index(docgen.CLI_INTRO) + len(docgen.CLI_INTRO)
     assert page[intro_end:].startswith("\n| command | what it does |\n")
     assert "| [`files`](#toy-files) | the files command |" in page
+
+
+def test_a_sub_command_without_a_one_line_help_has_an_empty_summary(page: str):
+    assert "| [`quiet`](#toy-quiet) |  |" in page
+    assert "| [`blank`](#toy-blank) |  |" in page
+
+
+def test_a_description_is_wrapped_between_words_only(page: str):
+    """The docstring of docgen._paragraph: wrapped at USAGE_WIDTH between words, never at a
+    hyphen inside an option name, and a word longer than the width (an address) kept whole."""
+    paragraph = sections(page)["toy reset"].split("\n\n")[1]
+    assert paragraph.split() == LONG_DESCRIPTION.split()
+    assert all(len(line) <= docgen.USAGE_WIDTH for line in paragraph.splitlines()
+               if " " in line)

@@ -44,14 +44,16 @@ def test_gcs_and_set_win_over_the_instance_and_the_instance_over_the_params_file
     assert sim_args("--params", str(parm))[1] == 7
 
 
-@pytest.mark.parametrize("bad", ["-1", "255", "two"])
-def test_an_instance_outside_0_to_254_is_a_usage_error(bad: str,
-                                                        capsys: pytest.CaptureFixture[str]
-                                                        ) -> None:
+@pytest.mark.parametrize(("bad", "why"), [("-1", "must be 0 .. 254, got -1"),
+                                          ("255", "must be 0 .. 254, got 255"),
+                                          ("two", "not a whole number: 'two'")])
+def test_an_instance_outside_0_to_254_is_a_usage_error_saying_what_is_allowed(
+        bad: str, why: str, capsys: pytest.CaptureFixture[str]) -> None:
     with pytest.raises(SystemExit) as exit_info:
         main(["sim", "--instance", bad])
     assert exit_info.value.code == 2
-    assert "--instance" in capsys.readouterr().err
+    assert capsys.readouterr().err.splitlines()[-1] == (
+        f"mecanum-mav sim: error: argument --instance: {why}")
 
 
 def test_a_parameter_file_is_held_by_one_process_at_a_time(tmp_path: Path) -> None:

@@ -6,6 +6,7 @@ wheel value. In process: the command line's ``main`` with standard input replace
 from __future__ import annotations
 
 import io
+import json
 
 import pytest
 
@@ -35,3 +36,26 @@ def test_a_header_naming_an_unknown_column_stops_the_batch_before_any_wheel_valu
     assert code == 1
     assert err == "line 1: unknown column(s) speed\n"
     assert lines == []
+
+
+def test_a_header_naming_several_unknown_columns_lists_them_all(
+        capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> None:
+    code, lines, err = mix_batch(capsys, monkeypatch, "x,speed,turn\n1,0.5,0\n")
+    assert (code, lines) == (1, [])
+    assert err == "line 1: unknown column(s) speed, turn\n"
+
+
+@pytest.mark.parametrize("desat", [[], ["--desat", "proportional"],
+                                   ["--desat", "rotation_priority"],
+                                   ["--desat", "translation_priority"]])
+def test_a_batch_mixes_each_command_as_mix_does_the_same_command_with_the_same_desat(
+        desat: list[str], capsys: pytest.CaptureFixture[str],
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """Full forward and full rotation saturate: the desaturation chosen decides the wheels,
+    for a batch line as for the flags (default: parameter MIX_DESAT)."""
+    assert main(["mix", "--algo", "cartesian", "-x", "1", "-r", "1", "--json", *desat]) == 0
+    single = json.loads(capsys.readouterr().out)["wheels"]
+    monkeypatch.setattr("sys.stdin", io.StringIO("1,0,1\n"))
+    assert main(["mix", "--batch", "--algo", "cartesian", *desat]) == 0
+    line = capsys.readouterr().out.strip()
+    assert [float(c) for c in line.split(",")[:4]] == single

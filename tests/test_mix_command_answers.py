@@ -117,3 +117,45 @@ def test_a_line_whose_first_cell_is_a_column_name_is_a_header_only_before_any_co
     assert [float(c) for c in lines[1].split(",")[:4]] == pytest.approx(
         [-1.0, 1.0, 1.0, -1.0])
     assert math.isfinite(float(lines[1].split(",")[4]))
+
+
+def test_a_stopped_wheel_is_answered_as_zero_never_minus_zero(capsys):
+    """On a diagonal two wheels stop; a ``-0`` would read as "backwards" in the table's sign
+    column and as ``-0.0`` in JSON."""
+    code, out, _ = mix(capsys, "--algo", "cartesian", "-m", "1", "-d", "225", "--json")
+    assert code == 0 and '"wheels": [-1.0, 0.0, 0.0, -1.0]' in out
+    code, out, _ = mix(capsys, "--algo", "cartesian", "-m", "1", "-d", "315")
+    assert code == 0 and "-0.0000" not in out and out.count("+0.0000") == 2
+    code, lines, _ = batch("magnitude,direction_deg\n1,225\n")
+    assert lines[1].split(",")[:4] == ["-1.0", "0.0", "0.0", "-1.0"]
+
+
+def test_a_header_with_both_forms_mixes_rows_that_fill_one_and_leave_the_other_empty():
+    """Missing fields are 0 (stick_from_fields): an empty CSV cell is a missing field, so a
+    row of one form under a header naming both is that form alone."""
+    code, lines, err = batch("x,y,magnitude,direction_deg\n1,0,,\n,,1,0\n,,1,90\n")
+    assert code == 0 and err == ""
+    assert [[float(c) for c in line.split(",")[:4]] for line in lines[1:]] == [
+        pytest.approx([1.0] * 4), pytest.approx([1.0] * 4),
+        pytest.approx([1.0, -1.0, -1.0, 1.0])]  # right: FL and RR forward
+
+
+def test_a_batch_answers_one_newline_terminated_line_per_command_csv_and_json_alike():
+    out, err = io.StringIO(), io.StringIO()
+    run_batch(io.StringIO('x,y\n1,0\n{"x": 1}\nabc,0\n'), out, err, Params(), "cartesian",
+              Desaturation.PROPORTIONAL)
+    assert "\r" not in out.getvalue()
+    assert out.getvalue().endswith("\n") and len(out.getvalue().split("\n")) == 5
+
+
+def test_a_line_too_long_for_csv_is_answered_with_its_error_and_the_batch_goes_on():
+    """A bad line is answered with its error and reported, never a crash of the batch (the
+    csv module refuses a cell over 128 KiB)."""
+    long_cell = "1" * 200_000
+    code, lines, err = batch(f"{long_cell},0\n1,0\n")
+    assert code == 1
+    assert lines[0] == ",,,,,,,,bad CSV: field larger than field limit (131072)"
+    assert lines[1] == "1.0,1.0,1.0,1.0,2000,2000,2000,2000,"
+    assert err == "line 1: bad CSV: field larger than field limit (131072)\n"
+    code, lines, err = batch(f'{{"x": "{"a" * 200_000}"}}\n')  # (JSON: no CSV limit)
+    assert code == 1 and json.loads(lines[0])["error"].startswith("x: not a number: 'aaa")

@@ -151,16 +151,25 @@ def cmd_run(args: argparse.Namespace, params: Params) -> int:
 
 def cmd_sim(args: argparse.Namespace, params: Params) -> int:
     gcs = sim_gcs_url(args)
-    host_port = gcs.split(":", 1)[1] if ":" in gcs else gcs
-    if args.instance is None:
+    scheme, _, host_port = gcs.partition(":")
+    # A ground station (or the router) takes the other end of a UDP link: it listens where
+    # the rover sends (udpout), it sends where the rover listens (udpin, pymavlink's udp).
+    master = {"udpout": "udpin", "udpin": "udpout", "udp": "udpout"}.get(scheme)
+    rover = ("" if args.instance is None else
+             f"instance {args.instance}, system id {params['SYSID_THISMAV']}, ")
+    if master is None:  # (a TCP link or a serial device: its URL says it all)
+        print(f"mecanum-mav sim: {rover}ground-station link {gcs}", flush=True)
+    elif args.instance is not None:
+        print(f"mecanum-mav sim: {rover}{'sending to' if scheme == 'udpout' else 'listening on'}"
+              f" UDP {host_port}: one --master={master}:{host_port} of the router (see "
+              f"docs/fleet.md)", flush=True)
+    elif scheme == "udpout":
         print(f"mecanum-mav sim: point a ground station at UDP {host_port} "
               f"(QGroundControl and Mission Planner listen on 14550; "
               f"MAVProxy: mavproxy.py --master=udpin:{host_port})", flush=True)
     else:
-        print(f"mecanum-mav sim: instance {args.instance}, system id "
-              f"{params['SYSID_THISMAV']}, sending to UDP {host_port}: one --master="
-              f"udpin:{host_port} of the router (see docs/fleet.md)",
-              flush=True)
+        print(f"mecanum-mav sim: listening for a ground station on UDP {host_port} "
+              f"(MAVProxy: mavproxy.py --master=udpout:{host_port})", flush=True)
     if args.physics == "mujoco":
         try:
             factor = mujoco_real_time_factor(params)

@@ -117,13 +117,17 @@ def _arguments(action: argparse.Action) -> str:
         return metavar
     if nargs == argparse.OPTIONAL:
         return f"[{metavar}]"
+    # (a tuple metavar names each argument: the first and the rest of a "+" or a "*")
+    named = action.metavar if isinstance(action.metavar, tuple) else None
     if nargs == argparse.ZERO_OR_MORE:
+        if named is not None and len(named) == 2:
+            return f"[{named[0]} [{named[1]} ...]]"
         return f"[{metavar} ...]"
     if nargs == argparse.ONE_OR_MORE:
-        return f"{metavar} [{metavar} ...]"
-    if isinstance(nargs, int):  # (a tuple metavar names each one)
-        names = action.metavar if isinstance(action.metavar, tuple) else [metavar] * nargs
-        return " ".join(names)
+        first, rest = named if named is not None else (metavar, metavar)
+        return f"{first} [{rest} ...]"
+    if isinstance(nargs, int):
+        return metavar if named is not None else " ".join([metavar] * nargs)
     return "..."  # REMAINDER (PARSER is the sub-commands' action, not shown)
 
 

@@ -106,7 +106,7 @@ def _parse_line(
         except json.JSONDecodeError as exc:
             raise CommandError(f"bad JSON: {exc.msg} at column {exc.colno}") from None
         return fields
-    values = next(csv.reader([line]))
+    values = _cells(line)
     keys = header or list(default_keys)
     if len(values) > len(keys):
         raise CommandError(
@@ -115,8 +115,18 @@ def _parse_line(
     return {k: v.strip() for k, v in zip(keys, values, strict=False)}
 
 
+def _cells(line: str) -> list[str]:
+    try:
+        return next(csv.reader([line]))
+    except csv.Error as exc:  # (a cell over the csv module's field size limit, 128 KiB)
+        raise CommandError(f"bad CSV: {exc}") from None
+
+
 def _is_header(line: str) -> bool:
-    first = next(csv.reader([line]))[0].strip()  # (a line that is not blank: a row)
+    try:
+        first = _cells(line)[0].strip()  # (a line that is not blank: a row)
+    except CommandError:
+        return False  # (a row, answered with its error)
     return first in CSV_COLUMNS
 
 
