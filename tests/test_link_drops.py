@@ -27,7 +27,7 @@ def test_an_unplugged_flight_controller_is_reported_once_and_disarms_at_once(har
     h = harness
     drive_forward(h)
     since = h.gcs.mark()
-    h.link_down("fc", "device gone")
+    h.link_down("fc")  # by default as a pulled USB cable: the serial link's "device gone"
     unplugged_s = h.now_s
     # the pilot keeps pushing the stick for 5 s (longer than FS_FC_TMO, 3 s)
     stream_sticks(h, lambda: None, 1000, timeout_s=5.0)

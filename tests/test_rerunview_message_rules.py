@@ -138,6 +138,39 @@ def test_the_true_path_is_placed_about_the_streams_gps_global_origin(tmp_path: P
                      pytest.approx(list(to_map(3.0, 5.0)), abs=0.01)]
 
 
+def _sim_states(origin: GlobalOrigin, points: list[tuple[float, float]]) -> list[Any]:
+    states = []
+    for north, east in points:
+        lat, lon = origin.to_global(north, east)
+        states.append(COMPANION("sim_state", 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0,
+                                0.0, 0.0, 0.0, lat / 1e7, lon / 1e7, 0.0, 0.0, 0.0, 0.0, 0.0,
+                                0.0, lat, lon))
+    return states
+
+
+FAR_FROM_0_0 = GlobalOrigin(-353_632_621, 1_491_652_374)  # Canberra: no simulator's 0, 0
+
+
+def test_without_an_origin_the_first_true_position_is_taken_as_where_the_estimate_is(
+        tmp_path: Path) -> None:
+    # ViewMapping's origin None, no GPS_GLOBAL_ORIGIN, a simulator far from 0, 0: the first
+    # true position is placed where the estimate is then, and the true path goes on from there.
+    states = _sim_states(FAR_FROM_0_0, [(100.0, -50.0), (102.0, -49.0)])
+    temporal, _ = _rows(_fed([_odometry(3.0, 4.0), *states]), tmp_path)
+    (strip,) = [row["LineStrips2D:strips"][0] for row in temporal["map/truth"]]
+    assert strip == [pytest.approx(list(to_map(3.0, 4.0)), abs=0.01),
+                     pytest.approx(list(to_map(5.0, 5.0)), abs=0.01)]
+
+
+def test_without_an_origin_or_an_estimate_the_first_true_position_is_at_0_0(
+        tmp_path: Path) -> None:
+    states = _sim_states(FAR_FROM_0_0, [(100.0, -50.0), (102.0, -49.0)])
+    temporal, _ = _rows(_fed(states), tmp_path)
+    (strip,) = [row["LineStrips2D:strips"][0] for row in temporal["map/truth"]]
+    assert strip == [pytest.approx(list(to_map(0.0, 0.0)), abs=0.01),
+                     pytest.approx(list(to_map(2.0, 1.0)), abs=0.01)]
+
+
 def test_a_contact_without_a_finite_force_draws_its_slip_and_no_force(tmp_path: Path) -> None:
     twin = Sender(*TRUTH_SOURCE)
     temporal, _ = _rows(_fed([twin("debug_vect", b"CONTACT_FL", 0, NAN, 0.0, 1.0),

@@ -1,6 +1,7 @@
 """The scripted ground station (mecanum_mav/sim/groundstation.py) against a vehicle that does
 not cooperate: it restarts a mission upload after the protocol's 1.5 s of silence and gives
-up at its timeout, a download the vehicle stops answering is None (and not acknowledged),
+up at its timeout, a download the vehicle stops answering is None (and not acknowledged)
+after its timeout, a download of every item ends with the mission's MISSION_ACK accepted,
 arming that the vehicle keeps refusing raises, a message that arrived by a wait's deadline is
 seen, and a shared socket drops what a system without a view sent.
 
@@ -105,6 +106,7 @@ def test_a_download_the_vehicle_never_answers_is_none():
     vehicle = Vehicle()
     assert ScriptedGroundStation(vehicle).download(timeout_s=1.0) is None
     assert vehicle.times("MISSION_REQUEST_LIST") == [0.0]
+    assert vehicle.time_s == pytest.approx(1.0)  # it waited its timeout_s for MISSION_COUNT
 
 
 def test_a_download_whose_item_request_goes_unanswered_is_none_and_not_acknowledged():
@@ -113,6 +115,18 @@ def test_a_download_whose_item_request_goes_unanswered_is_none_and_not_acknowled
     assert [msg.seq for _, msg in vehicle.heard if msg.get_type() == "MISSION_REQUEST_INT"] == [
         0, 1]
     assert vehicle.times("MISSION_ACK") == []  # nothing was accepted
+
+
+def test_a_download_of_every_item_ends_with_the_missions_mission_ack_accepted():
+    # The mission protocol's download: the ground station acknowledges the last item with
+    # MISSION_ACK, type MAV_MISSION_ACCEPTED, of the mission type it asked for (the mission).
+    vehicle = Vehicle(answers_list_and_first_item(1))
+    items = ScriptedGroundStation(vehicle).download(timeout_s=1.0)
+    assert items is not None and [it.seq for it in items] == [0]
+    (ack,) = [msg for _, msg in vehicle.heard if msg.get_type() == "MISSION_ACK"]
+    assert (ack.target_system, ack.target_component) == (1, 1)
+    assert ack.type == mavlink.MAV_MISSION_ACCEPTED
+    assert ack.mission_type == mavlink.MAV_MISSION_TYPE_MISSION
 
 
 def test_arming_a_vehicle_that_keeps_refusing_retries_until_the_timeout_then_raises():

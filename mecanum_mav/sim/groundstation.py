@@ -227,7 +227,8 @@ class ScriptedGroundStation:
     def download(self, *, legacy: bool = False,
                  timeout_s: float = 3.0) -> list[MissionItem] | None:
         """Download the mission item by item (MISSION_REQUEST_INT, or the legacy
-        MISSION_REQUEST with ``legacy``); None if the vehicle stops answering."""
+        MISSION_REQUEST with ``legacy``), waiting up to ``timeout_s`` of the port's time for
+        each answer; None if the vehicle stops answering."""
         since = self.mark()
         self.mav.mission_request_list_send(*self.target, 0)
         count = self.wait("MISSION_COUNT", timeout_s=timeout_s, since=since)

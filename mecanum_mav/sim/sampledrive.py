@@ -35,7 +35,8 @@ MANUAL_SEGMENTS: tuple[tuple[int, int, int, float], ...] = (
 
 
 def square_mission(side_m: float) -> list[MissionItem]:
-    """Home, then a ``side_m`` metre square from the origin, clockwise (local NED)."""
+    """Home, then a ``side_m`` metre square from the origin, clockwise (local NED): its
+    corners are waypoints with no heading of their own (yaw NaN: the rover's heading mode)."""
     corners = [(side_m, 0.0), (side_m, side_m), (0.0, side_m), (0.0, 0.0)]
     items = [MissionItem(0, mavlink.MAV_FRAME_LOCAL_NED, mavlink.MAV_CMD_NAV_WAYPOINT)]
     for n, e in corners:
