@@ -392,6 +392,45 @@ def test_the_real_time_factor_is_simulated_seconds_over_the_clocks_seconds():
                                            clock=lambda: next(frozen)) == math.inf
 
 
+def steps_taken(monkeypatch: pytest.MonkeyPatch) -> list[float]:
+    """Each MuJoCo chassis step's dt from now on (the steps themselves skipped: quick)."""
+    steps: list[float] = []
+    monkeypatch.setattr(MujocoChassis, "step", lambda self, dt, commands: steps.append(dt))
+    return steps
+
+
+def test_the_real_time_factor_steps_the_chassis_at_sim_rate_for_the_seconds_asked(
+        monkeypatch: pytest.MonkeyPatch):
+    steps = steps_taken(monkeypatch)
+    p = params(SIM_RATE=50.0)
+    seconds = iter([10.0, 11.0, 20.0, 21.0])  # the clock: one second each time
+    assert mujoco_chassis.real_time_factor(p, seconds=0.5,
+                                           clock=lambda: next(seconds)) == pytest.approx(0.5)
+    assert steps == [pytest.approx(1 / 50.0)] * 25
+    steps.clear()
+    assert mujoco_chassis.real_time_factor(p, seconds=1 / 50.0,  # a single step
+                                           clock=lambda: next(seconds)) == pytest.approx(0.02)
+    assert steps == [pytest.approx(1 / 50.0)]
+
+
+def test_the_sim_commands_real_time_factor_measures_as_the_chassiss_own(
+        monkeypatch: pytest.MonkeyPatch):
+    # physics.mujoco_real_time_factor (what `sim --physics mujoco` prints) is
+    # mujocochassis.real_time_factor on the wall's clock: the same steps, by default too
+    from mecanum_mav.sim import physics
+
+    steps = steps_taken(monkeypatch)
+    p = params(SIM_RATE=50.0)
+    assert physics.mujoco_real_time_factor(p, seconds=0.5) > 0.0
+    assert steps == [pytest.approx(1 / 50.0)] * 25
+    steps.clear()
+    mujoco_chassis.real_time_factor(p)
+    by_default = len(steps)
+    steps.clear()
+    assert physics.mujoco_real_time_factor(p) > 0.0
+    assert len(steps) == by_default
+
+
 def test_a_new_chassis_already_rests_on_its_wheels_at_its_pose():
     # The constructor lets it settle on the floor before the first step: the wheels carry its
     # weight and the first second at rest moves it by less than a millimetre.

@@ -320,6 +320,28 @@ def test_the_twin_command_without_sitl_or_mecanum_sitl_says_so_and_exits_2(monke
     assert "--sitl PATH" in capsys.readouterr().err
 
 
+def test_the_twin_command_with_an_empty_mecanum_sitl_says_so_as_when_unset(monkeypatch, capsys):
+    monkeypatch.setenv("MECANUM_SITL", "")
+    assert main(["twin"]) == 2
+    assert "--sitl PATH" in capsys.readouterr().err
+
+
+def test_the_twin_commands_firmware_is_mecanum_sitl_unless_sitl_is_given(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    # docs/twin.md: "`--sitl` defaults to `$MECANUM_SITL`" (the path as given: whether a
+    # program is there is the twin's to find out)
+    import mecanum_mav.app.twin as twin_app
+
+    started: list[Path] = []
+    monkeypatch.setattr(twin_app, "run_twin", lambda params, sitl, **options: started.append(
+        sitl) or 0)
+    monkeypatch.setenv("MECANUM_SITL", str(tmp_path / "build" / "ardurover"))
+    assert main(["twin", "--gcs", "udpout:127.0.0.1:9"]) == 0
+    given = tmp_path / "other" / "ardurover"
+    assert main(["twin", "--sitl", str(given), "--gcs", "udpout:127.0.0.1:9"]) == 0
+    assert started == [tmp_path / "build" / "ardurover", given]
+
+
 def test_the_twin_command_with_a_sitl_that_is_not_a_program_exits_2(tmp_path, capsys):
     assert main(["twin", "--sitl", str(tmp_path / "ardurover")]) == 2
     assert "is not an executable file" in capsys.readouterr().err
