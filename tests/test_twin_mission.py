@@ -230,6 +230,28 @@ def test_a_parameter_file_reads_names_and_values_past_comments():
     assert tm.omni_firmware_params(1.5, {"WP_RADIUS": 0.1})["WP_SPEED"] == 1.5
 
 
+def test_a_parameter_file_reads_both_ardupilot_formats_and_skips_commented_out_lines(tmp_path):
+    # MAVProxy's "NAME VALUE" and Mission Planner's "NAME,VALUE"; "#" starts a comment, also
+    # one that comments out a whole line with a note of its own after it
+    path = tmp_path / "vehicle.parm"
+    path.write_text("# Onboard parameters for Vehicle 1\n"
+                    "#\n"
+                    "FRAME_CLASS      1\n"
+                    "FRAME_TYPE\t2  # omni X\n"
+                    "WP_SPEED,1.5\n"
+                    "#SERVO1_FUNCTION 33 # was motor1\n"
+                    "\n")
+    assert tm.read_parm(path) == {"FRAME_CLASS": 1.0, "FRAME_TYPE": 2.0, "WP_SPEED": 1.5}
+
+
+def test_the_omni_firmware_parameters_are_the_files_with_the_speed_then_the_extra_ones():
+    parm = tm.read_parm(tm.OMNI_PARM)
+    plain = tm.omni_firmware_params(1.5)
+    assert plain == {**parm, "WP_SPEED": 1.5}
+    extra = tm.omni_firmware_params(1.5, {"WP_RADIUS": 0.1, "WP_SPEED": 0.8})
+    assert extra == {**parm, "WP_RADIUS": 0.1, "WP_SPEED": 0.8}
+
+
 # ---------------------------------------------------------------------------- the bench
 
 def test_the_twin_bench_without_the_firmware_says_where_it_looked_and_exits_2(tmp_path, capsys):

@@ -31,8 +31,9 @@ from mecanum_mav.protocol.dialect import mavlink
 from mecanum_mav.protocol.modes import Mode
 from mecanum_mav.sim import twinmission as tm
 from mecanum_mav.sim.groundstation import ScriptedGroundStation
-from mecanum_mav.sim.missionrun import MissionRun
+from mecanum_mav.sim.missionrun import MISSION_COMPLETE, MissionRun
 from mecanum_mav.sim.process import free_port
+from mecanum_mav.sim.twin import Twin
 from mecanum_mav.sim.twinbridge import TruthSample
 
 REF = GlobalOrigin.from_degrees(-35.363262, 149.165237)
@@ -64,6 +65,8 @@ class FakeArduPilot:
         self.samples = [TruthSample(now_s, 0.0, north, east, self.yaw, 0.0, 0.0)]
         self.received: list[Any] = []
         """Everything the ground station sent."""
+        self.received_s: list[float] = []
+        """When each of :attr:`received` arrived."""
         self.mode = Mode.HOLD
         self.armed = False
         self.silent = False
@@ -73,7 +76,7 @@ class FakeArduPilot:
         self.has_home = True
         self.home = _origin_at(north, east)
         self.mission_result = mavlink.MAV_MISSION_ACCEPTED
-        self.set_home_result = mavlink.MAV_RESULT_ACCEPTED
+        self.set_home_result: int | None = mavlink.MAV_RESULT_ACCEPTED
         self.speed_mps = 2.0
         self.pause_s = 0.1
         """At each waypoint it stops this long (a pivot) before the next."""
@@ -95,6 +98,7 @@ class FakeArduPilot:
 
     def handle(self, msg: Any, now_s: float) -> list[bytes]:
         self.received.append(msg)
+        self.received_s.append(now_s)
         if self.silent:
             return []
         kind = msg.get_type()
@@ -144,6 +148,8 @@ class FakeArduPilot:
                 out.append(self._pack(self._mav.home_position_encode(
                     h.lat_e7, h.lon_e7, h.alt_mm, 0, 0, 0, [1, 0, 0, 0], 0, 0, 0)))
         elif cmd == mavlink.MAV_CMD_DO_SET_HOME:
+            if self.set_home_result is None:  # (never answered)
+                return []
             result = self.set_home_result
         return [self._pack(self._mav.command_ack_encode(cmd, result)), *out]
 
@@ -167,11 +173,12 @@ class FakeArduPilot:
         return out + self._streams(now_s)
 
     def _drive_auto(self, now_s: float, dt: float) -> list[bytes]:
-        waypoints = self.items[1:]
+        waypoints = [item for item in self.items[1:]
+                     if item.command == mavlink.MAV_CMD_NAV_WAYPOINT]
         if self._target >= len(waypoints) or now_s < self._pause_until:
             return []
         item = waypoints[self._target]
-        goal = REF.to_local(item.x, item.y)
+        goal = self._local(item)
         dn, de = goal[0] - self.north, goal[1] - self.east
         left = math.hypot(dn, de)
         step = self.speed_mps * dt
@@ -185,9 +192,17 @@ class FakeArduPilot:
         self._pause_until = now_s + self.pause_s
         out = [self._pack(self._mav.mission_item_reached_encode(item.seq))]
         if self._target == len(waypoints):
-            out.append(self._pack(self._mav.statustext_encode(
-                mavlink.MAV_SEVERITY_INFO, tm.ARDUPILOT_MISSION_COMPLETE.encode())))
+            out += self._mission_complete()
         return out
+
+    def _local(self, item: Any) -> tuple[float, float]:
+        """Where a waypoint is in the chassis frame (ArduPilot's: global, about REF)."""
+        return REF.to_local(item.x, item.y)
+
+    def _mission_complete(self) -> list[bytes]:
+        """What it does after the last waypoint (ArduPilot's: says so, stays in AUTO)."""
+        return [self._pack(self._mav.statustext_encode(
+            mavlink.MAV_SEVERITY_INFO, tm.ARDUPILOT_MISSION_COMPLETE.encode()))]
 
     def _streams(self, now_s: float) -> list[bytes]:
         out: list[bytes] = []
@@ -233,6 +248,43 @@ class FakeArduPilot:
 
     def uploads(self) -> int:
         return sum(m.get_type() == "MISSION_COUNT" for m in self.received)
+
+
+class FakeCompanion(FakeArduPilot):
+    """The companion as its ground station sees it, where it differs from ArduPilot: it says
+    "Flight controller link up" once it hears its flight controller, takes missions in its
+    local frame (MAV_FRAME_LOCAL_NED, x and y in 1e-4 m) and holds after the last waypoint,
+    saying "Mission complete"."""
+
+    def __init__(self, now_s: float) -> None:
+        super().__init__(now_s)
+        self._linked = False
+
+    def _local(self, item: Any) -> tuple[float, float]:
+        return (item.x / 1e4, item.y / 1e4)
+
+    def _mission_complete(self) -> list[bytes]:
+        self.mode = Mode.HOLD
+        return [self._pack(self._mav.statustext_encode(mavlink.MAV_SEVERITY_INFO,
+                                                       MISSION_COMPLETE.encode()))]
+
+    def tick(self, now_s: float) -> list[bytes]:
+        out = super().tick(now_s)
+        if out and not self._linked:
+            self._linked = True
+            out.append(self._pack(self._mav.statustext_encode(
+                mavlink.MAV_SEVERITY_INFO, b"Flight controller link up")))
+        return out
+
+    def commands(self, until: str) -> list[tuple[int, float]]:
+        """(command, param1) of each COMMAND_LONG received before the first ``until``."""
+        out = []
+        for m in self.received:
+            if m.get_type() == until:
+                break
+            if m.get_type() == "COMMAND_LONG":
+                out.append((m.command, m.param1))
+        return out
 
 
 def _origin_at(north: float, east: float) -> GlobalOrigin:
@@ -466,13 +518,80 @@ def test_an_estimate_shifted_without_any_estimate_stays_without_one():
 
 # ---------------------------------------------------------------------------- the companion
 
+HEADINGS: list[float | None] = [None, 90.0]
+"""The second waypoint with a heading of its own (east)."""
+
+
+def test_a_companion_flight_sets_home_here_and_item_1_current_then_flies_the_mission_asked():
+    fake = FakeCompanion(time.monotonic())
+    gcs, port = virtual(fake)
+    run, failure = tm.fly_companion(FakeTwin(fake), POINTS, HEADINGS, 45.0, 10.0, gcs=gcs)
+    assert failure is None
+    assert arrivals_m(run) == [pytest.approx(0.0, abs=0.02)] * 2
+    # before the upload: MAV_CMD_DO_SET_HOME with param1 1 ("use current location"), then
+    # MAV_CMD_DO_SET_MISSION_CURRENT to item 1
+    assert fake.commands(until="MISSION_COUNT") == [(mavlink.MAV_CMD_DO_SET_HOME, 1.0),
+                                                    (mavlink.MAV_CMD_DO_SET_MISSION_CURRENT, 1.0)]
+    # the mission asked for (waypoint_mission): home, CONDITION_YAW to the heading, then the
+    # waypoints, each with its own heading or none (NaN)
+    _, turn, first, second = fake.items
+    assert [item.command for item in fake.items] == [
+        mavlink.MAV_CMD_NAV_WAYPOINT, mavlink.MAV_CMD_CONDITION_YAW,
+        mavlink.MAV_CMD_NAV_WAYPOINT, mavlink.MAV_CMD_NAV_WAYPOINT]
+    assert turn.param1 == 45.0
+    assert math.isnan(first.param4) and second.param4 == 90.0
+    assert not port.closed
+
+
+def test_a_ground_station_that_has_heard_the_companion_already_sets_home_at_once():
+    fake = FakeCompanion(time.monotonic())
+    gcs, port = virtual(fake)
+    # one ground station for every mission of a twin: it heard the companion's heartbeat
+    # (its first message) before this mission
+    assert gcs.wait("HEARTBEAT", timeout_s=1.0) is not None
+    called_s = port.now()
+    tm.fly_companion(FakeTwin(fake), POINTS, YAWS, 0.0, 10.0, gcs=gcs)
+    k = next(k for k, m in enumerate(fake.received) if m.get_type() == "COMMAND_LONG")
+    assert fake.received[k].command == mavlink.MAV_CMD_DO_SET_HOME
+    assert fake.received_s[k] == called_s
+
+
+def test_a_companion_flight_without_a_ground_station_opens_one_on_the_twins_url_and_closes_it(
+        monkeypatch):
+    fake = FakeCompanion(time.monotonic())
+    gcs, port = virtual(fake)
+    asked: list[str] = []
+
+    def udp_ground_station(url: str) -> tuple[ScriptedGroundStation, VirtualPort]:
+        asked.append(url)
+        return gcs, port
+
+    monkeypatch.setattr(tm, "udp_ground_station", udp_ground_station)
+    twin = FakeTwin(fake)
+    twin.gcs_url = "udpin:127.0.0.1:14552"
+    run, failure = tm.fly_companion(twin, POINTS, YAWS, 0.0, 10.0)
+    assert failure is None and len(run.legs) == 2
+    assert asked == [twin.gcs_url] and port.closed
+
+
 def test_a_companion_flight_without_its_heartbeat_fails_and_keeps_the_ground_station_given():
     fake = FakeArduPilot(time.monotonic())
     fake.silent = True
     gcs, port = virtual(fake)
+    called_s = port.now()
     run, failure = tm.fly_companion(FakeTwin(fake), POINTS, YAWS, 0.0, 10.0, gcs=gcs)
     assert failure == "no heartbeat from the vehicle"
+    assert port.now() - called_s == pytest.approx(10.0, abs=0.02)  # (_fresh_start: 10 s)
     assert run.legs == [] and not port.closed
+
+
+def test_a_companion_that_never_answers_set_home_fails_the_flight_saying_so():
+    fake = FakeCompanion(time.monotonic())
+    fake.set_home_result = None
+    gcs, _ = virtual(fake)
+    run, failure = tm.fly_companion(FakeTwin(fake), POINTS, YAWS, 0.0, 10.0, gcs=gcs)
+    assert failure == "set home refused (None)"
+    assert fake.uploads() == 0 and run.legs == []
 
 
 def test_a_companion_refusing_set_home_fails_the_flight_before_any_upload():
@@ -499,6 +618,24 @@ def test_the_heading_settles_only_once_the_ekf_uses_gps_and_only_the_firmwares_a
     # positioned 0.4 s after the call, then SETTLED_FOR_S less 0.2 s of the band (less the
     # ground station's start, which hears the firmware within 0.1 s)
     assert took_s > 0.5
+
+
+def test_a_settled_twins_setup_fc_step_ends_only_once_the_firmwares_heading_has_settled(
+        firmware, monkeypatch, tmp_path):
+    monkeypatch.setattr(tm, "SETTLED_FOR_S", 0.5)
+    setup_fc: list[tuple[float, int]] = []  # (its timeout, what the firmware had heard then)
+
+    def run_setup_fc(self: Twin, timeout_s: float) -> None:  # (setup-fc's subprocess)
+        setup_fc.append((timeout_s, len(firmware.fake.received)))
+
+    monkeypatch.setattr(Twin, "_setup_fc", run_setup_fc)
+    twin = tm.SettledTwin(tmp_path / "ardurover", workdir=tmp_path)
+    twin.firmware_url = firmware.url
+    monkeypatch.setattr(twin, "truth_now", on_udp(firmware).truth_now)
+    twin._setup_fc(42.0)
+    assert setup_fc == [(42.0, 0)]  # setup-fc first, with the step's time
+    assert twin.heading_error_deg == pytest.approx(1.5, abs=0.01)
+    assert 0.2 < twin.settle_s < 2.0
 
 
 def test_a_heading_never_settled_says_the_last_difference_and_that_the_ekf_has_no_position(
@@ -549,3 +686,6 @@ def test_a_manual_step_is_described_in_centimetres_and_degrees():
     step = tm.ManualStep("strafe", 0, 500, 0, 0, 0.012, 0.456, -3.26)
     assert step.describe() == ("strafe   x     0 y   500 z     0 r     0: forward     1.2 cm, "
                                "right    45.6 cm, turned    -3.3 deg")
+    step = tm.ManualStep("forward", 500, 0, 500, 0, 1.234, -0.05, 0.4)
+    assert step.describe() == ("forward  x   500 y     0 z   500 r     0: forward   123.4 cm, "
+                               "right    -5.0 cm, turned     0.4 deg")

@@ -212,7 +212,7 @@ def _fresh_start(gcs: ScriptedGroundStation) -> None:
     resume the new one at its item; refused while there is no mission, which is as good).
 
     Raises:
-        RuntimeError: no heartbeat, or set home refused.
+        RuntimeError: no heartbeat within 10 s, or set home refused (or not answered).
     """
     if gcs.wait("HEARTBEAT", lambda m: m.get_srcSystem() == 1, 10.0, since=0) is None:
         raise RuntimeError("no heartbeat from the vehicle")
