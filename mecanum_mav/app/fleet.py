@@ -36,7 +36,7 @@ from mecanum_mav.io.links import mavlink
 from mecanum_mav.protocol.modes import Mode
 from mecanum_mav.sim.groundstation import ScriptedGroundStation, fleet_ground_station
 
-__all__ = ["Fleet", "FleetDrive", "drive_fleet", "plot_fleet", "router_command"]
+__all__ = ["Fleet", "FleetDrive", "drive_fleet", "fleet_figure", "plot_fleet", "router_command"]
 
 Vec = tuple[float, float]
 STICK = 0.6
@@ -266,9 +266,12 @@ def _path(gcs: ScriptedGroundStation, t0: float) -> list[tuple[float, float, flo
             zip(gcs.messages, gcs.arrived_s, strict=True) if m.get_type() == "LOCAL_POSITION_NED"]
 
 
-def plot_fleet(drive: FleetDrive, path: Path) -> Path:
-    """Draw each rover's path in its own panel (north up, east right; its own local frame,
-    the planned mission dashed where it ran one) to ``path`` (PNG)."""
+def fleet_figure(drive: FleetDrive) -> Any:
+    """The matplotlib figure of a fleet drive: each rover's path in its own panel (north up,
+    east right; its own local frame, one scale for all panels), a line per phase in which it
+    moved (one colour per phase), the planned mission dashed where it ran one, its start
+    marked; each panel's legend below it. The title names the phases in which no rover
+    moved."""
     from mecanum_mav.app.plots import _pyplot
 
     plt = _pyplot()
@@ -298,9 +301,20 @@ def plot_fleet(drive: FleetDrive, path: Path) -> Path:
              if all(math.hypot(*d) < 0.01 for d in moved.values())]
     note = (f"\n{', '.join(still)}: no rover moved (MAVProxy routes by target_system, "
             f"which MANUAL_CONTROL lacks)") if still else ""
-    fig.suptitle("Three rovers behind one MAVProxy router, one ground-station connection: "
-                 "sticks by system id, one mission run by two at once" + note, fontsize=10)
+    fig.suptitle(f"{len(ids)} rovers behind one MAVProxy router, one ground-station "
+                 "connection: sticks by system id, one mission run by two at once" + note,
+                 fontsize=10)
     fig.tight_layout()
+    return fig
+
+
+def plot_fleet(drive: FleetDrive, path: Path) -> Path:
+    """Draw each rover's path in its own panel (north up, east right; its own local frame,
+    the planned mission dashed where it ran one; :func:`fleet_figure`) to ``path`` (PNG)."""
+    from mecanum_mav.app.plots import _pyplot
+
+    plt = _pyplot()
+    fig = fleet_figure(drive)
     fig.savefig(path, dpi=110, bbox_inches="tight")
     plt.close(fig)
     return path
