@@ -49,8 +49,10 @@ STICK_PERIOD_S = 0.05
 
 def router_command(master_ports: Sequence[int], gcs_url: str) -> list[str]:
     """MAVProxy as a router: one ``--master=udpin:127.0.0.1:PORT`` per rover, ``--out`` to the
-    ground station, no console, no ground-station modules of its own, nothing written to disk.
-    The program name is ``mavproxy.py`` (first element)."""
+    ground station, no console (``--daemon``), routing from the start without waiting for a
+    rover's HEARTBEAT (``--nowait``), nothing written to disk (``--no-state``), no
+    ground-station modules of its own (``--default-modules=``). The program name is
+    ``mavproxy.py`` (first element)."""
     return ["mavproxy.py", *(f"--master=udpin:127.0.0.1:{p}" for p in master_ports),
             f"--out={gcs_url}", "--daemon", "--nowait", "--no-state", "--default-modules="]
 
@@ -73,7 +75,11 @@ class Fleet:
     The rovers' ports come from the OS (``--gcs`` given explicitly: instance N's own port,
     14560 + 10 N, may be taken on a shared machine); their system ids come from
     ``--instance``. Each process's output goes to ``workdir/instanceN.log``, MAVProxy's to
-    ``workdir/router.log``. Use as a context manager: everything is stopped on exit.
+    ``workdir/router.log``; each runs in ``workdir`` (what it writes by a relative path stays
+    there) and reads nothing from the terminal. MAVProxy is the ``mavproxy.py`` installed
+    beside this Python, else the one on ``PATH``; it runs on this Python, as the rovers do
+    (:attr:`processes`, the router first). Use as a context manager: everything is stopped on
+    exit (a process that ignores SIGTERM is killed).
 
     Raises:
         FileNotFoundError: MAVProxy is not installed (``pip install '.[test]'``).
@@ -108,7 +114,8 @@ class Fleet:
         self._stack.callback(_stop, proc)
 
     def log(self, name: str) -> str:
-        """The text a process wrote so far (``router.log``, ``instance0.log`` ...)."""
+        """The text a process wrote so far (``router.log``, ``instance0.log`` ...; bytes that
+        are not UTF-8 read as U+FFFD)."""
         return (self.workdir / name).read_text(errors="replace")
 
     def __enter__(self) -> Fleet:
