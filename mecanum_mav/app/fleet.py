@@ -36,7 +36,7 @@ from mecanum_mav.io.links import mavlink
 from mecanum_mav.protocol.modes import Mode
 from mecanum_mav.sim.groundstation import ScriptedGroundStation, fleet_ground_station
 
-__all__ = ["Fleet", "FleetDrive", "drive_fleet", "plot_fleet", "router_command"]
+__all__ = ["Fleet", "FleetDrive", "drive_fleet", "fleet_figure", "plot_fleet", "router_command"]
 
 Vec = tuple[float, float]
 STICK = 0.6
@@ -49,8 +49,10 @@ STICK_PERIOD_S = 0.05
 
 def router_command(master_ports: Sequence[int], gcs_url: str) -> list[str]:
     """MAVProxy as a router: one ``--master=udpin:127.0.0.1:PORT`` per rover, ``--out`` to the
-    ground station, no console, no ground-station modules of its own, nothing written to disk.
-    The program name is ``mavproxy.py`` (first element)."""
+    ground station, no console (``--daemon``), routing from the start without waiting for a
+    rover's HEARTBEAT (``--nowait``), nothing written to disk (``--no-state``), no
+    ground-station modules of its own (``--default-modules=``). The program name is
+    ``mavproxy.py`` (first element)."""
     return ["mavproxy.py", *(f"--master=udpin:127.0.0.1:{p}" for p in master_ports),
             f"--out={gcs_url}", "--daemon", "--nowait", "--no-state", "--default-modules="]
 
@@ -73,7 +75,11 @@ class Fleet:
     The rovers' ports come from the OS (``--gcs`` given explicitly: instance N's own port,
     14560 + 10 N, may be taken on a shared machine); their system ids come from
     ``--instance``. Each process's output goes to ``workdir/instanceN.log``, MAVProxy's to
-    ``workdir/router.log``. Use as a context manager: everything is stopped on exit.
+    ``workdir/router.log``; each runs in ``workdir`` (what it writes by a relative path stays
+    there) and reads nothing from the terminal. MAVProxy is the ``mavproxy.py`` installed
+    beside this Python, else the one on ``PATH``; it runs on this Python, as the rovers do
+    (:attr:`processes`, the router first). Use as a context manager: everything is stopped on
+    exit (a process that ignores SIGTERM is killed).
 
     Raises:
         FileNotFoundError: MAVProxy is not installed (``pip install '.[test]'``).
@@ -108,7 +114,8 @@ class Fleet:
         self._stack.callback(_stop, proc)
 
     def log(self, name: str) -> str:
-        """The text a process wrote so far (``router.log``, ``instance0.log`` ...)."""
+        """The text a process wrote so far (``router.log``, ``instance0.log`` ...; bytes that
+        are not UTF-8 read as U+FFFD)."""
         return (self.workdir / name).read_text(errors="replace")
 
     def __enter__(self) -> Fleet:
@@ -266,9 +273,12 @@ def _path(gcs: ScriptedGroundStation, t0: float) -> list[tuple[float, float, flo
             zip(gcs.messages, gcs.arrived_s, strict=True) if m.get_type() == "LOCAL_POSITION_NED"]
 
 
-def plot_fleet(drive: FleetDrive, path: Path) -> Path:
-    """Draw each rover's path in its own panel (north up, east right; its own local frame,
-    the planned mission dashed where it ran one) to ``path`` (PNG)."""
+def fleet_figure(drive: FleetDrive) -> Any:
+    """The matplotlib figure of a fleet drive: each rover's path in its own panel (north up,
+    east right; its own local frame, one scale for all panels), a line per phase in which it
+    moved (one colour per phase), the planned mission dashed where it ran one, its start
+    marked; each panel's legend below it. The title names the phases in which no rover
+    moved."""
     from mecanum_mav.app.plots import _pyplot
 
     plt = _pyplot()
@@ -298,9 +308,20 @@ def plot_fleet(drive: FleetDrive, path: Path) -> Path:
              if all(math.hypot(*d) < 0.01 for d in moved.values())]
     note = (f"\n{', '.join(still)}: no rover moved (MAVProxy routes by target_system, "
             f"which MANUAL_CONTROL lacks)") if still else ""
-    fig.suptitle("Three rovers behind one MAVProxy router, one ground-station connection: "
-                 "sticks by system id, one mission run by two at once" + note, fontsize=10)
+    fig.suptitle(f"{len(ids)} rovers behind one MAVProxy router, one ground-station "
+                 "connection: sticks by system id, one mission run by two at once" + note,
+                 fontsize=10)
     fig.tight_layout()
+    return fig
+
+
+def plot_fleet(drive: FleetDrive, path: Path) -> Path:
+    """Draw each rover's path in its own panel (north up, east right; its own local frame,
+    the planned mission dashed where it ran one; :func:`fleet_figure`) to ``path`` (PNG)."""
+    from mecanum_mav.app.plots import _pyplot
+
+    plt = _pyplot()
+    fig = fleet_figure(drive)
     fig.savefig(path, dpi=110, bbox_inches="tight")
     plt.close(fig)
     return path
