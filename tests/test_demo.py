@@ -52,6 +52,16 @@ def test_the_demo_gives_the_same_figures_every_run_in_virtual_time():
     assert first.true_path == again.true_path
 
 
+def test_the_table_is_the_header_a_row_per_leg_numbered_from_1_then_the_summary():
+    legs = [demo.LegReport(2, (0.0, 0.0), (2.0, 0.0), 4.2, 0.012, 0.021),
+            demo.LegReport(3, (2.0, 0.0), (2.0, 2.0), 4.3, 0.015, 0.018)]
+    result = demo.DemoResult(legs, [(0.0, 0.0), (2.0, 0.0), (2.0, 2.0)], total_s=9.0,
+                             max_yaw_deg=0.05)
+    assert result.table().split("\n") == [demo.TABLE_HEADER, demo.leg_row(1, legs[0]),
+                                          demo.leg_row(2, legs[1]), result.summary()]
+    assert result.table().splitlines()[1].split()[:2] == ["1", "2"]  # leg 1, item 2
+
+
 def test_demo_runs_the_mission_prints_a_table_per_leg_and_writes_the_figure(
         tmp_path, capsys, monkeypatch):
     # The CLI as users run it, with the demo in virtual time.

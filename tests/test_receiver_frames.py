@@ -61,6 +61,25 @@ def test_a_mode_or_arm_switch_beyond_the_channel_count_is_not_read_and_the_stick
     assert within.mode is not None
 
 
+@pytest.mark.parametrize("arm_ch, chancount, moving", [
+    (0, 18, 18),  # RCIN_ARM_CH 0: no arm switch, whichever channel moves
+    (7, 6, 7),  # the arm switch's channel beyond the count: no pulse, whatever it reads
+])
+def test_no_arm_switch_or_one_beyond_the_channel_count_never_arms(arm_ch, chancount, moving):
+    params = Params()
+    params.update({"RCIN_ARM_CH": arm_ch})
+    receiver = ReceiverInput()
+    arms = []
+    for t, pulse in ((0.0, 1000), (0.5, 2000), (1.0, 2000), (1.5, 2000)):  # low, then high
+        pulses = CENTRED.copy()
+        pulses[moving - 1] = pulse
+        got = receiver.frame(chancount, pulses, 255, ReceiverConfig.from_params(params),
+                             RcInputConfig.from_params(params), t)
+        assert got.problem is None
+        arms.append(got.arm)
+    assert arms == [None] * 4
+
+
 def test_no_channels_and_rssi_0_are_the_radio_failsafe_and_say_which():
     params = Params()
     config, sticks = ReceiverConfig.from_params(params), RcInputConfig.from_params(params)

@@ -16,7 +16,14 @@ rr = pytest.importorskip("rerun", reason="the view extra (rerun-sdk) is not inst
 from rerun.chunk import RrdReader  # noqa: E402
 from support import Sender  # noqa: E402
 
-from mecanum_mav.app.rerunview import ViewMapping, to_map  # noqa: E402
+from mecanum_mav.app.rerunview import (  # noqa: E402
+    _GRIP_COLOUR,
+    _SLIP_COLOUR,
+    ViewMapping,
+    to_map,
+)
+from mecanum_mav.config.params import Params  # noqa: E402
+from mecanum_mav.control.pwm import PwmMap  # noqa: E402
 from mecanum_mav.mecanum.geo import GlobalOrigin  # noqa: E402
 from mecanum_mav.protocol.dialect import mavlink  # noqa: E402
 from mecanum_mav.protocol.mission import LOCAL_XY_SCALE  # noqa: E402
@@ -39,10 +46,19 @@ def _fed(messages: list[Any]) -> ViewMapping:
 
 def _rows(mapping: ViewMapping, tmp_path: Path) -> tuple[Rows, Rows]:
     """Entity -> its temporal rows in time order, and entity -> its static rows."""
+    return _flushed(mapping, [[]], tmp_path)
+
+
+def _flushed(mapping: ViewMapping, batches: list[list[Any]], tmp_path: Path
+             ) -> tuple[Rows, Rows]:
+    """:func:`_rows` of ``mapping`` fed each batch of messages and flushed after each, as the
+    live view does (one recording)."""
     path = tmp_path / "view.rrd"
     recording = rr.RecordingStream("test")
     recording.save(str(path))
-    mapping.flush(recording)
+    for batch in batches:
+        mapping.feed_all((2.0 + 0.1 * k, msg) for k, msg in enumerate(batch))
+        mapping.flush(recording)
     recording.flush()
     recording.disconnect()
     temporal: dict[str, list[tuple[int, dict[str, Any]]]] = defaultdict(list)
@@ -174,11 +190,69 @@ def test_without_an_origin_or_an_estimate_the_first_true_position_is_at_0_0(
 def test_a_contact_without_a_finite_force_draws_its_slip_and_no_force(tmp_path: Path) -> None:
     twin = Sender(*TRUTH_SOURCE)
     temporal, _ = _rows(_fed([twin("debug_vect", b"CONTACT_FL", 0, NAN, 0.0, 1.0),
-                              twin("debug_vect", b"CONTACT_FR", 0, 12.5, 0.0, 0.0)]), tmp_path)
+                              twin("debug_vect", b"CONTACT_FR", 0, 12.5, 0.0, 0.0),
+                              twin("debug_vect", b"CONTACT_RR", 0, 12.5, 0.0, 1.0)]), tmp_path)
     assert "contacts/normal/FL" not in temporal
     assert _scalars(temporal, "contacts/normal/FR") == [12.5]
     slips = [row["Boxes2D:colors"] for row in temporal["map/rover/slip"]]
-    assert len(slips) == 1 and len(set(slips[0])) == 2  # FL red, the others green
+    # One box per wheel, a row at the first contact and when a wheel starts slipping: FL red,
+    # the others green; then RR red too.
+    assert slips == [[RED, GREEN, GREEN, GREEN], [RED, GREEN, GREEN, RED]]
+
+
+def _packed(rgba: tuple[int, int, int, int]) -> int:
+    r, g, b, a = rgba
+    return (r << 24) | (g << 16) | (b << 8) | a
+
+
+RED, GREEN = _packed(_SLIP_COLOUR), _packed(_GRIP_COLOUR)
+"""A slipping wheel's box colour and a gripping one's, as Rerun stores them."""
+
+
+def _contact(sender: Sender, wheel: str, normal_n: float, slipping: bool) -> Any:
+    return sender("debug_vect", f"CONTACT_{wheel}".encode(), 0, normal_n, 0.0,
+                  1.0 if slipping else 0.0)
+
+
+def _flight_controller() -> Sender:
+    """The flight controller: FC_SYSID/FC_COMPID (1/1, the companion's ids too), counting its
+    own sequence numbers far from the companion's."""
+    fc = Sender(1, 1)
+    fc.mav.seq = 100
+    return fc
+
+
+def test_the_flight_controllers_contact_right_after_the_companions_message_is_drawn(
+        tmp_path: Path) -> None:
+    # The companion (the sender of ODOMETRY) and the flight controller share 1/1: the contact
+    # is told by its own sender, whatever came just before it.
+    temporal, _ = _rows(_fed([_odometry(0.0, 0.0), _contact(_flight_controller(), "FL", 9.5,
+                                                              False)]), tmp_path)
+    assert _scalars(temporal, "contacts/normal/FL") == [9.5]
+
+
+def test_a_contact_from_a_ground_station_under_the_flight_controllers_ids_is_not_drawn(
+        tmp_path: Path) -> None:
+    # Contacts are the flight controller's (or the twin's truth's): a sender of 1/1 that sent
+    # MANUAL_CONTROL (only a ground station does) is not the flight controller.
+    station = Sender(1, 1)
+    messages = [station("manual_control", 1, 0, 0, 500, 0, 0),
+                _contact(station, "FL", 5.0, True),
+                _contact(_flight_controller(), "FR", 9.5, False)]
+    temporal, _ = _rows(_fed(messages), tmp_path)
+    assert "contacts/normal/FL" not in temporal
+    assert _scalars(temporal, "contacts/normal/FR") == [9.5]
+
+
+def test_the_first_contact_after_a_flush_sends_the_chassis_slip_boxes(tmp_path: Path) -> None:
+    # The live view flushes a few times a second: the chassis was sent before any contact,
+    # so the first contact sends it again with its four wheels' boxes (their colours are
+    # the slip rows).
+    twin = Sender(*TRUTH_SOURCE)
+    _, static = _flushed(ViewMapping(), [[_odometry(0.0, 0.0)],
+                                         [_contact(twin, "FL", 9.8, False)]], tmp_path)
+    (boxes,) = static["map/rover/slip"]
+    assert len(boxes["Boxes2D:centers"]) == 4
 
 
 # --------------------------------------------------------------------------- sticks and PWM
@@ -203,6 +277,53 @@ def test_a_pilots_rc_override_is_not_drawn_as_the_wheels_pwm(tmp_path: Path) -> 
     temporal, _ = _rows(_fed([pilot, wheels]), tmp_path)
     assert [_scalars(temporal, f"wheels/pwm/{w}") for w in ("FL", "FR", "RL", "RR")] == [
         [1600.0], [1400.0], [1600.0], [1400.0]]
+
+
+WHEELS = ("FL", "FR", "RL", "RR")
+ROVER_HEARTBEAT = COMPANION("heartbeat", mavlink.MAV_TYPE_GROUND_ROVER,
+                            mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA, 0, 0, 3)
+"""The vehicle (1/1) announced: until an ODOMETRY, the sender of the first rover HEARTBEAT."""
+
+
+def _servo_output(sender: Sender, port: int, *pulses: int) -> Any:
+    return sender("servo_output_raw", 0, port, *pulses, *[0] * (8 - len(pulses)))
+
+
+def _pwm(temporal: Rows) -> list[list[float]]:
+    return [_scalars(temporal, f"wheels/pwm/{w}") for w in WHEELS]
+
+
+def test_the_vehicles_servo_output_raw_is_the_wheels_pwm(tmp_path: Path) -> None:
+    # Without the companion's overrides on the stream, wheels/pwm is the vehicle's
+    # SERVO_OUTPUT_RAW: the wheels' channels (MOT_x_CH: 1-4), and the wheel commands read back.
+    temporal, _ = _rows(_fed([ROVER_HEARTBEAT, _servo_output(COMPANION, 0, 1600, 1400, 1500,
+                                                             1900, 1100)]), tmp_path)
+    assert _pwm(temporal) == [[1600.0], [1400.0], [1500.0], [1900.0]]
+    rr_wheel = PwmMap.from_params(Params()).wheels[3]
+    assert _scalars(temporal, "wheels/command/RR") == pytest.approx(
+        [rr_wheel.command_from_pulse(1900)])
+
+
+def test_servo_output_raw_of_another_port_or_system_is_not_the_wheels_pwm(
+        tmp_path: Path) -> None:
+    # SERVO_OUTPUT_RAW's port: a set of outputs (0 the first, servo1..servo16); the wheels'
+    # channels 1-4 are port 0's. Another system's outputs are not the vehicle's.
+    messages = [ROVER_HEARTBEAT, _servo_output(COMPANION, 1, 1900, 1900, 1900, 1900),
+                _servo_output(Sender(7, 1), 0, 1100, 1100, 1100, 1100),
+                _servo_output(COMPANION, 0, 1600, 1600, 1600, 1600)]
+    temporal, _ = _rows(_fed(messages), tmp_path)
+    assert _pwm(temporal) == [[1600.0]] * 4
+
+
+def test_once_the_companions_overrides_came_servo_output_raw_is_not_drawn(
+        tmp_path: Path) -> None:
+    # The companion's RC_CHANNELS_OVERRIDE to its flight controller is every output; the
+    # vehicle's SERVO_OUTPUT_RAW (a 2 Hz report of the same) is left out once they came.
+    override = GCS("rc_channels_override", 1, 1, 1600, 1400, 1600, 1400, 65535, 65535, 65535,
+                   65535)
+    temporal, _ = _rows(_fed([ROVER_HEARTBEAT, override,
+                              _servo_output(COMPANION, 0, 1900, 1900, 1900, 1900)]), tmp_path)
+    assert _pwm(temporal) == [[1600.0], [1400.0], [1600.0], [1400.0]]
 
 
 # --------------------------------------------------------------------------- the mission

@@ -121,3 +121,93 @@ def test_the_gyro_reads_body_rates_frd_whatever_the_heading(heading_deg: float) 
     chassis.data.qvel[4] = -0.1  # about y left, nose up: pitch up
     state = sensors.read()
     assert state.gyro == pytest.approx((0.2, 0.1, 0.4), abs=1e-9)
+
+
+# ------------------------------------------------------------ tilted: roll and pitch as well
+# ArduPilot builds the body's rotation from the ``attitude`` it is sent (Euler 3-2-1, as its
+# Matrix3::from_euler) and reads ``accel_body`` in that body frame: the two must agree when
+# the body is tilted too. Level, the body's x and y never carry the vertical, so only a tilt
+# shows a rotation with its roll/pitch terms wrong.
+
+TILTS_RAD = [(0.15, -0.25), (-0.3, 0.2)]
+"""(roll, pitch): right side down and nose down, then left side down and nose up."""
+
+
+def dcm_from_euler(roll: float, pitch: float, yaw: float) -> np.ndarray:
+    """Body FRD -> NED rotation for Euler 3-2-1 angles (ArduPilot's Matrix3::from_euler)."""
+    cr, sr = math.cos(roll), math.sin(roll)
+    cp, sp = math.cos(pitch), math.sin(pitch)
+    cy, sy = math.cos(yaw), math.sin(yaw)
+    return np.array([[cp * cy, sr * sp * cy - cr * sy, cr * sp * cy + sr * sy],
+                     [cp * sy, sr * sp * sy + cr * cy, cr * sp * sy - sr * cy],
+                     [-sp, sr * cp, cr * cp]])
+
+
+def tilt(chassis: MujocoChassis, roll: float, pitch: float, yaw: float) -> None:
+    """Put the chassis at this attitude (NED/FRD), where it stands. MuJoCo's state holds the
+    body FLU in the world x north, y west, z up: the same rotation as a quaternion with y and
+    z negated."""
+    cr, sr = math.cos(roll / 2), math.sin(roll / 2)
+    cp, sp = math.cos(pitch / 2), math.sin(pitch / 2)
+    cy, sy = math.cos(yaw / 2), math.sin(yaw / 2)
+    w = cr * cp * cy + sr * sp * sy
+    x = sr * cp * cy - cr * sp * sy
+    y = cr * sp * cy + sr * cp * sy
+    z = cr * cp * sy - sr * sp * cy
+    chassis.data.qpos[3:7] = (w, x, -y, -z)
+
+
+def wrapped(angle: float) -> float:
+    return (angle + math.pi) % (2 * math.pi) - math.pi
+
+
+@pytest.mark.parametrize("heading_deg", HEADINGS_DEG)
+@pytest.mark.parametrize(("roll", "pitch"), TILTS_RAD)
+def test_held_still_tilted_the_accelerometer_reads_gravity_on_the_tilted_body_axes(
+        heading_deg: float, roll: float, pitch: float) -> None:
+    """Specific force at rest is -g up the NED z axis: in the body, (g sin(pitch),
+    -g sin(roll) cos(pitch), -g cos(roll) cos(pitch)) whatever the heading."""
+    chassis, sensors = settled(heading_deg)
+    tilt(chassis, roll, pitch, math.radians(heading_deg))
+    state = sensors.read()
+    assert state.attitude[:2] == pytest.approx((roll, pitch), abs=1e-9)
+    assert wrapped(state.attitude[2] - math.radians(heading_deg)) == pytest.approx(0.0, abs=1e-9)
+    assert state.accel_body == pytest.approx(
+        (G * math.sin(pitch), -G * math.sin(roll) * math.cos(pitch),
+         -G * math.cos(roll) * math.cos(pitch)), abs=0.05)
+
+
+@pytest.mark.parametrize("heading_deg", HEADINGS_DEG)
+@pytest.mark.parametrize(("roll", "pitch"), TILTS_RAD)
+def test_accelerating_tilted_the_accelerometer_reads_the_specific_force_in_the_attitude_it_reports(
+        heading_deg: float, roll: float, pitch: float) -> None:
+    """A velocity change of (0.02, -0.03, 0.01) m/s NED over 10 ms of physics, the body
+    tilted: accel_body is (a - g) turned into the body by the attitude sent with it."""
+    chassis, sensors = settled(heading_deg)
+    before = sensors.read()
+    tilt(chassis, roll, pitch, math.radians(heading_deg))
+    gained_ned = np.array([0.02, -0.03, 0.01])
+    velocity_ned = np.array(before.velocity_ned) + gained_ned
+    chassis.data.qvel[0:3] = velocity_ned * (1.0, -1.0, -1.0)  # (MuJoCo's world: z up, y west)
+    chassis.data.time += 0.01
+    state = sensors.read()
+    assert state.velocity_ned == pytest.approx(tuple(velocity_ned), abs=1e-12)
+    specific_force_ned = gained_ned / 0.01 - (0.0, 0.0, G)
+    expected = dcm_from_euler(*state.attitude).T @ specific_force_ned
+    assert state.accel_body == pytest.approx(tuple(expected), abs=1e-6)
+
+
+def test_a_chassis_above_where_it_started_is_at_a_negative_down() -> None:
+    """``position`` is NED: up is negative down."""
+    chassis, sensors = settled(0.0)
+    chassis.data.qpos[2] += 0.05
+    assert sensors.read().position_ned == pytest.approx((0.0, 0.0, -0.05), abs=1e-6)
+
+
+def test_the_sensors_time_is_the_physics_time_counted_from_the_epoch_given() -> None:
+    """``read()`` counts from physics time 0; ``read(epoch_s)`` from where the firmware last
+    started (the bridge's restarts)."""
+    chassis, sensors = settled(0.0)
+    assert chassis.time_s == pytest.approx(10 / RATE)
+    assert sensors.read().time_s == pytest.approx(chassis.time_s, abs=1e-12)
+    assert sensors.read(2 / RATE).time_s == pytest.approx(8 / RATE, abs=1e-12)

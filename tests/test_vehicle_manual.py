@@ -201,3 +201,36 @@ def test_only_messages_touching_the_stick_channels_count_as_stick_input():
     assert not state.touches_sticks(rc(ch7=1900), RcInputConfig.from_params(params))
     assert state.touches_sticks(rc(ch4=1500), RcInputConfig.from_params(params))
     assert state.touches_sticks(rc(ch1=0), RcInputConfig.from_params(params))
+
+
+class RecordingHooks:
+    """:class:`~mecanum_mav.control.vehicle.ModeHooks` that allow every mode and keep what they
+    were told."""
+
+    def __init__(self) -> None:
+        self.asked: list[tuple[Mode, float]] = []
+        self.changes: list[tuple[Mode, Mode, float]] = []
+
+    def refuse_entry(self, mode: Mode, now_s: float) -> str | None:
+        self.asked.append((mode, now_s))
+        return None
+
+    def on_mode_change(self, before: Mode, after: Mode, now_s: float) -> None:
+        self.changes.append((before, after, now_s))
+
+
+def test_the_receiver_failsafes_switch_to_hold_is_told_to_the_hooks_at_its_time():
+    # Vehicle.request_mode: "The hooks see every change, failsafe switches included";
+    # ModeHooks.on_mode_change: the change at now_s (the controllers start from it).
+    params = Params()
+    params.update({"RCIN_ENABLE": 1, "MOT_FL_CH": 9, "MOT_FR_CH": 10, "MOT_RL_CH": 11,
+                   "MOT_RR_CH": 12})
+    hooks = RecordingHooks()
+    v = Vehicle(params, hooks)
+    v.on_fc_heartbeat(0.0)
+    v.on_receiver(None, 0.5)
+    assert v.request_arm(1.0).accepted and not v.config.receiver_action_disarm
+    v.on_receiver("RSSI 0", 2.5)
+    assert v.mode is Mode.HOLD and v.rc_failsafe
+    assert hooks.asked == [(Mode.HOLD, 2.5)]
+    assert hooks.changes == [(Mode.MANUAL, Mode.HOLD, 2.5)]

@@ -28,6 +28,7 @@ from mecanum_mav.app.cli import build_parser
 from mecanum_mav.app.view import (
     Viewer,
     follow_in_viewer,
+    run_view,
     serve_rrd,
     show_log,
     stop_view,
@@ -92,6 +93,20 @@ def test_with_a_display_log_view_opens_the_native_viewer_on_the_written_view(
     assert str(rrd) in args and "--serve-web" not in args
     assert "the view: the native viewer" in out.getvalue()
     assert err.getvalue() == ""
+
+
+def test_with_a_display_view_says_it_shows_in_the_native_viewer(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, fake_viewer: Path) -> None:
+    # 'view' where $DISPLAY is set: the native viewer (no address to print), named as such.
+    monkeypatch.setenv("DISPLAY", ":0")
+    source = tmp_path / "drive.tlog"
+    source.write_bytes(b"".join(tlog_record(1_800_000_000_000_000, e.msg.get_msgbuf())
+                                for e in _entries()))
+    out = io.StringIO()
+    assert run_view(str(source), Params(), out=out,
+                    stop_when=lambda mapping: mapping.messages >= 3) == 0
+    assert "--serve-web" not in json.loads(fake_viewer.read_text())
+    assert out.getvalue().splitlines()[0] == f"mecanum-mav view: {source} -> the native viewer"
 
 
 def test_log_rerun_without_view_writes_the_file_and_starts_no_viewer(
