@@ -420,25 +420,46 @@ def on_udp(served: FirmwareOnUdp) -> FakeTwin:
     return FakeTwin(served.fake, served.url)
 
 
-def virtual(fake: FakeArduPilot) -> tuple[ScriptedGroundStation, VirtualPort]:
+class GridPort(VirtualPort):
+    """A virtual port whose every time is a binary fraction, exact in floating point: ticks
+    of 1/64 s from a fake started at :data:`GRID_START_S` with its streams every 1/32 s
+    (:func:`on_the_grid`), so that every look at the link ends on a tick and sums of times
+    land exactly on a deadline (the boundaries of the module's waits)."""
+
+    TICK_S = 1 / 64
+
+
+GRID_START_S = 1024.0
+
+
+def on_the_grid(north: float = 0.0, east: float = 0.0) -> FakeArduPilot:
+    """A fake for :class:`GridPort`."""
+    fake = FakeArduPilot(GRID_START_S, north, east)
+    fake.periods = dict.fromkeys(fake.periods, 1 / 32)
+    return fake
+
+
+def virtual(fake: FakeArduPilot, port_type: type[VirtualPort] = VirtualPort
+            ) -> tuple[ScriptedGroundStation, VirtualPort]:
     """A ground station on the fake in virtual time."""
-    port = VirtualPort(fake, fake.samples[0].wall_s)
+    port = port_type(fake, fake.samples[0].wall_s)
     return ScriptedGroundStation(port), port
 
 
-def firmware_in_virtual_time(monkeypatch: pytest.MonkeyPatch, fake: FakeArduPilot
-                             ) -> VirtualPort:
+def firmware_in_virtual_time(monkeypatch: pytest.MonkeyPatch, fake: FakeArduPilot,
+                             port_type: type[VirtualPort] = VirtualPort) -> VirtualPort:
     """The module's ground station on the firmware (``udp_ground_station``) is one on the
     fake in virtual time; its port."""
-    gcs, port = virtual(fake)
+    gcs, port = virtual(fake, port_type)
     monkeypatch.setattr(tm, "udp_ground_station", lambda url: (gcs, port))
     return port
 
 
-def all_in_virtual_time(monkeypatch: pytest.MonkeyPatch, fake: FakeArduPilot) -> VirtualPort:
+def all_in_virtual_time(monkeypatch: pytest.MonkeyPatch, fake: FakeArduPilot,
+                        port_type: type[VirtualPort] = VirtualPort) -> VirtualPort:
     """:func:`firmware_in_virtual_time`, and the module's clock (``time.monotonic()``) is the
     port's: its deadlines and hold times pass in virtual time too."""
-    port = firmware_in_virtual_time(monkeypatch, fake)
+    port = firmware_in_virtual_time(monkeypatch, fake, port_type)
     monkeypatch.setattr(tm, "time", SimpleNamespace(monotonic=port.now))
     return port
 
@@ -804,6 +825,61 @@ def test_a_heading_out_of_the_band_after_gps_never_settles_and_says_the_ekf_is_p
         tm.wait_heading_settled(WanderingTruth(fake), timeout_s=4.0)
 
 
+def ekf_asked_s(fake: FakeArduPilot) -> float:
+    """When the ground station asked for EKF_STATUS_REPORT (the wait's start)."""
+    return next(t for m, t in zip(fake.received, fake.received_s, strict=True)
+                if m.get_type() == "COMMAND_LONG"
+                and m.command == mavlink.MAV_CMD_SET_MESSAGE_INTERVAL
+                and m.param1 == mavlink.MAVLINK_MSG_ID_EKF_STATUS_REPORT)
+
+
+def test_the_heading_counts_as_settled_at_the_first_attitude_the_band_has_held_long_enough(
+        monkeypatch):
+    """On the grid: the EKF takes GPS at an ATTITUDE's instant; the band (from that ATTITUDE)
+    has held SETTLED_FOR_S less the 0.2 s allowance exactly one second later."""
+    monkeypatch.setattr(tm, "SETTLED_FOR_S", 1.2)
+    fake = on_the_grid()
+    fake.positioned_at = GRID_START_S + 1 / 64 + 16 / 32  # (ATTITUDEs: 1/64 s on, every 1/32)
+    all_in_virtual_time(monkeypatch, fake, GridPort)
+    took_s, _ = tm.wait_heading_settled(FakeTwin(fake), timeout_s=10.0)
+    assert took_s == fake.positioned_at + 1.0 - ekf_asked_s(fake)
+
+
+class OneSwerve(FakeTwin):
+    """A truth whose yaw swerves by 2 degrees at one look (the 10th) only; when that was."""
+
+    looks = 0
+    swerved_s = math.nan
+
+    def truth_now(self) -> TruthSample:
+        self.looks += 1
+        sample = super().truth_now()
+        if self.looks != 10:
+            return sample
+        self.swerved_s = sample.wall_s
+        return dataclasses.replace(sample, yaw_rad=sample.yaw_rad + math.radians(2.0))
+
+
+def test_a_difference_out_of_the_band_exactly_settled_for_s_ago_still_spoils_the_band(
+        monkeypatch):
+    """On the grid, SETTLED_FOR_S 1.25 s: the band counts the last SETTLED_FOR_S, both ends
+    included; settled at the first ATTITUDE after the swerve has left it."""
+    monkeypatch.setattr(tm, "SETTLED_FOR_S", 1.25)
+    fake = on_the_grid()
+    all_in_virtual_time(monkeypatch, fake, GridPort)
+    twin = OneSwerve(fake)
+    took_s, _ = tm.wait_heading_settled(twin, timeout_s=10.0)
+    assert took_s == twin.swerved_s + 1.25 + 1 / 32 - ekf_asked_s(fake)
+
+
+def test_a_heading_wait_gives_up_the_moment_its_time_has_passed(monkeypatch):
+    fake = on_the_grid()
+    port = all_in_virtual_time(monkeypatch, fake, GridPort)
+    with pytest.raises(RuntimeError, match=r"did not settle within 0\.5 s"):
+        tm.wait_heading_settled(WanderingTruth(fake), timeout_s=0.5)
+    assert port.now() - ekf_asked_s(fake) == 0.5
+
+
 # ---------------------------------------------------------------------------- MANUAL
 
 def test_the_manual_probe_reports_each_steps_motion_in_the_body_frame_at_its_start():
@@ -852,6 +928,18 @@ def test_the_manual_probe_holds_each_steps_sticks_then_centres_them_for_as_long(
     assert (strafe.forward_m, strafe.right_m) == pytest.approx((0.0, 0.25), abs=0.03)
     assert rotate.turn_deg == pytest.approx(math.degrees(0.3), abs=2.0)
     assert fake.mode == Mode.MANUAL and not fake.armed
+
+
+def test_a_manual_steps_sticks_go_out_for_hold_s_and_at_hold_s_they_are_centred(monkeypatch):
+    fake = on_the_grid()
+    all_in_virtual_time(monkeypatch, fake, GridPort)
+    tm.manual_probe(FakeTwin(fake), [("forward", 400, 0, 500, 0)], hold_s=0.5)
+    sent = [((m.x, m.y, m.z, m.r), t) for m, t in zip(fake.received, fake.received_s,
+                                                      strict=True)
+            if m.get_type() == "MANUAL_CONTROL"]
+    step_s = [t for axes, t in sent if axes == (400, 0, 500, 0)]
+    first_centred_s = next(t for axes, t in sent if axes == (0, 0, 0, 0))
+    assert max(step_s) < step_s[0] + 0.5 == first_centred_s
 
 
 @pytest.mark.parametrize(("refuse", "reason"), [("mode", "MANUAL refused"),
