@@ -17,8 +17,10 @@ import math
 import re
 import subprocess
 import sys
+from collections import Counter
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import pytest
 from conftest import lockstep
@@ -86,6 +88,40 @@ def test_the_generator_covers_every_message_id_of_the_dialect_and_repeats_for_a_
     ids = {f[7] | f[8] << 8 | f[9] << 16 for f in frames}
     assert ids == set(MESSAGE_IDS) and len(ids) > 250
     assert DatagramFuzzer(SEED + 1).random_frame() != frames[0]
+
+
+def decoded(datagram: bytes) -> Any:
+    """The one message in ``datagram``, as pymavlink decodes it."""
+    (msg,) = mavlink.MAVLink(None).parse_buffer(datagram) or []
+    return msg
+
+
+def test_fc_sensor_datagrams_are_wheel_distance_or_attitude_from_the_flight_controller() -> None:
+    fuzzer = DatagramFuzzer(SEED, fc_sysid=7, fc_compid=9)
+    msgs = [decoded(fuzzer.fc_sensors()) for _ in range(1000)]
+    assert {(m.get_srcSystem(), m.get_srcComponent()) for m in msgs} == {(7, 9)}
+    wheels = [m for m in msgs if m.get_type() == "WHEEL_DISTANCE"]
+    assert {m.get_type() for m in msgs} == {"WHEEL_DISTANCE", "ATTITUDE"}
+    assert 400 < len(wheels) < 600  # half each
+    counts = Counter(m.count for m in wheels)
+    assert set(counts) == {0, 1, 3, 4, 16, 255}
+    assert counts.most_common(1)[0][0] == 4  # the four wheels mostly
+    distances = [d for m in wheels for d in m.distance]
+    # hostile doubles (those of a double only too: 1e308, 5e-324) among plausible distances
+    assert {1e308, -1e308, 5e-324, math.inf} <= set(distances)
+    assert any(math.isnan(d) for d in distances)
+    assert any(0.001 < abs(d) <= 1000.0 and d not in (1.0, -1.0) for d in distances)
+
+
+@pytest.mark.parametrize("fc_sysid", [1, 255])
+def test_foreign_heartbeats_come_from_any_system_but_the_flight_controller(fc_sysid: int
+                                                                           ) -> None:
+    fuzzer = DatagramFuzzer(SEED, fc_sysid=fc_sysid)
+    msgs = [decoded(fuzzer.fc_foreign_heartbeat()) for _ in range(3000)]
+    assert {m.get_type() for m in msgs} == {"HEARTBEAT"}
+    sysids = {m.get_srcSystem() for m in msgs}
+    assert fc_sysid not in sysids
+    assert len(sysids) > 200  # (of the 255 others)
 
 
 def test_fuzzed_ground_station_datagrams_while_disarmed_never_move_a_wheel(

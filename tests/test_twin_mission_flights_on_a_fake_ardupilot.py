@@ -10,11 +10,14 @@ LOCAL_POSITION_NED (about an origin of its own). Its chassis is its truth (the b
 record on the twin). It runs on a real UDP socket in a thread (:class:`FirmwareOnUdp`:
 wall-clock time, where the module waits on ``time.monotonic()``), or behind a virtual port in
 virtual time (:class:`VirtualPort`) where the module's waits are seconds long (no heartbeat
-for 10 s, HOLD refused for 2 s)."""
+for 10 s, HOLD refused for 2 s), the module's own clock made the port's where its deadlines and
+holds matter (:func:`all_in_virtual_time`)."""
 
 from __future__ import annotations
 
 import contextlib
+import dataclasses
+import itertools
 import math
 import re
 import select
@@ -22,6 +25,7 @@ import socket
 import threading
 import time
 from collections.abc import Iterator
+from types import SimpleNamespace
 from typing import Any
 
 import pytest
@@ -86,13 +90,24 @@ class FakeArduPilot:
         """Its heading minus the truth: before, and once positioned."""
         self.other_attitude = False
         """Also ATTITUDE from another system (2), its yaw all over the place."""
+        self.unpositioned_flags = (mavlink.EKF_ATTITUDE | mavlink.EKF_POS_HORIZ_ABS
+                                   | mavlink.EKF_CONST_POS_MODE)
+        """EKF_STATUS_REPORT's flags before it is positioned (ArduPilot's EKF3 without GPS:
+        constant-position mode); once positioned: attitude and absolute position."""
+        self.periods = {"beat": 0.1, "attitude": 0.05, "ekf": 0.1, "position": 0.1}
+        """How often (s) it sends HEARTBEAT, ATTITUDE, EKF_STATUS_REPORT, LOCAL_POSITION_NED."""
+        self.due = dict.fromkeys(self.periods, now_s)
+        """When each of :attr:`periods` is sent next: later to start it late, math.inf never."""
+        self.mode_delays: dict[int, float] = {}
+        """Mode -> how long (s) after it accepts it that mode takes effect (and shows in its
+        HEARTBEAT); at once otherwise."""
+        self._pending_mode: tuple[Mode, float] | None = None
         self.items: list[Any] = []
         self._upload: list[Any] = []
         self._target = 0
         self._pause_until = -math.inf
         self.sticks = (0, 0, 0, 0)
         self._last_s = now_s
-        self._due = {"beat": now_s, "attitude": now_s, "ekf": now_s, "position": now_s}
 
     # -------------------------------------------------------------- what the GCS sent
 
@@ -103,7 +118,7 @@ class FakeArduPilot:
             return []
         kind = msg.get_type()
         if kind == "COMMAND_LONG":
-            return self._command(msg)
+            return self._command(msg, now_s)
         if kind == "MISSION_COUNT":
             if self.mission_result != mavlink.MAV_MISSION_ACCEPTED:
                 return [self._pack(self._mav.mission_ack_encode(255, 190, self.mission_result))]
@@ -121,7 +136,7 @@ class FakeArduPilot:
             self.sticks = (msg.x, msg.y, msg.z, msg.r)
         return []
 
-    def _command(self, msg: Any) -> list[bytes]:
+    def _command(self, msg: Any, now_s: float) -> list[bytes]:
         out: list[bytes] = []
         cmd, result = msg.command, mavlink.MAV_RESULT_ACCEPTED
         if cmd == mavlink.MAV_CMD_COMPONENT_ARM_DISARM and msg.param1 == 1:
@@ -140,8 +155,8 @@ class FakeArduPilot:
                 self.refusals[mode] -= 1
                 result = mavlink.MAV_RESULT_FAILED
             else:
-                self.mode = Mode(mode)
-                self._target = 0
+                self._pending_mode = (Mode(mode), now_s + self.mode_delays.get(mode, 0.0))
+                self._take_mode(now_s)
         elif cmd == mavlink.MAV_CMD_REQUEST_MESSAGE:
             if int(msg.param1) == mavlink.MAVLINK_MSG_ID_HOME_POSITION and self.has_home:
                 h = self.home
@@ -155,8 +170,14 @@ class FakeArduPilot:
 
     # -------------------------------------------------------------- as time passes
 
+    def _take_mode(self, now_s: float) -> None:
+        if self._pending_mode is not None and now_s >= self._pending_mode[1]:
+            self.mode, self._pending_mode = self._pending_mode[0], None
+            self._target = 0
+
     def tick(self, now_s: float) -> list[bytes]:
         dt, self._last_s = now_s - self._last_s, now_s
+        self._take_mode(now_s)
         out: list[bytes] = []
         if self.armed and self.mode == Mode.AUTO:
             out += self._drive_auto(now_s, dt)
@@ -208,13 +229,13 @@ class FakeArduPilot:
         out: list[bytes] = []
         boot_ms = int((now_s - self._t0) * 1000)
         positioned = now_s >= self.positioned_at
-        if self._is_due("beat", now_s, 0.1):
+        if self._is_due("beat", now_s):
             base = mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | (
                 mavlink.MAV_MODE_FLAG_SAFETY_ARMED if self.armed else 0)
             out.append(self._pack(self._mav.heartbeat_encode(
                 mavlink.MAV_TYPE_GROUND_ROVER, mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA, base,
                 int(self.mode), mavlink.MAV_STATE_ACTIVE)))
-        if self._is_due("attitude", now_s, 0.05):
+        if self._is_due("attitude", now_s):
             error = math.radians(self.heading_error_deg[1 if positioned else 0])
             out.append(self._pack(self._mav.attitude_encode(
                 boot_ms, 0, 0, _wrap(self.yaw + error), 0, 0, 0)))
@@ -222,19 +243,19 @@ class FakeArduPilot:
                 wild = 1.0 if boot_ms % 100 < 50 else -2.0
                 out.append(self._other.attitude_encode(boot_ms, 0, 0, wild, 0, 0, 0)
                            .pack(self._other))
-        if self._is_due("ekf", now_s, 0.1):
-            flags = mavlink.EKF_ATTITUDE | mavlink.EKF_POS_HORIZ_ABS | (
-                0 if positioned else mavlink.EKF_CONST_POS_MODE)
+        if self._is_due("ekf", now_s):
+            flags = (mavlink.EKF_ATTITUDE | mavlink.EKF_POS_HORIZ_ABS if positioned
+                     else self.unpositioned_flags)
             out.append(self._pack(self._mav.ekf_status_report_encode(flags, 0, 0, 0, 0, 0)))
-        if positioned and self._is_due("position", now_s, 0.1):
+        if positioned and self._is_due("position", now_s):
             out.append(self._pack(self._mav.local_position_ned_encode(
                 boot_ms, self.north - EKF_ORIGIN[0], self.east - EKF_ORIGIN[1], 0, 0, 0, 0)))
         return out
 
-    def _is_due(self, what: str, now_s: float, period_s: float) -> bool:
-        if now_s < self._due[what]:
+    def _is_due(self, what: str, now_s: float) -> bool:
+        if now_s < self.due[what]:
             return False
-        self._due[what] = now_s + period_s
+        self.due[what] = now_s + self.periods[what]
         return True
 
     def _pack(self, msg: Any) -> bytes:
@@ -399,18 +420,47 @@ def on_udp(served: FirmwareOnUdp) -> FakeTwin:
     return FakeTwin(served.fake, served.url)
 
 
-def virtual(fake: FakeArduPilot) -> tuple[ScriptedGroundStation, VirtualPort]:
+class GridPort(VirtualPort):
+    """A virtual port whose every time is a binary fraction, exact in floating point: ticks
+    of 1/64 s from a fake started at :data:`GRID_START_S` with its streams every 1/32 s
+    (:func:`on_the_grid`), so that every look at the link ends on a tick and sums of times
+    land exactly on a deadline (the boundaries of the module's waits)."""
+
+    TICK_S = 1 / 64
+
+
+GRID_START_S = 1024.0
+
+
+def on_the_grid(north: float = 0.0, east: float = 0.0) -> FakeArduPilot:
+    """A fake for :class:`GridPort`."""
+    fake = FakeArduPilot(GRID_START_S, north, east)
+    fake.periods = dict.fromkeys(fake.periods, 1 / 32)
+    return fake
+
+
+def virtual(fake: FakeArduPilot, port_type: type[VirtualPort] = VirtualPort
+            ) -> tuple[ScriptedGroundStation, VirtualPort]:
     """A ground station on the fake in virtual time."""
-    port = VirtualPort(fake, fake.samples[0].wall_s)
+    port = port_type(fake, fake.samples[0].wall_s)
     return ScriptedGroundStation(port), port
 
 
-def firmware_in_virtual_time(monkeypatch: pytest.MonkeyPatch, fake: FakeArduPilot
-                             ) -> VirtualPort:
+def firmware_in_virtual_time(monkeypatch: pytest.MonkeyPatch, fake: FakeArduPilot,
+                             port_type: type[VirtualPort] = VirtualPort) -> VirtualPort:
     """The module's ground station on the firmware (``udp_ground_station``) is one on the
     fake in virtual time; its port."""
-    gcs, port = virtual(fake)
+    gcs, port = virtual(fake, port_type)
     monkeypatch.setattr(tm, "udp_ground_station", lambda url: (gcs, port))
+    return port
+
+
+def all_in_virtual_time(monkeypatch: pytest.MonkeyPatch, fake: FakeArduPilot,
+                        port_type: type[VirtualPort] = VirtualPort) -> VirtualPort:
+    """:func:`firmware_in_virtual_time`, and the module's clock (``time.monotonic()``) is the
+    port's: its deadlines and hold times pass in virtual time too."""
+    port = firmware_in_virtual_time(monkeypatch, fake, port_type)
+    monkeypatch.setattr(tm, "time", SimpleNamespace(monotonic=port.now))
     return port
 
 
@@ -508,6 +558,45 @@ def test_a_firmware_never_heard_fails_at_once_and_its_ground_station_is_closed(m
     with pytest.raises(RuntimeError, match="no heartbeat from the firmware"):
         tm.fly_firmware(FakeTwin(fake), POINTS, YAWS, 0.0, 10.0)
     assert port.closed and fake.received == []
+
+
+def test_a_hold_shown_late_within_the_flights_time_ends_the_flight_in_hold(monkeypatch):
+    fake = FakeArduPilot(time.monotonic())
+    fake.mode_delays[Mode.HOLD] = 4.0  # (more than the 2 s it gets when the time is up)
+    all_in_virtual_time(monkeypatch, fake)
+    _, failure = tm.fly_firmware(FakeTwin(fake), POINTS, YAWS, 0.0, 10.0)
+    assert failure is None
+    assert fake.modes_asked() == [Mode.AUTO, Mode.HOLD] and fake.mode == Mode.HOLD
+
+
+@pytest.mark.parametrize(("shown_after_s", "failure"),
+                         [(1.7, None), (2.1, "HOLD refused at the mission's end")])
+def test_with_the_flights_time_up_the_firmware_still_gets_2_s_to_show_hold(
+        monkeypatch, shown_after_s, failure):
+    """_until_hold: HOLD's HEARTBEAT is waited for what is left of the time, at least 2 s."""
+    fake = FakeArduPilot(time.monotonic())
+    fake.mode_delays[Mode.HOLD] = shown_after_s
+    all_in_virtual_time(monkeypatch, fake)
+    # 1.2 m at 2 m/s and a pause: "Mission Complete" some 0.7 s after AUTO, of 1 s
+    assert tm.fly_firmware(FakeTwin(fake), POINTS, YAWS, 0.0, 1.0)[1] == failure
+
+
+def test_auto_refused_by_a_quiet_firmware_is_asked_every_half_second_until_the_wait_is_over(
+        monkeypatch):
+    """The failure's "AUTO refused for N s" is true to within one retry."""
+    monkeypatch.setattr(tm, "ARM_TIMEOUT_S", 0.8)
+    fake = FakeArduPilot(time.monotonic())
+    fake.refusals[Mode.AUTO] = ALWAYS
+    fake.periods = dict.fromkeys(fake.periods, math.inf)  # one of each, then only answers
+    all_in_virtual_time(monkeypatch, fake)
+    _, failure = tm.fly_firmware(FakeTwin(fake), POINTS, YAWS, 0.0, 10.0)
+    assert failure == "AUTO refused for 0.8 s (no EKF position?)"
+    asked_s = [t for m, t in zip(fake.received, fake.received_s, strict=True)
+               if m.get_type() == "COMMAND_LONG" and m.command == mavlink.MAV_CMD_DO_SET_MODE
+               and m.param2 == Mode.AUTO]
+    assert len(asked_s) >= 3
+    assert all(b - a <= 0.5 + 1e-6 for a, b in itertools.pairwise(asked_s))
+    assert 0.8 < asked_s[-1] - asked_s[0] <= 0.8 + 0.5 + 1e-6
 
 
 def test_an_estimate_shifted_without_any_estimate_stays_without_one():
@@ -647,6 +736,150 @@ def test_a_heading_never_settled_says_the_last_difference_and_that_the_ekf_has_n
         tm.wait_heading_settled(on_udp(firmware), timeout_s=0.4)
 
 
+def intervals_asked(fake: FakeArduPilot) -> dict[int, int]:
+    """Message id -> the interval (us) the ground station asked for with
+    MAV_CMD_SET_MESSAGE_INTERVAL."""
+    return {int(m.param1): int(m.param2) for m in fake.received
+            if m.get_type() == "COMMAND_LONG"
+            and m.command == mavlink.MAV_CMD_SET_MESSAGE_INTERVAL}
+
+
+def test_the_heading_settles_a_band_time_after_gps_its_difference_the_attitude_less_the_truth(
+        monkeypatch):
+    """Facing east (the truth's yaw not 0), ATTITUDE at 10 Hz as asked, each with a HEARTBEAT
+    and an EKF_STATUS_REPORT in the same datagram; the EKF takes GPS 1 s after the call."""
+    start_s = time.monotonic()
+    fake = FakeArduPilot(start_s, 2.0, 3.0, yaw_deg=90.0)
+    fake.positioned_at = start_s + 1.0
+    fake.periods["attitude"] = 0.1
+    all_in_virtual_time(monkeypatch, fake)
+    took_s, error_deg = tm.wait_heading_settled(FakeTwin(fake), timeout_s=10.0)
+    assert error_deg == pytest.approx(1.5, abs=0.01)  # not the 12 degrees before GPS
+    # the band held for SETTLED_FOR_S less the 0.2 s allowance, from when it took GPS
+    assert took_s == pytest.approx(1.0 + tm.SETTLED_FOR_S - 0.2, abs=0.15)
+    # MAV_CMD_SET_MESSAGE_INTERVAL: ATTITUDE at 10 Hz, EKF_STATUS_REPORT at 2 Hz
+    asked = intervals_asked(fake)
+    assert asked[mavlink.MAVLINK_MSG_ID_ATTITUDE] == 100_000
+    assert asked[mavlink.MAVLINK_MSG_ID_EKF_STATUS_REPORT] == 500_000
+
+
+def test_a_firmware_positioned_before_its_first_attitude_settles_from_that_attitude(
+        monkeypatch):
+    start_s = time.monotonic()
+    fake = FakeArduPilot(start_s)
+    fake.due["attitude"] = start_s + 0.5  # (its EKF reports positioned well before)
+    all_in_virtual_time(monkeypatch, fake)
+    took_s, error_deg = tm.wait_heading_settled(FakeTwin(fake), timeout_s=10.0)
+    assert error_deg == pytest.approx(1.5, abs=0.01)
+    assert took_s == pytest.approx(0.5 + tm.SETTLED_FOR_S - 0.2, abs=0.1)
+
+
+@pytest.mark.parametrize("ekf", ["no EKF_STATUS_REPORT", "no absolute position"])
+def test_a_steady_heading_without_the_ekfs_absolute_position_never_counts_as_settled(
+        monkeypatch, ekf):
+    """EKF_POS_HORIZ_ABS is what says it uses GPS; a relative position (optical flow, wheel
+    odometry) is not, and a firmware that never says anything is not positioned either."""
+    fake = FakeArduPilot(time.monotonic())
+    fake.positioned_at = math.inf
+    fake.heading_error_deg = (1.5, 1.5)
+    if ekf == "no EKF_STATUS_REPORT":
+        fake.due["ekf"] = math.inf
+    else:
+        fake.unpositioned_flags = mavlink.EKF_ATTITUDE | mavlink.EKF_POS_HORIZ_REL
+    all_in_virtual_time(monkeypatch, fake)
+    with pytest.raises(RuntimeError, match=r"within 4 s \(last \+1\.5 deg from the truth; "
+                                           r"EKF position none\)$"):
+        tm.wait_heading_settled(FakeTwin(fake), timeout_s=4.0)
+
+
+def test_a_firmware_fallen_silent_fails_the_wait_on_time_without_any_difference(monkeypatch):
+    fake = FakeArduPilot(time.monotonic())
+    fake.periods = dict.fromkeys(fake.periods, math.inf)  # one of each, then only answers
+    port = all_in_virtual_time(monkeypatch, fake)
+    called_s = port.now()
+    with pytest.raises(RuntimeError, match=r"within 0\.4 s \(last \+nan deg from the truth; "
+                                           r"EKF position none\)$"):
+        tm.wait_heading_settled(FakeTwin(fake), timeout_s=0.4)
+    assert port.now() - called_s <= 0.4 + 0.1 + 1e-6  # (within one look of 0.1 s)
+    assert port.closed
+
+
+class WanderingTruth(FakeTwin):
+    """A truth whose yaw swings by a degree from one look to the next."""
+
+    looks = 0
+
+    def truth_now(self) -> TruthSample:
+        self.looks += 1
+        sample = super().truth_now()
+        swing = math.radians(0.5 if self.looks % 2 else -0.5)
+        return dataclasses.replace(sample, yaw_rad=sample.yaw_rad + swing)
+
+
+def test_a_heading_out_of_the_band_after_gps_never_settles_and_says_the_ekf_is_positioned(
+        monkeypatch):
+    fake = FakeArduPilot(time.monotonic())
+    all_in_virtual_time(monkeypatch, fake)
+    with pytest.raises(RuntimeError, match=r"within 4 s \(last [+-]\d\.\d deg from the truth; "
+                                           r"EKF position absolute\)$"):
+        tm.wait_heading_settled(WanderingTruth(fake), timeout_s=4.0)
+
+
+def ekf_asked_s(fake: FakeArduPilot) -> float:
+    """When the ground station asked for EKF_STATUS_REPORT (the wait's start)."""
+    return next(t for m, t in zip(fake.received, fake.received_s, strict=True)
+                if m.get_type() == "COMMAND_LONG"
+                and m.command == mavlink.MAV_CMD_SET_MESSAGE_INTERVAL
+                and m.param1 == mavlink.MAVLINK_MSG_ID_EKF_STATUS_REPORT)
+
+
+def test_the_heading_counts_as_settled_at_the_first_attitude_the_band_has_held_long_enough(
+        monkeypatch):
+    """On the grid: the EKF takes GPS at an ATTITUDE's instant; the band (from that ATTITUDE)
+    has held SETTLED_FOR_S less the 0.2 s allowance exactly one second later."""
+    monkeypatch.setattr(tm, "SETTLED_FOR_S", 1.2)
+    fake = on_the_grid()
+    fake.positioned_at = GRID_START_S + 1 / 64 + 16 / 32  # (ATTITUDEs: 1/64 s on, every 1/32)
+    all_in_virtual_time(monkeypatch, fake, GridPort)
+    took_s, _ = tm.wait_heading_settled(FakeTwin(fake), timeout_s=10.0)
+    assert took_s == fake.positioned_at + 1.0 - ekf_asked_s(fake)
+
+
+class OneSwerve(FakeTwin):
+    """A truth whose yaw swerves by 2 degrees at one look (the 10th) only; when that was."""
+
+    looks = 0
+    swerved_s = math.nan
+
+    def truth_now(self) -> TruthSample:
+        self.looks += 1
+        sample = super().truth_now()
+        if self.looks != 10:
+            return sample
+        self.swerved_s = sample.wall_s
+        return dataclasses.replace(sample, yaw_rad=sample.yaw_rad + math.radians(2.0))
+
+
+def test_a_difference_out_of_the_band_exactly_settled_for_s_ago_still_spoils_the_band(
+        monkeypatch):
+    """On the grid, SETTLED_FOR_S 1.25 s: the band counts the last SETTLED_FOR_S, both ends
+    included; settled at the first ATTITUDE after the swerve has left it."""
+    monkeypatch.setattr(tm, "SETTLED_FOR_S", 1.25)
+    fake = on_the_grid()
+    all_in_virtual_time(monkeypatch, fake, GridPort)
+    twin = OneSwerve(fake)
+    took_s, _ = tm.wait_heading_settled(twin, timeout_s=10.0)
+    assert took_s == twin.swerved_s + 1.25 + 1 / 32 - ekf_asked_s(fake)
+
+
+def test_a_heading_wait_gives_up_the_moment_its_time_has_passed(monkeypatch):
+    fake = on_the_grid()
+    port = all_in_virtual_time(monkeypatch, fake, GridPort)
+    with pytest.raises(RuntimeError, match=r"did not settle within 0\.5 s"):
+        tm.wait_heading_settled(WanderingTruth(fake), timeout_s=0.5)
+    assert port.now() - ekf_asked_s(fake) == 0.5
+
+
 # ---------------------------------------------------------------------------- MANUAL
 
 def test_the_manual_probe_reports_each_steps_motion_in_the_body_frame_at_its_start():
@@ -664,6 +897,49 @@ def test_the_manual_probe_reports_each_steps_motion_in_the_body_frame_at_its_sta
     assert 3.5 < rotate.turn_deg < 12.0
     assert abs(rotate.forward_m) < 0.005 and abs(rotate.right_m) < 0.005
     assert served.fake.mode == Mode.MANUAL and not served.fake.armed  # disarmed after
+
+
+def stick_runs(fake: FakeArduPilot) -> list[tuple[tuple[int, int, int, int], float]]:
+    """The MANUAL_CONTROLs the firmware received, runs of the same (x, y, z, r): each with how
+    long from its first to the next run's first."""
+    sticks = [((m.x, m.y, m.z, m.r), t) for m, t in zip(fake.received, fake.received_s,
+                                                        strict=True)
+              if m.get_type() == "MANUAL_CONTROL"]
+    starts = [(axes, t) for k, (axes, t) in enumerate(sticks)
+              if k == 0 or sticks[k - 1][0] != axes]
+    ends = [t for _, t in starts[1:]] + [sticks[-1][1]]
+    return [(axes, end - t) for (axes, t), end in zip(starts, ends, strict=True)]
+
+
+def test_the_manual_probe_holds_each_steps_sticks_then_centres_them_for_as_long(monkeypatch):
+    """From (2, 3) facing east, in virtual time; z 0 is Rover's centred throttle."""
+    fake = FakeArduPilot(time.monotonic(), 2.0, 3.0, yaw_deg=90.0)
+    all_in_virtual_time(monkeypatch, fake)
+    steps = [("forward", 400, 0, 500, 0), ("strafe", 0, 500, 0, 0), ("rotate", 0, 0, 0, 600)]
+    forward, strafe, rotate = tm.manual_probe(FakeTwin(fake), steps, hold_s=0.5)
+    assert [(s.name, s.x, s.y, s.z, s.r) for s in (forward, strafe, rotate)] == steps
+    centre = (0, 0, 0, 0)
+    runs = stick_runs(fake)
+    assert [axes for axes, _ in runs] == [(400, 0, 500, 0), centre, (0, 500, 0, 0), centre,
+                                          (0, 0, 0, 600), centre]
+    assert [held_s for _, held_s in runs[:-1]] == [pytest.approx(0.5, abs=0.06)] * 5
+    # the fake drives x/1000 m/s forward, y/1000 m/s right, r/1000 rad/s clockwise
+    assert (forward.forward_m, forward.right_m) == pytest.approx((0.2, 0.0), abs=0.03)
+    assert (strafe.forward_m, strafe.right_m) == pytest.approx((0.0, 0.25), abs=0.03)
+    assert rotate.turn_deg == pytest.approx(math.degrees(0.3), abs=2.0)
+    assert fake.mode == Mode.MANUAL and not fake.armed
+
+
+def test_a_manual_steps_sticks_go_out_for_hold_s_and_at_hold_s_they_are_centred(monkeypatch):
+    fake = on_the_grid()
+    all_in_virtual_time(monkeypatch, fake, GridPort)
+    tm.manual_probe(FakeTwin(fake), [("forward", 400, 0, 500, 0)], hold_s=0.5)
+    sent = [((m.x, m.y, m.z, m.r), t) for m, t in zip(fake.received, fake.received_s,
+                                                      strict=True)
+            if m.get_type() == "MANUAL_CONTROL"]
+    step_s = [t for axes, t in sent if axes == (400, 0, 500, 0)]
+    first_centred_s = next(t for axes, t in sent if axes == (0, 0, 0, 0))
+    assert max(step_s) < step_s[0] + 0.5 == first_centred_s
 
 
 @pytest.mark.parametrize(("refuse", "reason"), [("mode", "MANUAL refused"),

@@ -441,7 +441,9 @@ class DatagramFuzzer:
     # ------------------------------------------------------------------ flight-controller link
 
     def fc_sensors(self) -> bytes:
-        """WHEEL_DISTANCE or ATTITUDE from the flight controller, hostile values throughout."""
+        """WHEEL_DISTANCE or ATTITUDE (half each) from the flight controller, hostile values
+        throughout; WHEEL_DISTANCE's count mostly the four wheels, else 0, 1, 3, the array's
+        16 or 255 beyond it."""
         rng = self.rng
         source = self.fc_sysid, self.fc_compid
         if rng.random() < 0.5:

@@ -329,7 +329,8 @@ no HOLD mode), so the ground station switches it to HOLD then."""
 
 def _until_hold(gcs: ScriptedGroundStation, timeout_s: float) -> str | None:
     """Listen until the firmware says its mission is complete, switch it to HOLD and listen
-    until its HEARTBEAT says so; None, or why not."""
+    until its HEARTBEAT says so (for what is left of ``timeout_s``, at least 2 s); None, or why
+    not."""
     deadline = time.monotonic() + timeout_s
     if gcs.wait("STATUSTEXT", lambda m: m.text == ARDUPILOT_MISSION_COMPLETE,
                 timeout_s) is None:
@@ -410,7 +411,7 @@ def wait_heading_settled(twin: Twin, timeout_s: float = SETTLE_TIMEOUT_S
     when it starts to) and then its heading's difference to the truth (ATTITUDE yaw minus the
     true yaw) has stayed within a band of :data:`SETTLED_BAND_DEG` for :data:`SETTLED_FOR_S`;
     how long that took (s) and that difference then (degrees: what the companion's heading
-    will be off by).
+    will be off by). It asks the firmware for EKF_STATUS_REPORT at 2 Hz.
 
     Raises:
         RuntimeError: not within ``timeout_s`` (the message gives the last difference).
