@@ -12,7 +12,9 @@ from __future__ import annotations
 import functools
 import math
 import re
+import time
 
+import pytest
 from support import not_installed
 
 from mecanum_mav.app import demo
@@ -79,6 +81,24 @@ def test_demo_runs_the_mission_prints_a_table_per_leg_and_writes_the_figure(
     heading = re.search(r"heading within ([0-9.]+) deg of north", out)
     assert heading is not None and float(heading.group(1)) < 0.1
     assert png.stat().st_size > 10_000 and png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.mark.slow
+def test_the_demo_as_a_user_runs_it_drives_over_real_sockets_in_real_time(tmp_path, capsys):
+    """`mecanum-mav demo` (the README's command) as typed: the simulated flight controller,
+    the companion and the ground station on loopback UDP, in real time (about 10 s for a
+    0.3 m square); every leg is reported and the figure written."""
+    png = tmp_path / "demo.png"
+    started = time.monotonic()
+    assert main(["demo", "--side", "0.3", "--png", str(png)]) == 0
+    out = capsys.readouterr().out
+    rows = [line for line in out.splitlines() if line[:1].isdigit()]
+    assert [row.split()[:2] for row in rows] == [["1", "2"], ["2", "3"], ["3", "4"],
+                                                 ["4", "5"], ["5", "6"]]
+    assert all(float(row.split()[-1]) < 100 * ARRIVED_M for row in rows)  # arrival, cm
+    driving_s = sum(float(row.split()[-3]) for row in rows)
+    assert time.monotonic() - started > driving_s  # (real time: at least the legs' time)
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
 def test_demo_prints_the_header_first_and_each_leg_as_soon_as_it_ends(capsys, monkeypatch):
