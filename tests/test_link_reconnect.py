@@ -293,12 +293,10 @@ class _ImmediateConnect(socket.socket):
             self.setblocking(False)
 
 
-def test_a_tcp_reconnect_that_completes_at_once_brings_the_link_up(
-        monkeypatch: pytest.MonkeyPatch) -> None:
-    """A non-blocking connect may complete at once (code 0): that try connected, the link is
-    up on it."""
-    from mecanum_mav.io.links import tcp
-
+@contextlib.contextmanager
+def _broken_tcp_link() -> Iterator[Link]:
+    """A ``tcp:`` link whose board accepted it and went away: down, its server still
+    listening on 127.0.0.1 (closed after, with the link)."""
     with socket.socket() as server:
         server.bind(("127.0.0.1", 0))
         server.listen(1)
@@ -306,13 +304,23 @@ def test_a_tcp_reconnect_that_completes_at_once_brings_the_link_up(
                          source_component=190, name="fc")
         try:
             board, _ = server.accept()
-            board.close()
+            board.close()  # the board goes away: the link breaks on its next read
             assert wait_until(lambda: link.read() == [] and not link.up, 2.0)
-            monkeypatch.setattr(tcp.socket, "socket", _ImmediateConnect)
-            assert wait_until(lambda: link.reopen(link.next_reopen_s), 2.0)
-            assert link.up
+            yield link
         finally:
             link.close()
+
+
+def test_a_tcp_reconnect_that_completes_at_once_brings_the_link_up(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """A non-blocking connect may complete at once (code 0): that try connected, the link is
+    up on it."""
+    from mecanum_mav.io.links import tcp
+
+    with _broken_tcp_link() as link:
+        monkeypatch.setattr(tcp.socket, "socket", _ImmediateConnect)
+        assert wait_until(lambda: link.reopen(link.next_reopen_s), 2.0)
+        assert link.up
 
 
 @pytest.mark.parametrize("failure", ["name", "files", "no route"])
@@ -324,33 +332,23 @@ def test_a_tcp_link_whose_reconnect_cannot_resolve_or_open_a_socket_stays_down_a
     which."""
     from mecanum_mav.io.links import tcp
 
-    with socket.socket() as server:
-        server.bind(("127.0.0.1", 0))
-        server.listen(1)
-        link = open_link(f"tcp:127.0.0.1:{server.getsockname()[1]}", source_system=255,
-                         source_component=190, name="fc")
-        try:
-            board, _ = server.accept()
-            board.close()  # the board goes away: the link breaks on its next read
-            assert wait_until(lambda: link.read() == [] and not link.up, 2.0)
-            if failure == "name":
-                monkeypatch.setattr(tcp.socket, "socket", _UnresolvableConnect)
-            elif failure == "no route":
-                monkeypatch.setattr(tcp.socket, "socket", _NoRouteConnect)
-            else:
-                def out_of_files(*args: object) -> socket.socket:
-                    raise OSError(errno.EMFILE, "Too many open files")
-                monkeypatch.setattr(tcp.socket, "socket", out_of_files)
-            with caplog.at_level("DEBUG", logger="mecanum_mav"):
-                assert link.reopen(link.next_reopen_s) is False
-            assert not link.up
-            why = {"name": f"[Errno {socket.EAI_NONAME}] Name or service not known",
-                   "files": f"[Errno {errno.EMFILE}] Too many open files",
-                   "no route": f"[Errno {errno.ENETUNREACH}] Network is unreachable"}[failure]
-            assert [r.getMessage() for r in caplog.records if r.levelname == "DEBUG"] == [
-                f"fc: reconnecting failed: {why}"]
-            monkeypatch.undo()
-            assert wait_until(lambda: link.reopen(link.next_reopen_s), 2.0)  # (and it can)
-            assert link.up
-        finally:
-            link.close()
+    with _broken_tcp_link() as link:
+        if failure == "name":
+            monkeypatch.setattr(tcp.socket, "socket", _UnresolvableConnect)
+        elif failure == "no route":
+            monkeypatch.setattr(tcp.socket, "socket", _NoRouteConnect)
+        else:
+            def out_of_files(*args: object) -> socket.socket:
+                raise OSError(errno.EMFILE, "Too many open files")
+            monkeypatch.setattr(tcp.socket, "socket", out_of_files)
+        with caplog.at_level("DEBUG", logger="mecanum_mav"):
+            assert link.reopen(link.next_reopen_s) is False
+        assert not link.up
+        why = {"name": f"[Errno {socket.EAI_NONAME}] Name or service not known",
+               "files": f"[Errno {errno.EMFILE}] Too many open files",
+               "no route": f"[Errno {errno.ENETUNREACH}] Network is unreachable"}[failure]
+        assert [r.getMessage() for r in caplog.records if r.levelname == "DEBUG"] == [
+            f"fc: reconnecting failed: {why}"]
+        monkeypatch.undo()
+        assert wait_until(lambda: link.reopen(link.next_reopen_s), 2.0)  # (and it can)
+        assert link.up

@@ -163,32 +163,44 @@ def socket_settings(sock: socket.socket) -> tuple[bool, bool, bool]:
     return nodelay, not os.get_blocking(sock.fileno()), os.get_inheritable(sock.fileno())
 
 
-def test_a_tcp_link_connected_again_has_nodelay_and_is_non_blocking_as_its_first_socket(
-        caplog: pytest.LogCaptureFixture) -> None:
-    clock = FakeClock()
+@contextlib.contextmanager
+def tcp_fc(clock: FakeClock) -> Iterator[tuple[Link, socket.socket, list[socket.socket]]]:
+    """A ``tcp:`` link to a server on 127.0.0.1 that has accepted it (the list's first peer);
+    the link, the server and every peer the test adds to the list closed after."""
     server = socket.create_server(("127.0.0.1", 0))
     address = server.getsockname()
     link = open_link(f"tcp:{address[0]}:{address[1]}", source_system=255,
                      source_component=190, name="fc", clock=clock)
-    peers: list[socket.socket] = []
+    peers = [server.accept()[0]]
     try:
-        peers.append(server.accept()[0])
-        first = socket_settings(link.conn.port)
-        assert first == (True, True, False)  # pymavlink's first connection (close-on-exec)
-        peers[0].close()  # the flight controller closes the connection; its server stays
-        with caplog.at_level("INFO", logger="mecanum_mav"):
-            assert wait_until(lambda: (link.read(), not link.up)[1], 5.0,
-                              pump=lambda s: select.select([link.fileno()], [], [], s))
-        assert link.down_reason == "closed by the peer"
-        assert "fc: closed by the peer: end of stream" in caplog.messages
-        assert reopen_until_up(link, clock)
-        peers.append(server.accept()[0])
-        assert socket_settings(link.conn.port) == first
+        yield link, server, peers
     finally:
         link.close()
         for peer in peers:
             peer.close()
         server.close()
+
+
+def until_down(link: Link) -> bool:
+    """Read until the link sees it is down (within 5 s)."""
+    return wait_until(lambda: (link.read(), not link.up)[1], 5.0,
+                      pump=lambda s: select.select([link.fileno()], [], [], s))
+
+
+def test_a_tcp_link_connected_again_has_nodelay_and_is_non_blocking_as_its_first_socket(
+        caplog: pytest.LogCaptureFixture) -> None:
+    clock = FakeClock()
+    with tcp_fc(clock) as (link, server, peers):
+        first = socket_settings(link.conn.port)
+        assert first == (True, True, False)  # pymavlink's first connection (close-on-exec)
+        peers[0].close()  # the flight controller closes the connection; its server stays
+        with caplog.at_level("INFO", logger="mecanum_mav"):
+            assert until_down(link)
+        assert link.down_reason == "closed by the peer"
+        assert "fc: closed by the peer: end of stream" in caplog.messages
+        assert reopen_until_up(link, clock)
+        peers.append(server.accept()[0])
+        assert socket_settings(link.conn.port) == first
 
 
 class _FailsToClose:
@@ -201,26 +213,14 @@ class _FailsToClose:
 def test_a_tcp_link_whose_old_connection_fails_to_close_is_connected_again_all_the_same(
         ) -> None:
     clock = FakeClock()
-    server = socket.create_server(("127.0.0.1", 0))
-    address = server.getsockname()
-    link = open_link(f"tcp:{address[0]}:{address[1]}", source_system=255,
-                     source_component=190, name="fc", clock=clock)
-    peers: list[socket.socket] = []
-    try:
-        peers.append(server.accept()[0])
+    with tcp_fc(clock) as (link, server, peers):
         peers[0].close()
-        assert wait_until(lambda: (link.read(), not link.up)[1], 5.0,
-                          pump=lambda s: select.select([link.fileno()], [], [], s))
+        assert until_down(link)
         link.conn.port = _FailsToClose()
         assert reopen_until_up(link, clock)
         peers.append(server.accept()[0])
         assert link.send(link.mav.heartbeat_encode(6, 8, 0, 0, 4))
         assert wait_until(lambda: bool(select.select([peers[1]], [], [], 0.05)[0]), 5.0)
-    finally:
-        link.close()
-        for peer in peers:
-            peer.close()
-        server.close()
 
 
 @contextlib.contextmanager
