@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import os
 import signal
+import socket
 from pathlib import Path
 
 import pytest
@@ -105,6 +106,37 @@ def test_one_destination_named_two_ways_is_one_claim(url: str, same: str):
     (case aside) where it does not; another port is another claim."""
     assert lock_name(url) == lock_name(same)
     assert lock_name(url) != lock_name(url.replace("14550", "14551"))
+
+
+def test_two_destinations_are_two_claims_named_by_their_addresses():
+    """Rovers sending to two ground stations (two hosts) may share a system id: each claim
+    names its own destination's address."""
+    assert lock_name("udpout:127.0.0.1:14550") == "system1-udpout-127.0.0.1-14550.lock"
+    assert lock_name("udpout:127.0.0.2:14550") == "system1-udpout-127.0.0.2-14550.lock"
+
+
+def _dual_stack_resolver(host: str, port: object, family: int = 0, *_: object,
+                         **__: object) -> list[tuple[object, ...]]:
+    """getaddrinfo of a machine whose hosts file lists ``::1 localhost`` before
+    ``127.0.0.1 localhost``, one entry per address (as some resolvers answer when no socket
+    type is asked for)."""
+    addresses = {"localhost": [(socket.AF_INET6, ("::1", 0, 0, 0)),
+                               (socket.AF_INET, ("127.0.0.1", 0))],
+                 "127.0.0.1": [(socket.AF_INET, ("127.0.0.1", 0))]}
+    found = [(fam, socket.SOCK_DGRAM, 17, "", address)
+             for fam, address in addresses.get(host, []) if family in (0, fam)]
+    if not found:
+        raise socket.gaierror(socket.EAI_NONAME, "Name or service not known")
+    return found
+
+
+def test_localhost_is_127_0_0_1_even_where_the_resolver_lists_ipv6_first(
+        monkeypatch: pytest.MonkeyPatch):
+    """MAVLink's UDP links (pymavlink's udpout) send over IPv4, so the destination a claim
+    names is the IPv4 address, whatever the resolver lists first."""
+    monkeypatch.setattr(socket, "getaddrinfo", _dual_stack_resolver)
+    assert lock_name("udpout:localhost:14550") == lock_name("udpout:127.0.0.1:14550") == (
+        "system1-udpout-127.0.0.1-14550.lock")
 
 
 def test_a_claims_folder_that_cannot_be_made_is_refused_saying_where_and_why(

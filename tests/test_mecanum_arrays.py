@@ -89,6 +89,11 @@ def test_prioritized_desaturation_of_a_batch_is_its_rows_alone_and_the_plain_flo
                         np.nan_to_num(t, posinf=2.0), r)
 
 
+def test_desaturate_limits_to_1_by_default_the_normalized_full_scale():
+    np.testing.assert_array_equal(desaturate([2.0, -1.0, 0.5, 0.0]), [1.0, -0.5, 0.25, 0.0])
+    np.testing.assert_array_equal(desaturate([0.5, -1.0, 0.5, 0.0]), [0.5, -1.0, 0.5, 0.0])
+
+
 def test_the_plain_float_prioritized_desaturation_limits_to_1_by_default_and_checks_a_limit():
     assert max(map(abs, desaturate_prioritized_scalar((2.0, 2.0, 2.0, 2.0),
                                                       (0.5, -0.5, 0.5, -0.5)))) == 1.0

@@ -51,15 +51,20 @@ def test_the_first_bad_item_is_named_by_its_line_and_what_is_wrong(tmp_path: Pat
     assert refusal(tmp_path, text) == f"4: {problem}"
 
 
-def test_bytes_that_are_not_utf8_text_are_refused_naming_their_line(tmp_path: Path):
+@pytest.mark.parametrize(("before", "line"), [
+    ("\n".join([HEADER, ITEM_0, ITEM_1]) + "\n", 4),
+    ("\n\n", 3),  # blank lines count, the first one too
+], ids=["item-4", "after-blank-lines"])
+def test_bytes_that_are_not_utf8_text_are_refused_naming_their_line(tmp_path: Path,
+                                                                    before: str, line: int):
     """A damaged file (or one a tool wrote in another encoding) is a MissionFileError with
     its line like any other problem, not an exception the companion does not expect."""
     path = tmp_path / "rover.waypoints"
-    text = "\n".join([HEADER, ITEM_0, ITEM_1]).encode("utf-8")
-    path.write_bytes(text + b"\n2\t0\t3\t16\t0\t0\t0\t0\t47.39\xff\t8.54\t0\t1\n")
+    bad = b"2\t0\t3\t16\t0\t0\t0\t0\t47.39\xff\t8.54\t0\t1\n"
+    path.write_bytes(before.encode("utf-8") + bad)
     with pytest.raises(MissionFileError) as caught:
         load_mission(path)
-    assert str(caught.value) == f"{path}:4: not UTF-8 text (byte 0xff)"
+    assert str(caught.value) == f"{path}:{line}: not UTF-8 text (byte 0xff)"
 
 
 def test_a_mission_file_that_is_not_utf8_leaves_the_rover_without_a_mission_and_says_so(
