@@ -9,6 +9,7 @@ from __future__ import annotations
 import os
 import re
 import signal
+import sys
 from collections.abc import Generator, Iterator
 
 import pytest
@@ -107,6 +108,8 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
             module = item.nodeid.split("::", 1)[0]
             item.add_marker(pytest.mark.xdist_group(f"{SHARED_FIXTURE_GROUP}:{module}"))
     items.sort(key=lambda item: not _runs_long(item))
+    limit_each_test_under_a_mutant(items, os.environ.get("MUTANT_UNDER_TEST", ""),
+                                   sys.modules.get("mutmut.state"))
 
 
 @pytest.hookimpl(trylast=True)  # after xdist's own, which marks a grouped test's node id
@@ -150,6 +153,31 @@ def _ctrl_c_as_a_terminal_gives_it() -> None:
         if signal.getsignal(sig) is signal.SIG_IGN:
             signal.signal(sig, signal.default_int_handler if sig == signal.SIGINT
                           else signal.SIG_DFL)
+
+
+MUTANT_TIME_FACTOR = 3.0
+MUTANT_TIME_MARGIN_S = 10.0
+MUTANT_UNTRACED_S = 20.0
+"""Under a mutant, each test may take MUTANT_TIME_FACTOR x its traced time (mutmut's trace,
+already slower than a plain run) + MUTANT_TIME_MARGIN_S; a test the trace has not timed
+counts as MUTANT_UNTRACED_S."""
+
+
+def limit_each_test_under_a_mutant(items: list[pytest.Item], mutant: str,
+                                   mutmut_state: object | None) -> None:
+    """With a mutant under test (``MUTANT_UNDER_TEST`` names one, in mutmut's process), each
+    test fails once it runs past its limit (pytest-timeout, :data:`MUTANT_TIME_FACTOR`), so a
+    mutant that makes a test hang (a blocking write that never returns, a wait that never
+    ends) is killed in seconds. mutmut's own limit covers the sum of the tests' times, minutes
+    for a function most tests reach. Outside mutmut nothing changes: the suite's tests wait
+    on their own deadlines."""
+    if "__mutmut_" not in mutant or mutmut_state is None:
+        return
+    traced: dict[str, float] = mutmut_state.state().duration_by_test  # type: ignore[attr-defined]
+    for item in items:
+        seconds = traced.get(item.nodeid, MUTANT_UNTRACED_S)
+        limit = MUTANT_TIME_FACTOR * seconds + MUTANT_TIME_MARGIN_S
+        item.add_marker(pytest.mark.timeout(limit, method="signal"))
 
 
 _tracing_for_mutmut = False

@@ -8,7 +8,7 @@ import importlib.util
 import json
 import sys
 from pathlib import Path
-from types import ModuleType
+from types import ModuleType, SimpleNamespace
 
 import pytest
 
@@ -76,3 +76,42 @@ def test_the_score_leaves_out_equivalent_mutants_and_counts_timeouts_as_killed(t
     [tally] = tool.tally(tool.load_results(), {"io"}, [equivalent])
     assert (tally.total, tally.equivalent, tally.killed, tally.unchecked) == (7, 1, 3, 1)
     assert tally.score == pytest.approx(3 / 5)  # the unchecked one is not scored yet
+
+
+class _Item:
+    """The part of a pytest item the limit reads and writes."""
+
+    def __init__(self, nodeid: str) -> None:
+        self.nodeid = nodeid
+        self.marks: list[pytest.Mark] = []
+
+    def add_marker(self, mark: pytest.MarkDecorator) -> None:
+        self.marks.append(mark.mark)
+
+
+_MutmutState = SimpleNamespace(  # mutmut.state as a run has it: the trace's time of each test
+    state=lambda: SimpleNamespace(duration_by_test={"tests/test_a.py::test_fast": 0.5}))
+
+
+def test_under_a_mutant_each_test_stops_after_three_times_its_traced_time_and_ten_seconds():
+    """A mutant that makes one test hang is killed after that test's limit, not after
+    mutmut's limit for all the function's tests (tests/conftest.py); an untimed test gets
+    the limit of a 20 s test."""
+    from conftest import limit_each_test_under_a_mutant
+    items = [_Item("tests/test_a.py::test_fast"), _Item("tests/test_b.py::test_new")]
+    limit_each_test_under_a_mutant(items, "mecanum_mav.io.poller.x_f__mutmut_3",  # type: ignore[arg-type]
+                                   _MutmutState)
+    assert [(m.name, m.args, m.kwargs) for item in items for m in item.marks] == [
+        ("timeout", (11.5,), {"method": "signal"}), ("timeout", (70.0,), {"method": "signal"})]
+
+
+@pytest.mark.parametrize("mutant", ["", "stats", "list_all_tests", "fail"])
+def test_without_a_mutant_under_test_no_test_gets_a_limit(mutant: str):
+    """The suite itself, mutmut's clean run, its trace and its forced failure: the tests keep
+    their own deadlines only."""
+    from conftest import limit_each_test_under_a_mutant
+    item = _Item("tests/test_a.py::test_fast")
+    limit_each_test_under_a_mutant([item], mutant, _MutmutState)  # type: ignore[list-item]
+    limit_each_test_under_a_mutant([item], "mecanum_mav.io.poller.x_f__mutmut_3",  # type: ignore[list-item]
+                                   None)
+    assert item.marks == []
