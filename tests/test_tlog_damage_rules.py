@@ -88,12 +88,13 @@ def test_a_whole_last_packet_whose_crc_does_not_check_is_damage_not_a_cut_record
     assert read.problems == [skipped(len(good), len(data))]
 
 
+@pytest.mark.parametrize("junk", [b"\x00\x11\x22\x33", b"\x00"], ids=["4-bytes", "1-byte"])
 @pytest.mark.parametrize("mavlink1", [False, True], ids=["MAVLink 2", "MAVLink 1"])
-def test_after_damage_the_reader_resumes_at_the_first_of_several_good_records(mavlink1: bool):
+def test_after_damage_the_reader_resumes_at_the_first_of_several_good_records(mavlink1: bool,
+                                                                             junk: bytes):
     """(Each of the records after the damage has a start byte: the first one found is the
-    one to resume at, not a later one.)"""
+    one to resume at, not a later one; one stray byte is all that is skipped.)"""
     good = good_log(mavlink1=mavlink1)
-    junk = b"\x00\x11\x22\x33"
     data = good + junk + good_log(4, mavlink1=mavlink1)
     read = parse_tlog(data, "x.tlog")
     assert read.problems == [skipped(len(good), len(good) + len(junk))]
