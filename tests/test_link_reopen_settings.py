@@ -277,6 +277,54 @@ def test_the_next_tcpin_client_gets_nodelay_and_a_non_blocking_socket_as_the_fir
         link.close()
 
 
+class _ClientFailsToClose:
+    """A tcpin client's connection whose close fails (EIO); reads as the real one."""
+
+    def __init__(self, sock: socket.socket) -> None:
+        self.sock = sock
+
+    def recv(self, size: int) -> bytes:
+        return self.sock.recv(size)
+
+    def fileno(self) -> int:
+        return self.sock.fileno()
+
+    def close(self) -> None:
+        raise OSError(5, "Input/output error")
+
+
+def test_a_tcpin_link_whose_clients_connection_fails_to_close_listens_for_the_next_all_the_same(
+        ) -> None:
+    """(A read never raises: ``Link.read``.)"""
+    probe = socket.socket()
+    probe.bind(("127.0.0.1", 0))
+    port = probe.getsockname()[1]
+    probe.close()
+    link = open_link(f"tcpin:127.0.0.1:{port}", source_system=255, source_component=190,
+                     name="fc", clock=FakeClock())
+
+    def wait_readable(wait_s: float) -> None:
+        select.select([link.fileno()], [], [], wait_s)
+
+    try:
+        with client(port) as first:
+            first.sendall(b"\x00")
+            assert wait_until(lambda: (link.read(), link.conn.port is not None)[1], 5.0,
+                              pump=wait_readable)
+            taken = link.conn.port
+            link.conn.port = _ClientFailsToClose(taken)
+        try:
+            assert wait_until(lambda: (link.read(), not link.up)[1], 5.0, pump=wait_readable)
+        finally:
+            taken.close()
+        assert link.down_reason == "client left"
+        with client(port) as second:
+            second.sendall(b"\x00")
+            assert wait_until(lambda: (link.read(), link.up)[1], 5.0, pump=wait_readable)
+    finally:
+        link.close()
+
+
 # --------------------------------------------------------------------------- telemetry
 
 

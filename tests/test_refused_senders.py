@@ -6,7 +6,10 @@ table of refused addresses alone, in its own time."""
 
 from __future__ import annotations
 
+import errno
 import hashlib
+import logging
+import os
 import socket
 import time
 import tracemalloc
@@ -23,11 +26,14 @@ from mecanum_mav.protocol.refusedsenders import (
     REFUSED_TIMEOUT_S,
     RefusedSenders,
 )
-from mecanum_mav.protocol.signing import Check, SignatureCheck, ticks_from_unix
+from mecanum_mav.protocol.signing import REFUSED_TEXTS, Check, SignatureCheck, ticks_from_unix
+from mecanum_mav.protocol.statustext import Severity, statustext_messages
 
 KEY = hashlib.sha256(b"rover-on-a-shared-radio").digest()
 UNSIGNED_REASON = "Unsigned packet refused: signing required"
 BAD_SIGNATURE_REASON = "Bad signature: packet refused (wrong key?)"
+EACCES = f"[Errno {errno.EACCES}] {os.strerror(errno.EACCES)}"
+"""What a send to the broadcast address without SO_BROADCAST fails with."""
 
 # --------------------------------------------------------------------------- the table alone
 
@@ -183,6 +189,13 @@ def test_a_refused_sender_gets_the_signed_heartbeat_and_the_reason_and_nothing_e
     assert link.hints_sent == 1
 
 
+def test_each_refusal_reason_is_one_statustext():
+    """``REFUSED_TEXTS``: each under 50 characters, one STATUSTEXT (a hint is the heartbeat
+    and one STATUSTEXT, whatever the kind)."""
+    assert [len(statustext_messages(Severity.WARNING, text)) for text in REFUSED_TEXTS.values()
+            ] == [1] * len(REFUSED_TEXTS)
+
+
 def test_a_refused_sender_is_told_at_most_once_per_interval_however_often_the_link_beats(
         link, sockets):
     stranger = sockets()
@@ -255,14 +268,55 @@ def test_a_peer_that_sends_an_unsigned_packet_gets_its_heartbeat_once_not_a_hint
     assert link.refused_senders is not None and len(link.refused_senders) == 0
 
 
-def test_a_hint_the_kernel_refuses_to_send_is_counted_and_the_heartbeat_still_goes_out():
+def test_a_hint_the_kernel_refuses_to_send_is_counted_and_the_heartbeat_still_goes_out(
+        caplog: pytest.LogCaptureFixture):
     """(A refused sender at an address the kernel will not send to, here the broadcast
-    address without SO_BROADCAST: EACCES. The hint is a failed send, counted, never raised;
-    the peers' heartbeat went out before it.)"""
+    address without SO_BROADCAST: EACCES. The hint is a failed send, counted, never raised,
+    and the warning says why; the peers' heartbeat went out before it.)"""
     link = signed_udpin()
     try:
         link.refused_senders.refused(("255.255.255.255", 9), Check.UNSIGNED, link.clock())
-        assert link.send(rover_heartbeat())  # (no peer yet: nothing to send it to)
+        with caplog.at_level(logging.WARNING, logger="mecanum_mav.io.links"):
+            assert link.send(rover_heartbeat())  # (no peer yet: nothing to send it to)
         assert (link.hints_sent, link.send_errors) == (0, 1)
+        assert caplog.messages == [f"gcs: send failed (1 so far): {EACCES}"]
+    finally:
+        link.close()
+
+
+def test_a_hint_that_cannot_be_made_is_counted_and_said_why_and_never_raises(
+        caplog: pytest.LogCaptureFixture):
+    """(A refusal of a kind that has no text to tell, the table's ``refused`` being the
+    link's own to call: no hint goes out, the failure is a failed send with its reason in
+    the warning, and the heartbeat to the peers was sent.)"""
+    link = signed_udpin()
+    try:
+        link.refused_senders.refused(("127.0.0.1", 9), Check.ACCEPTED, link.clock())
+        with caplog.at_level(logging.WARNING, logger="mecanum_mav.io.links"):
+            assert link.send(rover_heartbeat())
+        assert (link.hints_sent, link.send_errors) == (0, 1)
+        assert len(caplog.messages) == 1
+        assert caplog.messages[0].startswith("gcs: send failed (1 so far): ")
+        assert "accepted" in caplog.messages[0]  # the kind it found no text for
+    finally:
+        link.close()
+
+
+def test_a_heartbeat_the_signed_link_could_not_send_is_reported_failed_and_tells_no_one(
+        caplog: pytest.LogCaptureFixture):
+    """``Link.send`` returns False on a failure (counted, warned about under the link's
+    name): here the one peer, signing, is at an address the kernel refuses (EACCES). A
+    refused sender waiting is not told with a heartbeat that went nowhere."""
+    url = "udpin:127.0.0.1:0"
+    link = open_link(url, source_system=1, source_component=191, name="gcs",
+                     signing_key=KEY, tell_refused=True)
+    try:
+        assert (link.url, link.name) == (url, "gcs")
+        assert link.parse_datagram(gcs_heartbeat(sender(KEY)), ("255.255.255.255", 9))
+        link.refused_senders.refused(("127.0.0.1", 9), Check.UNSIGNED, link.clock())
+        with caplog.at_level(logging.WARNING, logger="mecanum_mav.io.links"):
+            assert link.send(rover_heartbeat()) is False
+        assert (link.send_errors, link.hints_sent) == (1, 0)
+        assert caplog.messages == [f"gcs: send failed (1 so far): {EACCES}"]
     finally:
         link.close()

@@ -107,6 +107,29 @@ def test_a_tcp_link_takes_the_lanes_packet_at_once():
         assert board.recv(4096) == packet
 
 
+def test_after_the_lanes_writes_a_serial_link_asks_the_kernel_once_every_kernel_look_s(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch):
+    """KERNEL_LOOK_S: after the lane's write the link asks what the kernel holds at most
+    that often (the system call costs about what the write does), and asks again as soon as
+    that long has passed (a slow device runs ahead by at most that much)."""
+    asked: list[float] = []
+    clock = FakeClock()
+
+    def queued_bytes(fd: int, request: int) -> int:
+        asked.append(clock.now)
+        return 0
+
+    monkeypatch.setattr(serialport, "queued_bytes", queued_bytes)
+    with serial(tmp_path, 230400, clock) as (link, pty):  # (an override: 2.3 ms of wire)
+        half = serialport.KERNEL_LOOK_S / 2
+        for k in range(4):  # a lane's packet every half KERNEL_LOOK_S
+            clock.now = START_S + k * half
+            assert link.takes_packet()
+            link.send_packet(lane_packet(link, 1100 + k))
+        assert [m.chan1_raw for m in pty.messages()] == [1100, 1101, 1102, 1103]
+        assert asked == [START_S, START_S + serialport.KERNEL_LOOK_S]
+
+
 # --------------------------------------------------------------------------- the companion
 
 

@@ -1,8 +1,10 @@
 """TCP links at their edges (mecanum_mav/io/links/tcp.py): the kernel's unsent bytes pace what
-is handed over, a connect that hangs is abandoned after TCP_CONNECT_TIMEOUT_S and started
-anew, closing never waits on a connection that has nothing left to say, and a ``tcpin:`` link
-with no client reads nothing and waits on its listening socket. Real sockets on 127.0.0.1,
-times on a fake clock the test moves."""
+is handed over (at most TCP_UNSENT_LIMIT unsent: at the limit more goes), a connect that hangs
+is abandoned after TCP_CONNECT_TIMEOUT_S and started anew, closing never waits on a connection
+that has nothing left to say and holds a silent one open for the linger (none by default), and
+a ``tcpin:`` link with no client reads nothing, waits on its listening socket, says "no client
+connected" to a send, and reads a client's first packet in the read that takes it. Real
+sockets on 127.0.0.1, times on a fake clock the test moves."""
 
 from __future__ import annotations
 
@@ -11,15 +13,17 @@ import contextlib
 import fcntl
 import select
 import socket
+import termios
 import time
 from collections.abc import Iterator
 from pathlib import Path
 
+import pytest
 from support import wait_until
 from test_links import FakeClock
 
 from mecanum_mav.io import links
-from mecanum_mav.io.links import Link, mavlink, open_link
+from mecanum_mav.io.links import Link, LinkDownError, mavlink, open_link, tcp
 
 SIOCOUTQNSD = 0x894B
 """Linux: the bytes of a TCP socket's queue not yet sent (what the link's pacing reads)."""
@@ -94,6 +98,32 @@ def test_a_tcp_link_hands_over_more_only_while_the_kernel_holds_at_most_its_unse
             link.flush()
             assert unsent(link.fileno()) <= links.TCP_UNSENT_LIMIT + LARGEST_TEXT
         assert [m.text for m in parsed] == texts  # none lost, in order
+    finally:
+        link.close()
+        peer.close()
+        server.close()
+
+
+def test_a_tcp_link_hands_over_more_while_the_kernel_holds_exactly_its_unsent_limit(
+        monkeypatch: pytest.MonkeyPatch):
+    """"At most TCP_UNSENT_LIMIT" (module description): at the limit itself the next packet
+    goes; one byte more and it waits TCP_POLL_S. (The kernel's count is set here: a real
+    socket's unsent bytes cannot be stopped at an exact count.)"""
+    held = [links.TCP_UNSENT_LIMIT]
+    monkeypatch.setattr(tcp, "queued_bytes", lambda fd, request: held[0])
+    clock = FakeClock()
+    server = socket.create_server(("127.0.0.1", 0))
+    link = tcp_link(server, clock)
+    peer, _ = server.accept()
+    try:
+        link.mav.statustext_send(6, b"at the limit")
+        assert not link.pending and link.next_send_s == float("inf")  # handed over
+        held[0] = links.TCP_UNSENT_LIMIT + 1
+        link.mav.statustext_send(6, b"over it")
+        assert link.pending and link.next_send_s == clock.now + links.TCP_POLL_S
+        peer.settimeout(2.0)
+        parsed = mavlink.MAVLink(None).parse_buffer(peer.recv(4096)) or []
+        assert [m.text for m in parsed] == ["at the limit"]
     finally:
         link.close()
         peer.close()
@@ -184,6 +214,44 @@ def test_closing_a_tcp_link_with_a_linger_ends_as_soon_as_the_peer_has_closed():
         server.close()
 
 
+@contextlib.contextmanager
+def silent_peer() -> Iterator[tuple[Link, socket.socket]]:
+    """A ``tcp:`` link and its peer, which sends nothing and keeps the connection open."""
+    server = socket.create_server(("127.0.0.1", 0))
+    link = tcp_link(server, FakeClock())
+    peer, _ = server.accept()
+    try:
+        yield link, peer
+    finally:
+        link.close()
+        peer.close()
+        server.close()
+
+
+def test_closing_a_tcp_link_without_a_linger_ends_the_connection_at_once():
+    """No linger is the default (``close()``: immediate; the companion asks for one)."""
+    with silent_peer() as (link, peer):
+        start = time.monotonic()
+        link.close()
+        assert time.monotonic() - start < 0.5
+        peer.settimeout(2.0)
+        assert peer.recv(4096) == b""  # the end of the stream is there already
+
+
+def test_closing_a_tcp_link_with_a_linger_holds_a_silent_peers_connection_for_the_linger():
+    """Module description: the connection stays open for the linger (the peer may still
+    be reading the last packets), then ends; a peer that says nothing neither cuts it short
+    nor holds it longer."""
+    linger_s = 0.2
+    with silent_peer() as (link, peer):
+        start = time.monotonic()
+        link.close(linger_s=linger_s)
+        took = time.monotonic() - start
+        assert linger_s <= took < linger_s + 0.5
+        peer.settimeout(2.0)
+        assert peer.recv(4096) == b""
+
+
 def tcpin_port() -> int:
     probe = socket.socket()
     probe.bind(("127.0.0.1", 0))
@@ -198,6 +266,7 @@ def test_a_tcpin_link_with_no_client_reads_nothing_and_waits_on_its_listening_so
                      name="fc", clock=FakeClock())
     try:
         assert link.read() == []  # nobody connected: nothing, and no error
+        assert link.bad == 0 and link.received == 0  # (and nothing bad was read)
         listening = link.wait_fd()
         assert listening is not None
         with socket.create_connection(("127.0.0.1", port), timeout=5.0) as client:
@@ -218,3 +287,59 @@ def test_closing_a_tcpin_link_that_has_no_client_with_a_linger_returns_at_once()
     start = time.monotonic()
     link.close(linger_s=3.0)  # no one to linger for
     assert time.monotonic() - start < 1.5
+
+
+def test_a_tcpin_link_with_no_client_refuses_a_send_saying_no_client_connected():
+    """A send there raises LinkDownError with the reason (``Link.write``): the caller, and
+    a log that prints it, sees why nothing went out; ``send`` counts it unsent."""
+    link = open_link(f"tcpin:127.0.0.1:{tcpin_port()}", source_system=255,
+                     source_component=190, name="fc", clock=FakeClock())
+    try:
+        with pytest.raises(LinkDownError) as raised:
+            link.mav.heartbeat_send(6, 8, 0, 0, 4)
+        assert str(raised.value) == "no client connected"
+        assert link.send(link.mav.heartbeat_encode(6, 8, 0, 0, 4)) is False
+        assert link.unsent == 1
+    finally:
+        link.close()
+
+
+def unacknowledged(sock: socket.socket) -> int:
+    """Bytes ``sock`` sent that its peer's kernel has not acknowledged yet (TIOCOUTQ)."""
+    count = array.array("i", [0])
+    fcntl.ioctl(sock.fileno(), termios.TIOCOUTQ, count, True)
+    return count[0]
+
+
+def test_a_tcpin_link_reads_a_new_clients_first_message_in_the_read_that_takes_it():
+    """A client is taken when it connects (TcpServerLink): the read that finds it waiting
+    reads what it sent too, not one read later."""
+    port = tcpin_port()
+    link = open_link(f"tcpin:127.0.0.1:{port}", source_system=255, source_component=190,
+                     name="fc", clock=FakeClock())
+    try:
+        with socket.create_connection(("127.0.0.1", port), timeout=5.0) as client:
+            sender = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
+            client.sendall(sender.heartbeat_encode(10, 3, 0, 0, 3).pack(sender))
+            # the connection waits to be taken and its heartbeat is in our kernel
+            assert wait_until(lambda: unacknowledged(client) == 0, 5.0)
+            assert select.select([link.wait_fd()], [], [], 5.0)[0]
+            assert [m.get_type() for m in link.read()] == ["HEARTBEAT"]
+            assert link.up
+    finally:
+        link.close()
+
+
+@pytest.mark.parametrize("url", ["tcp:127.0.0.1:{port}", "tcpin:127.0.0.1:{port}"])
+def test_a_tcp_link_keeps_the_url_it_was_opened_with(url: str):
+    """``Link.url``: the connection string, as given (what status and logs name)."""
+    server = socket.create_server(("127.0.0.1", 0))
+    port = server.getsockname()[1] if url.startswith("tcp:") else tcpin_port()
+    given = url.format(port=port)
+    link = open_link(given, source_system=255, source_component=190, name="fc",
+                     clock=FakeClock())
+    try:
+        assert (link.url, link.name) == (given, "fc")
+    finally:
+        link.close()
+        server.close()
