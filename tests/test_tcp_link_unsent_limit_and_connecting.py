@@ -233,7 +233,7 @@ def test_closing_a_tcp_link_without_a_linger_ends_the_connection_at_once():
     with silent_peer() as (link, peer):
         start = time.monotonic()
         link.close()
-        assert time.monotonic() - start < 0.5
+        assert time.monotonic() - start < 0.9  # (a default linger of 1 s would show)
         peer.settimeout(2.0)
         assert peer.recv(4096) == b""  # the end of the stream is there already
 
@@ -247,7 +247,7 @@ def test_closing_a_tcp_link_with_a_linger_holds_a_silent_peers_connection_for_th
         start = time.monotonic()
         link.close(linger_s=linger_s)
         took = time.monotonic() - start
-        assert linger_s <= took < linger_s + 0.5
+        assert linger_s <= took < linger_s + 0.7  # (polls of 1 s would show)
         peer.settimeout(2.0)
         assert peer.recv(4096) == b""
 
