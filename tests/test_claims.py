@@ -8,6 +8,7 @@ from __future__ import annotations
 import os
 import signal
 import socket
+import stat
 from pathlib import Path
 
 import pytest
@@ -90,6 +91,32 @@ def test_a_claims_folder_that_is_a_link_or_a_file_is_refused_not_followed(tmp_pa
         runtime_dir()
 
 
+def test_without_xdg_runtime_dir_the_claims_are_in_this_users_folder_in_tmp(
+        monkeypatch: pytest.MonkeyPatch):
+    for unset in (None, ""):  # (an empty XDG_RUNTIME_DIR is no folder: the XDG spec's "unset")
+        if unset is None:
+            monkeypatch.delenv("XDG_RUNTIME_DIR")
+        else:
+            monkeypatch.setenv("XDG_RUNTIME_DIR", unset)
+        assert runtime_dir() == Path(f"/tmp/mecanum-mav-{os.getuid()}")
+
+
+def test_the_claims_folder_is_made_private_to_its_user():
+    assert stat.S_IMODE(runtime_dir().stat().st_mode) == 0o700
+
+
+def test_a_claims_folder_in_tmp_that_cannot_be_made_is_refused_without_naming_xdg(
+        monkeypatch: pytest.MonkeyPatch):
+    """The refusal names XDG_RUNTIME_DIR only where that variable chose the folder (a name
+    too long for the file system stands for any reason /tmp refuses it)."""
+    monkeypatch.delenv("XDG_RUNTIME_DIR")
+    monkeypatch.setattr(os, "getuid", lambda: int("9" * 300))
+    with pytest.raises(OSError) as refused:
+        runtime_dir()
+    assert str(refused.value) == (f"cannot keep the rover claims in /tmp/mecanum-mav-{'9' * 300}:"
+                                  " File name too long")
+
+
 def lock_name(url: str) -> str:
     claim = ground_station_claim(1, url)
     assert claim is not None
@@ -113,6 +140,27 @@ def test_two_destinations_are_two_claims_named_by_their_addresses():
     names its own destination's address."""
     assert lock_name("udpout:127.0.0.1:14550") == "system1-udpout-127.0.0.1-14550.lock"
     assert lock_name("udpout:127.0.0.2:14550") == "system1-udpout-127.0.0.2-14550.lock"
+
+
+@pytest.mark.parametrize("url", ["udpout:../../elsewhere:14550", "udpout:127.0.0.1:../x",
+                                 "tcpin:0.0.0.0:../../x"])
+def test_no_url_names_a_claim_outside_the_claims_folder(url: str):
+    """Whatever the --gcs text holds, its claim is one file in the claims folder: a slash in
+    it is quoted, not a way into another folder."""
+    assert "/" not in lock_name(url)
+    with claim_ground_station(1, url):
+        assert [p.name for p in runtime_dir().iterdir()] == [lock_name(url)]
+
+
+def test_a_serial_device_named_by_a_path_with_colons_is_the_device_it_links_to(tmp_path: Path):
+    """/dev/serial/by-path names hold colons (``pci-0000:00:14.0-usb-0:2:1.0-port0``): such
+    a name is still a serial device, one claim with the device it links to, not a network
+    destination."""
+    device = tmp_path / "ttyUSB0"
+    device.touch()
+    by_path = tmp_path / "pci-0000:00:14.0-usb-0:2:1.0-port0"
+    by_path.symlink_to(device)
+    assert lock_name(f"{by_path},57600") == lock_name(str(device))
 
 
 def _dual_stack_resolver(host: str, port: object, family: int = 0, *_: object,
