@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import logging
+import select
 import socket
 
 import pytest
@@ -67,6 +68,35 @@ def test_a_udpbcast_link_sends_to_the_address_that_answered_it():
                          ("127.0.0.1", link.local_port))
         assert wait_until(link.read, 5.0)
         assert link.send(beat)
+        data, _ = answering.recvfrom(1024)
+        assert mavlink.MAVLink(None).parse_buffer(data)[0].get_type() == "HEARTBEAT"
+    finally:
+        link.close()
+        first.close()
+        answering.close()
+
+
+def test_a_udpbcast_link_whose_answerers_datagram_the_stick_lane_answered_sends_there():
+    """A datagram the stick lane answers unparsed is taken as if read
+    (``DatagramLink.answered``): on a broadcast link its sender is the address that answered,
+    sent to from then on, as after :meth:`read`."""
+    first, answering = (socket.socket(socket.AF_INET, socket.SOCK_DGRAM) for _ in range(2))
+    for sock in (first, answering):
+        sock.bind(("127.0.0.1", 0))
+        sock.settimeout(5.0)
+    link = opened(f"udpbcast:127.0.0.1:{first.getsockname()[1]}")
+    try:
+        beat = link.mav.heartbeat_encode(10, 8, 0, 0, 4)
+        assert link.send(beat)
+        first.recvfrom(1024)
+        station = mavlink.MAVLink(None, srcSystem=255, srcComponent=190)
+        stick = bytes(station.manual_control_encode(1, 250, 0, 500, 0, 0).pack(station))
+        answering.sendto(stick, ("127.0.0.1", link.local_port))
+        got = wait_until(link.receive_datagram, 5.0)
+        assert got is not None and got[0] == stick
+        link.answered(*got)  # (as the companion's loop does after the lane's send)
+        assert link.send(beat)
+        assert select.select([first, answering], [], [], 5.0)[0] == [answering]
         data, _ = answering.recvfrom(1024)
         assert mavlink.MAVLink(None).parse_buffer(data)[0].get_type() == "HEARTBEAT"
     finally:
@@ -180,5 +210,19 @@ def test_a_serial_link_is_paced_to_the_urls_baud_rate_and_refused_without_one():
         with pytest.raises(ValueError, match=f"cannot open fc link '{port.path},0': baud rate "
                                              "0: a serial link needs a positive one"):
             open_link(f"{port.path},0", source_system=255, source_component=190, name="fc")
+    finally:
+        port.close()
+
+
+def test_a_serial_link_at_1_baud_is_accepted_every_positive_rate_is():
+    """The refusal's own words: "a serial link needs a positive one"; 1 is positive (one
+    byte every 10 s on the wire, 8N1)."""
+    port = RawPty()
+    try:
+        link = open_link(f"{port.path},1", source_system=255, source_component=190, name="fc")
+        try:
+            assert link.bytes_per_s == 0.1
+        finally:
+            link.close()
     finally:
         port.close()

@@ -153,6 +153,28 @@ def test_a_serial_device_that_cannot_be_opened_yet_is_tried_again_and_says_why_i
         assert reopen_until_up(link, clock)
 
 
+def test_after_an_unplug_the_first_packet_to_the_replugged_device_goes_at_once(
+        tmp_path: Path) -> None:
+    """What was handed to the unplugged device went with it: the replugged one's wire is
+    free, so the first packet after the reopen goes to the kernel at once, whatever the
+    link's clock reads; here virtual time from 0, as the lockstep harness keeps it."""
+    device = tmp_path / "ttyFC"
+    clock = FakeClock()
+    clock.now = 0.0
+    with serial_fc(device, 57600, clock) as (link, ptys):
+        unplug(link, ptys[0])
+        back = RawPty(device)
+        ptys.append(back)
+        assert reopen_until_up(link, clock)
+        assert clock.now < 1.0  # (REOPEN_PERIOD_S after the unplug)
+        assert link.takes_packet()  # the stick lane may send now
+        link.send_rc_override(1, 1, [1500] * 4 + [65535] * 14)
+        assert not link.pending  # handed over, the clock unmoved
+        board = mavlink.MAVLink(None)
+        got = board.parse_buffer(os.read(back.master, 4096)) or []
+        assert [m.get_type() for m in got] == ["RC_CHANNELS_OVERRIDE"]
+
+
 # --------------------------------------------------------------------------- TCP
 
 

@@ -108,6 +108,22 @@ def test_sequence_numbers_go_up_by_one_per_packet_on_every_path_and_wrap_to_0(pt
     link.close()
 
 
+def test_send_all_on_a_stream_link_sends_each_message_in_order(pty):
+    """``Link.send_all``: each of the messages is sent, in order (a wake's telemetry)."""
+    clock = Clock()
+    link = serial_link(pty, clock)
+    mav = link.conn.mav
+    link.send_all([mav.heartbeat_encode(mavlink.MAV_TYPE_GROUND_ROVER, 0, 0, 0, 0),
+                   mav.system_time_encode(7, 8),
+                   mav.statustext_encode(6, b"third")])
+    drain(link, clock)
+    seen = board_reads(pty)
+    assert [m.get_type() for m in seen] == ["HEARTBEAT", "SYSTEM_TIME", "STATUSTEXT"]
+    assert (seen[1].time_unix_usec, seen[1].time_boot_ms, seen[2].text) == (7, 8, "third")
+    assert link.sent == 3 and link.send_errors == 0
+    link.close()
+
+
 def test_the_last_words_reach_the_board_in_sequence_what_they_passed_is_a_counted_gap(pty):
     clock = Clock()
     link = serial_link(pty, clock)

@@ -5,6 +5,8 @@ the companion's loop answers a pilot's stick datagram in the lane."""
 from __future__ import annotations
 
 import hashlib
+import io
+import select
 import selectors
 import socket
 import time
@@ -143,6 +145,29 @@ def test_a_ground_station_whose_stick_the_lane_answered_is_a_peer_and_counted():
         assert link.received == received + 1
         assert sock.getsockname() in link.conn.clients
         assert link.receive_datagram() is None  # nothing else waits
+
+
+def test_a_stick_the_lane_answered_is_recorded_in_the_tlog_as_a_read_one_is():
+    """``DatagramLink.answered``: "counted, recorded, as if read": the tlog (8-byte stamp,
+    raw packet: ``tlog.tlog_record``) gets the answered datagram's bytes, as it gets those
+    of a stick read the long way."""
+    sender = mavlink.MAVLink(None, srcSystem=255, srcComponent=190)
+    sticks = [bytes(mavlink.MAVLink_manual_control_message(1, x, 0, 500, 0, 0).pack(sender))
+              for x in (250, -250)]
+    tlog = io.BytesIO()
+    with rover_link() as link, senders(1) as (sock,):
+        deliver(link, sock, heartbeat())  # (the first datagram settles the MAVLink version)
+        link.record_to(tlog)
+        sock.sendto(sticks[0], ("127.0.0.1", link.local_port))
+        assert select.select([link.fileno()], [], [], 2.0)[0]
+        got = link.receive_datagram()
+        assert got is not None
+        link.answered(*got)
+        assert [m.x for m in deliver(link, sock, sticks[1])] == [-250]
+    records = tlog.getvalue()
+    first = records[8:8 + len(sticks[0])]
+    assert first == sticks[0]  # the lane's, exactly its bytes
+    assert records[8 + len(first) + 8:] == sticks[1]  # the one read: the same form
 
 
 def test_the_companions_loop_answers_a_pilots_sticks_in_the_lane_on_real_sockets():
