@@ -68,7 +68,9 @@ class SerialLink(StreamLink):
     def _current_port_fd(self) -> int:
         fd = super()._current_port_fd()
         if fd >= 0:
-            os.set_blocking(fd, False)  # pyserial opens it so; its writes wait, ours do not
+            # pyserial (3.5) opens it non-blocking already and its write() waits in select;
+            # ours must never wait, whatever opened the port
+            os.set_blocking(fd, False)
         return fd
 
     def _read_port(self) -> bytes:
