@@ -395,6 +395,20 @@ def test_a_file_applies_on_top_of_a_base_without_changing_it():
     assert parse_text("") == Params()
 
 
+def test_a_file_loaded_on_top_of_a_base_keeps_what_it_does_not_set(tmp_path):
+    """(``mecanum-mav params --params FILE``: the file on top of the rover's parameters.)"""
+    path = tmp_path / "more.parm"
+    path.write_text("MIX_ALGO 1\n", encoding="utf-8")
+    params = load(path, base=Params({"INP_EXPO": 0.25, "MIX_ALGO": 2}))
+    assert (params["INP_EXPO"], params["MIX_ALGO"]) == (0.25, 1)
+
+
+def test_text_given_without_a_source_names_its_lines_as_string():
+    with pytest.raises(ParamFileError) as caught:
+        parse_text("MIX_ALGO 1\nNO_SUCH_PARAM 1\n")
+    assert caught.value.errors[0].startswith("<string>:2: ")
+
+
 def test_commas_whitespace_trailing_comments_and_number_styles_are_accepted():
     text = (
         "\ufeff# Mission Planner style\r\n"
@@ -621,7 +635,8 @@ def test_a_retired_parameter_in_a_file_is_ignored_with_a_warning_naming_its_line
     with caplog.at_level("WARNING"):
         params = parse_text("GEO_HALF_LEN 0.2\nGEO_WHEEL_RAD 0.0485\n", source="old.parm")
     assert params["GEO_HALF_LEN"] == 0.2 and "GEO_WHEEL_RAD" not in params
-    assert "old.parm:2: GEO_WHEEL_RAD is no longer a parameter" in caplog.text
+    assert "old.parm:2: GEO_WHEEL_RAD is no longer a parameter (wheel speeds are WHL_MAX_SPD" in (
+        caplog.text)  # and why
 
 
 def test_wheel_channels_17_and_18_which_ardupilot_never_reads_are_refused():
