@@ -62,6 +62,14 @@ def test_two_neutrals_then_the_release_the_release_a_neutral_hold_after_the_firs
     assert t1 - t0 == pytest.approx(NEUTRAL_HOLD_S / 2, abs=1e-9)  # spread over the hold
 
 
+def test_each_of_the_last_words_the_release_included_is_sent_as_a_last_word(shutdown_seen):
+    """``replace=False``: the link queues it behind the words before it, no later override
+    replaces it, and closing waits for the wire to carry it (StreamLink.send_rc_override). A
+    release sent as a newest-wins override could overtake the neutrals still on a slow wire."""
+    sent, _ = shutdown_seen
+    assert [replace for _, _, replace in sent] == [False, False, False]
+
+
 def test_while_the_neutrals_stand_a_slow_link_hands_over_what_waits_every_few_milliseconds(
         shutdown_seen):
     """At 2400 baud an override is 0.2 s on the wire: a link handed its turn only when the

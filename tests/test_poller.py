@@ -14,6 +14,8 @@ import threading
 import time
 import weakref
 
+import pytest
+
 from mecanum_mav.io.poller import READABLE, Poller
 
 
@@ -66,6 +68,29 @@ def test_an_idle_wait_lasts_at_least_the_time_asked():
             started = time.monotonic()
             assert poller.wait(timeout_s) == []
             assert time.monotonic() - started >= timeout_s
+
+
+class _RecordingEpoll:
+    """An epoll that is never ready and notes the timeout of each poll (seconds)."""
+
+    def __init__(self) -> None:
+        self.timeouts: list[float] = []
+
+    def poll(self, timeout: float, maxevents: int = -1) -> list[tuple[int, int]]:
+        self.timeouts.append(timeout)
+        return []
+
+
+def test_a_wait_is_rounded_up_to_the_next_millisecond_and_no_further():
+    """epoll counts in milliseconds: the time asked is rounded up to a whole one (a timer's
+    wake never comes early), never by more (nor late: each ms late is a stick's latency)."""
+    with Poller() as poller:
+        epoll = _RecordingEpoll()
+        poller._epoll = epoll
+        for timeout_s in (0.0004, 0.02, 0.0201, 0.25, 0.0, -1.0):
+            poller.wait(timeout_s)
+        assert epoll.timeouts == pytest.approx([0.001, 0.02, 0.021, 0.25, 0.0, 0.0],
+                                               abs=1e-12)
 
 
 def test_a_signal_during_a_wait_does_not_cut_it_short():
