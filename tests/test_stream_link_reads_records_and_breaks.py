@@ -1,8 +1,9 @@
 """Stream links (mecanum_mav/io/links/stream.py) at their edges, on real TCP sockets and a
-pty: a read takes at most ``max_reads`` chunks, a tlog records what is read and what the stick
-lane sends, a signing link signs from the newest verified timestamp it read, a lane packet
-whose write finds the link broken is lost and counted, and the last words at close wait for
-a board whose buffer is full until it reads again."""
+pty: a read takes at most ``max_reads`` chunks, a packet split across reads is completed, a
+tlog records what is read and what the stick lane sends, a signing link signs from the newest
+verified timestamp it read, a lane packet whose write finds the link broken is lost and
+counted, and the last words at close wait for a board whose buffer is full until it reads
+again."""
 
 from __future__ import annotations
 
@@ -189,3 +190,20 @@ def test_the_last_words_reach_a_serial_board_whose_buffer_was_full_once_it_reads
     finally:
         link.close()
         pty.close()
+
+
+def test_a_packet_split_across_reads_is_completed_by_the_next_read():
+    """TCP delivers a byte stream: a packet may come in two pieces, with nothing waiting in
+    between; the first read leaves its start waiting, the next completes it."""
+    with tcp_pair() as (link, peer):
+        packet = heartbeat(board_sender(), custom_mode=5)
+        peer.sendall(packet[:7])
+        assert wait_until(lambda: waiting_bytes(link.fileno()) == 7, 5.0,
+                          pump=lambda s: select.select([link.fileno()], [], [], s))
+        assert link.read() == []  # (read the start, then found nothing more)
+        peer.sendall(packet[7:])
+        got: list[Any] = []
+        assert wait_until(lambda: got.extend(link.read()) or got, 5.0,
+                          pump=lambda s: select.select([link.fileno()], [], [], s))
+        assert [(m.get_type(), m.custom_mode) for m in got] == [("HEARTBEAT", 5)]
+        assert link.received == 1
