@@ -76,6 +76,16 @@ def test_closing_a_link_whose_device_is_gone_does_not_raise(pty):
     link.close(linger_s=0.3)  # (the writes fail: down; nothing raised)
 
 
+def test_closing_with_a_linger_a_link_whose_device_went_unnoticed_closes_it_without_raising(
+        pty):
+    """Nothing waited, so no write found the device gone: the wait for the output to drain
+    (``tcdrain``) fails instead, with an error that is no ``OSError``."""
+    link = slow_link(pty)
+    pty.close()
+    link.close(linger_s=0.3)
+    assert not link.conn.port.is_open
+
+
 def test_a_read_that_fails_puts_the_link_down_and_says_so_once_at_info(
         pty, caplog: pytest.LogCaptureFixture):
     link = serial_link(pty, Clock())
