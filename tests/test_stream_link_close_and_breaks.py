@@ -15,6 +15,8 @@ from __future__ import annotations
 
 import logging
 import math
+import signal
+import threading
 import time
 from collections.abc import Iterator
 
@@ -74,6 +76,26 @@ def test_closing_a_link_whose_device_is_gone_does_not_raise(pty):
     link.conn.mav.statustext_send(6, b"waiting too")
     pty.close()
     link.close(linger_s=0.3)  # (the writes fail: down; nothing raised)
+
+
+def test_a_ctrl_c_during_the_linger_comes_out_of_close_as_it_is(pty):
+    """``mecanum-mav`` ends a Ctrl-C anywhere with one line and status 130, never a traceback
+    (app/cli.py ``main``), ``setup-fc`` closing its link with a linger included: what close
+    does not handle itself (a failed write, a device gone) passes through unchanged."""
+    link = slow_link(pty)
+    for _ in range(3):
+        link.send_rc_override(1, 1, NEUTRAL, replace=False)  # 0.6 s of the wire
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)  # Python's Ctrl-C
+    ctrl_c = threading.Timer(0.1, signal.pthread_kill, (threading.get_ident(), signal.SIGINT))
+    try:
+        ctrl_c.start()
+        with pytest.raises(KeyboardInterrupt):
+            link.close(linger_s=0.05)
+    finally:
+        ctrl_c.cancel()
+        ctrl_c.join()
+        signal.signal(signal.SIGINT, previous)
+        link.close()
 
 
 def test_closing_with_a_linger_a_link_whose_device_went_unnoticed_closes_it_without_raising(
