@@ -5,7 +5,8 @@
   raises, even on a device that is gone;
 - a read that fails puts the link down and says so once at INFO: ``NAME: REASON: read: ...``;
 - what a break drops adds to ``unsent`` (it is never reset), and after the link is back its
-  queue holds exactly ``queue_limit`` bytes again;
+  queue holds exactly ``queue_limit`` bytes again, and its new descriptor is watched for
+  writing only once the kernel refuses more;
 - a send the full queue cannot take is counted in ``send_errors`` and logged at WARNING with
   the reason.
 """
@@ -14,15 +15,17 @@ from __future__ import annotations
 
 import logging
 import math
+import signal
+import threading
 import time
 from collections.abc import Iterator
 
 import pytest
 from support import RawPty
-from test_stream_link_counts_and_sequence import NEUTRAL, Clock, board_reads, serial_link
+from test_stream_link_counts_and_sequence import BAUD, NEUTRAL, Clock, board_reads, serial_link
 from test_stream_link_queue_reads_and_signing import busy
 
-from mecanum_mav.io.links import open_link
+from mecanum_mav.io.links import open_link, serialport
 from mecanum_mav.io.links.serialport import SerialLink
 from mecanum_mav.io.links.stream import LAST_WORDS_MAX_S
 from mecanum_mav.protocol.dialect import mavlink
@@ -73,6 +76,36 @@ def test_closing_a_link_whose_device_is_gone_does_not_raise(pty):
     link.conn.mav.statustext_send(6, b"waiting too")
     pty.close()
     link.close(linger_s=0.3)  # (the writes fail: down; nothing raised)
+
+
+def test_a_ctrl_c_during_the_linger_comes_out_of_close_as_it_is(pty):
+    """``mecanum-mav`` ends a Ctrl-C anywhere with one line and status 130, never a traceback
+    (app/cli.py ``main``), ``setup-fc`` closing its link with a linger included: what close
+    does not handle itself (a failed write, a device gone) passes through unchanged."""
+    link = slow_link(pty)
+    for _ in range(3):
+        link.send_rc_override(1, 1, NEUTRAL, replace=False)  # 0.6 s of the wire
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)  # Python's Ctrl-C
+    ctrl_c = threading.Timer(0.1, signal.pthread_kill, (threading.get_ident(), signal.SIGINT))
+    try:
+        ctrl_c.start()
+        with pytest.raises(KeyboardInterrupt):
+            link.close(linger_s=0.05)
+    finally:
+        ctrl_c.cancel()
+        ctrl_c.join()
+        signal.signal(signal.SIGINT, previous)
+        link.close()
+
+
+def test_closing_with_a_linger_a_link_whose_device_went_unnoticed_closes_it_without_raising(
+        pty):
+    """Nothing waited, so no write found the device gone: the wait for the output to drain
+    (``tcdrain``) fails instead, with an error that is no ``OSError``."""
+    link = slow_link(pty)
+    pty.close()
+    link.close(linger_s=0.3)
+    assert not link.conn.port.is_open
 
 
 def test_a_read_that_fails_puts_the_link_down_and_says_so_once_at_info(
@@ -176,3 +209,34 @@ def test_a_break_found_by_a_read_leaves_nothing_due_for_the_loop_to_wait_on(pty)
     assert link.down_reason is not None and link.unsent == 1
     assert not link.pending and link.next_send_s == math.inf
     link.close()
+
+
+def test_a_link_back_up_watches_its_new_descriptor_for_writing_only_once_the_kernel_refuses(
+        tmp_path, monkeypatch: pytest.MonkeyPatch):
+    """``wants_write``: the kernel refused more and something waits. The old descriptor was
+    full when the device went; after reopening, a packet that waits only for pacing (a UART
+    whose tty still holds a second of the wire, which a pty never reports) waits on the
+    pacing timer, not on a descriptor writable all along (the loop would wake at once, over
+    and over, until the timer is due)."""
+    device = RawPty(tmp_path / "ttyFC")
+    clock = Clock()
+    link = serial_link(device, clock)
+    for _ in range(10_000):  # the board reads nothing: its buffer fills
+        clock.now_s += 10.0
+        link.conn.mav.statustext_send(6, b"telemetry for a board that does not read")
+        if link.wants_write:
+            break
+    assert link.wants_write, "the pty never filled"
+    device.close()
+    assert link.read() == [] and link.down_reason is not None  # the read fails: down
+    replugged = RawPty(tmp_path / "ttyFC")
+    try:
+        clock.now_s = link.next_reopen_s
+        assert link.reopen(clock.now_s)
+        monkeypatch.setattr(serialport, "queued_bytes", lambda fd, request: BAUD // 10)
+        link.conn.mav.system_time_send(1, 0)
+        assert link.pending and link.next_send_s < math.inf  # paced: due in about a second
+        assert not link.wants_write
+    finally:
+        link.close()
+        replugged.close()

@@ -1,14 +1,16 @@
 """Stream links (mecanum_mav/io/links/stream.py) at their edges, on real TCP sockets and a
-pty: a read takes at most ``max_reads`` chunks, a tlog records what is read and what the stick
-lane sends, a signing link signs from the newest verified timestamp it read, a lane packet
-whose write finds the link broken is lost and counted, and the last words at close wait for
-a board whose buffer is full until it reads again."""
+pty: a read takes at most ``max_reads`` chunks, a packet split across reads is completed, a
+tlog records what is read and what the stick lane sends, a signing link signs from the newest
+verified timestamp it read, a lane packet whose write finds the link broken is lost and
+counted, and the last words at close wait for a board whose buffer is full until it reads
+again."""
 
 from __future__ import annotations
 
 import array
 import fcntl
 import os
+import resource
 import select
 import socket
 import termios
@@ -19,6 +21,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
+import pytest
 from support import RawPty, mavlink_sender, override_channels, wait_until
 from test_links import FakeClock
 
@@ -138,13 +141,42 @@ def test_reopening_a_stream_link_that_is_up_says_so_and_keeps_its_connection():
             "HEARTBEAT"]
 
 
-def test_the_last_words_reach_a_serial_board_whose_buffer_was_full_once_it_reads_again():
+@contextmanager
+def descriptors_taken_below(number: int) -> Iterator[None]:
+    """Every descriptor below ``number`` in use, as in a process with many files and sockets
+    open: what is opened meanwhile is numbered ``number`` or more (past ``select()``'s
+    FD_SETSIZE of 1024 for 1024; the loop waits with epoll, which has no such limit)."""
+    soft, hard = resource.getrlimit(resource.RLIMIT_NOFILE)
+    wanted = number + 256
+    if soft != resource.RLIM_INFINITY and soft < wanted:
+        if hard != resource.RLIM_INFINITY and hard < wanted:
+            pytest.skip(f"at most {hard} descriptors")
+        resource.setrlimit(resource.RLIMIT_NOFILE, (wanted, hard))
+    fillers: list[int] = []
+    try:
+        while (fd := os.open(os.devnull, os.O_RDONLY)) < number:
+            fillers.append(fd)
+        os.close(fd)
+        yield
+    finally:
+        for fd in fillers:
+            os.close(fd)
+        if soft != resource.RLIM_INFINITY and soft < wanted:
+            resource.setrlimit(resource.RLIMIT_NOFILE, (soft, hard))
+
+
+@pytest.mark.parametrize("first_fd", [0, 1024], ids=["any descriptor", "past select's 1024"])
+def test_the_last_words_reach_a_serial_board_whose_buffer_was_full_once_it_reads_again(
+        first_fd: int):
     """A board that stops reading for a moment (busy, its USB buffer full) fills the tty: the
     kernel takes nothing more. Closing then waits for the device to take the last words
-    (neutral, then the release), longer than the close's linger."""
+    (neutral, then the release), longer than the close's linger; whatever number the link's
+    descriptor has."""
     pty = RawPty()
-    link = open_link(f"{pty.path},921600", source_system=255, source_component=190,
-                     name="fc")
+    with descriptors_taken_below(first_fd):
+        link = open_link(f"{pty.path},921600", source_system=255, source_component=190,
+                         name="fc")
+    assert link.fileno() >= first_fd
     try:
         deadline = time.monotonic() + 10.0
         while not link.wants_write and time.monotonic() < deadline:  # the board reads nothing
@@ -189,3 +221,20 @@ def test_the_last_words_reach_a_serial_board_whose_buffer_was_full_once_it_reads
     finally:
         link.close()
         pty.close()
+
+
+def test_a_packet_split_across_reads_is_completed_by_the_next_read():
+    """TCP delivers a byte stream: a packet may come in two pieces, with nothing waiting in
+    between; the first read leaves its start waiting, the next completes it."""
+    with tcp_pair() as (link, peer):
+        packet = heartbeat(board_sender(), custom_mode=5)
+        peer.sendall(packet[:7])
+        assert wait_until(lambda: waiting_bytes(link.fileno()) == 7, 5.0,
+                          pump=lambda s: select.select([link.fileno()], [], [], s))
+        assert link.read() == []  # (read the start, then found nothing more)
+        peer.sendall(packet[7:])
+        got: list[Any] = []
+        assert wait_until(lambda: got.extend(link.read()) or got, 5.0,
+                          pump=lambda s: select.select([link.fileno()], [], [], s))
+        assert [(m.get_type(), m.custom_mode) for m in got] == [("HEARTBEAT", 5)]
+        assert link.received == 1

@@ -123,5 +123,10 @@ class SerialLink(StreamLink):
 
     def _flush_out(self, linger_s: float) -> None:
         """pyserial waits until what was handed over is sent (at most
-        :data:`~mecanum_mav.io.links.stream.PACING_LEAD_S` and a packet after the pacing)."""
-        self.conn.port.flush()
+        :data:`~mecanum_mav.io.links.stream.PACING_LEAD_S` and a packet after the pacing).
+        A device gone meanwhile raises ``OSError`` (its ``tcdrain`` raises ``termios.error``,
+        which is none)."""
+        try:
+            self.conn.port.flush()
+        except termios.error as exc:
+            raise OSError(*exc.args) from exc

@@ -440,8 +440,10 @@ class StreamLink(Link):
             deadline = start + limit
             if now >= deadline or time.monotonic() - real_start >= limit:
                 return
-            if self.wants_write:
-                select.select([], [self._port_fd], [], deadline - now)
+            if self.wants_write:  # (poll: select() refuses a descriptor past 1023)
+                writable = select.poll()
+                writable.register(self._port_fd, select.POLLOUT)
+                writable.poll(math.ceil((deadline - now) * 1000.0))
             else:
                 time.sleep(max(0.0, min(self.next_send_s, deadline) - now))
 
