@@ -165,6 +165,15 @@ def descriptors_taken_below(number: int) -> Iterator[None]:
             resource.setrlimit(resource.RLIMIT_NOFILE, (soft, hard))
 
 
+def serial_link_numbered_from(first_fd: int, pty: RawPty, baud: int) -> Any:
+    """The flight controller's serial link to ``pty``, its descriptor ``first_fd`` or more."""
+    with descriptors_taken_below(first_fd):
+        link = open_link(f"{pty.path},{baud}", source_system=255, source_component=190,
+                         name="fc")
+    assert link.fileno() >= first_fd
+    return link
+
+
 @pytest.mark.parametrize("first_fd", [0, 1024], ids=["any descriptor", "past select's 1024"])
 def test_the_last_words_reach_a_serial_board_whose_buffer_was_full_once_it_reads_again(
         first_fd: int):
@@ -173,10 +182,7 @@ def test_the_last_words_reach_a_serial_board_whose_buffer_was_full_once_it_reads
     (neutral, then the release), longer than the close's linger; whatever number the link's
     descriptor has."""
     pty = RawPty()
-    with descriptors_taken_below(first_fd):
-        link = open_link(f"{pty.path},921600", source_system=255, source_component=190,
-                         name="fc")
-    assert link.fileno() >= first_fd
+    link = serial_link_numbered_from(first_fd, pty, 921600)
     try:
         deadline = time.monotonic() + 10.0
         while not link.wants_write and time.monotonic() < deadline:  # the board reads nothing
@@ -221,6 +227,28 @@ def test_the_last_words_reach_a_serial_board_whose_buffer_was_full_once_it_reads
     finally:
         link.close()
         pty.close()
+
+
+@pytest.mark.parametrize("first_fd", [0, 1024], ids=["any descriptor", "past select's 1024"])
+def test_a_serial_link_reads_what_its_board_sends_and_goes_down_when_it_is_unplugged(
+        first_fd: int):
+    """``read()`` never raises, whatever number the link's descriptor has: a packet is read
+    once the board sent it, nothing while the board is silent, and an unplugged board puts
+    the link down (``device gone``)."""
+    pty = RawPty()
+    link = serial_link_numbered_from(first_fd, pty, 115200)
+    try:
+        assert link.read() == [] and link.down_reason is None  # silent: nothing, still up
+        os.write(pty.master, heartbeat(board_sender(), 7))
+        got: list[Any] = []
+        assert wait_until(lambda: got.extend(link.read()) or got, 5.0,
+                          pump=lambda s: select.select([pty.master], [], [], s))
+        assert [(m.get_type(), m.custom_mode) for m in got] == [("HEARTBEAT", 7)]
+        pty.close()
+        assert wait_until(lambda: link.read() == [] and link.down_reason is not None, 5.0)
+        assert link.down_reason == "device gone"
+    finally:
+        link.close()
 
 
 def test_a_packet_split_across_reads_is_completed_by_the_next_read():
