@@ -16,7 +16,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from mecanum_mav.config.params import MODE_NUMBERS, _index
+from mecanum_mav.config.params import MODE_NUMBERS, RETIRED, _index
 from mecanum_mav.io.paramfile import main as _main
 from mecanum_mav.io.paramfile import save_keeping_layout
 from mecanum_mav.io.storage import FileStorage
@@ -633,10 +633,12 @@ def test_ground_station_stick_channels_must_be_distinct_and_range_ordered():
 
 def test_a_retired_parameter_in_a_file_is_ignored_with_a_warning_naming_its_line(caplog):
     with caplog.at_level("WARNING"):
-        params = parse_text("GEO_HALF_LEN 0.2\nGEO_WHEEL_RAD 0.0485\n", source="old.parm")
+        params = parse_text("GEO_HALF_LEN 0.2\nGEO_WHEEL_RAD 0.0485\nINP_EXPO 0.3\n",
+                            source="old.parm")
     assert params["GEO_HALF_LEN"] == 0.2 and "GEO_WHEEL_RAD" not in params
-    assert "old.parm:2: GEO_WHEEL_RAD is no longer a parameter (wheel speeds are WHL_MAX_SPD" in (
-        caplog.text)  # and why
+    assert params["INP_EXPO"] == 0.3  # the lines after it still apply
+    assert caplog.messages == [f"old.parm:2: GEO_WHEEL_RAD is no longer a parameter "
+                               f"({RETIRED['GEO_WHEEL_RAD']}); line ignored"]
 
 
 def test_wheel_channels_17_and_18_which_ardupilot_never_reads_are_refused():
