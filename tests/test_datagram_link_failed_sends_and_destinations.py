@@ -6,6 +6,8 @@ destination."""
 
 from __future__ import annotations
 
+import errno
+import logging
 import os
 import select
 import socket
@@ -111,15 +113,20 @@ def test_only_a_udpout_connection_has_a_fixed_destination_its_host_resolved_once
 
 @pytest.mark.parametrize("url", ["udpin:127.0.0.1:0", "udpout:127.0.0.1:9"],
                          ids=["answering its peers", "connected to its destination"])
-def test_a_datagram_link_whose_socket_fails_every_read_reads_nothing_and_never_raises(url):
+def test_a_datagram_link_whose_socket_fails_every_read_reads_nothing_and_never_raises(
+        url: str, caplog: pytest.LogCaptureFixture) -> None:
     """(The socket's descriptor made a folder's: every read fails with ENOTSOCK, not a "none
-    waits" error.)"""
+    waits" error.) Each failure is logged at DEBUG with the system's reason."""
     link = open_link(url, source_system=255, source_component=190, name="gcs")
     folder = os.open("/", os.O_RDONLY)
     try:
         os.dup2(folder, link.fileno())
-        assert link.receive_datagram() is None
-        assert link.read() == []
+        with caplog.at_level(logging.DEBUG, logger="mecanum_mav.io.links"):
+            assert link.receive_datagram() is None
+            assert link.read() == []
+        reason = f"[Errno {errno.ENOTSOCK}] {os.strerror(errno.ENOTSOCK)}"
+        assert [r.getMessage() for r in caplog.records if r.name == "mecanum_mav.io.links"] == [
+            f"gcs: read failed: {reason}"] * 2
     finally:
         os.close(folder)
         link.close()

@@ -15,11 +15,14 @@ import socket
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
+from pathlib import Path
+from types import SimpleNamespace
 from typing import Any
 
+import pytest
 from support import mavlink_sender, override_channels, wait_until
 
-from mecanum_mav.io.links import mavlink, open_link
+from mecanum_mav.io.links import mavlink, open_link, parts
 from mecanum_mav.io.links.datagram import DatagramLink
 from mecanum_mav.protocol.signing import TICKS_PER_S, ticks_from_unix
 
@@ -98,3 +101,27 @@ def test_each_override_sent_is_the_one_given_signed_in_sequence_and_counted_once
         assert [(m.get_srcSystem(), m.get_srcComponent()) for m in got] == [(255, 190)] * 2
         assert got[1].get_seq() == (got[0].get_seq() + 1) & 0xFF
         assert all(m.get_signed() for m in got)
+
+
+def test_each_override_sent_is_recorded_in_the_tlog_as_it_went(tmp_path: Path) -> None:
+    """``Link.record_to``: every message sent is recorded (the tlog MAVProxy and Mission
+    Planner read: 8-byte stamp, the packet)."""
+    with udpout_to_board() as (link, board), (tmp_path / "fc.tlog").open("wb") as tlog:
+        link.record_to(tlog)
+        link.send_rc_override(1, 1, NEUTRAL)
+        packet = board.recv(300)
+        tlog.flush()
+        records = (tmp_path / "fc.tlog").read_bytes()
+        assert len(records) == 8 + len(packet) and records[8:] == packet
+
+
+def test_a_signing_link_signs_what_it_sends_from_the_wall_clock_as_it_moves_on(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """``Signing``: the signing timestamp starts at the wall clock and follows it: a message
+    sent two minutes after the link opened is signed two minutes later."""
+    with udpout_to_board(KEY) as (link, board):
+        later = time.time() + 120.0
+        monkeypatch.setattr(parts, "time", SimpleNamespace(time=lambda: later))
+        assert link.send(link.mav.heartbeat_encode(6, 8, 0, 0, 4))
+        stamp = int.from_bytes(board.recv(300)[-12:-6], "little")
+        assert ticks_from_unix(later) <= stamp < ticks_from_unix(later) + TICKS_PER_S

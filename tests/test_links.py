@@ -5,6 +5,7 @@ from __future__ import annotations
 import contextlib
 import errno
 import logging
+import os
 import select
 import socket
 import threading
@@ -47,7 +48,9 @@ def test_a_failing_send_is_counted_and_warned_about_once_a_second_per_link(caplo
                 clock.now += 0.05  # 20 Hz: one second of failures
             warnings = [r for r in caplog.records if "send failed" in r.getMessage()]
             assert link.send_errors == 20
-            assert len(warnings) == 1 and "fc: send failed" in warnings[0].getMessage()
+            assert [w.getMessage() for w in warnings] == [  # the kernel's reason, as it said
+                f"fc: send failed (1 so far): [Errno {errno.EACCES}] "
+                f"{os.strerror(errno.EACCES)}"]
             clock.now += 1.0
             link.send(link.mav.heartbeat_encode(6, 8, 0, 0, 4))
             warnings = [r for r in caplog.records if "send failed" in r.getMessage()]
@@ -202,6 +205,45 @@ def test_send_all_on_a_datagram_link_packs_whole_packets_into_few_datagrams():
         sink.close()
 
 
+def test_send_all_of_two_messages_puts_both_in_one_datagram():
+    sink = _peer_socket()
+    link = open_link(f"udpout:127.0.0.1:{sink.getsockname()[1]}", source_system=1,
+                     source_component=191, name="gcs")
+    try:
+        link.send_all([link.mav.heartbeat_encode(6, 8, 0, 0, 4),
+                       link.mav.statustext_encode(6, b"two in one")])
+        datagrams = _datagrams(sink)
+        assert len(datagrams) == 1
+        assert [m.get_type() for m in mavlink.MAVLink(None).parse_buffer(datagrams[0])] == [
+            "HEARTBEAT", "STATUSTEXT"]
+        assert link.sent == 2
+    finally:
+        link.close()
+        sink.close()
+
+
+def test_send_all_fills_every_datagram_up_to_datagram_bytes_exactly():
+    """DatagramLink.send_all: "in as few datagrams as hold them: whole packets of at most
+    DATAGRAM_BYTES together": packets that fill two datagrams to the byte go in two."""
+    sink = _peer_socket()
+    link = open_link(f"udpout:127.0.0.1:{sink.getsockname()[1]}", source_system=1,
+                     source_component=191, name="gcs")
+    try:
+        mav = mavlink.MAVLink(None)
+        text = b"x" * 43  # a 56-byte packet (MAVLink 2, the text's trailing zeros trimmed)
+        size = len(mav.statustext_encode(6, text).pack(mav))
+        assert links.DATAGRAM_BYTES % size == 0
+        count = 2 * links.DATAGRAM_BYTES // size
+        link.send_all([mav.statustext_encode(6, text) for _ in range(count)])
+        datagrams = _datagrams(sink)
+        assert [len(d) for d in datagrams] == [links.DATAGRAM_BYTES] * 2
+        parser = mavlink.MAVLink(None)
+        assert len([m for d in datagrams for m in parser.parse_buffer(d) or ()]) == count
+    finally:
+        link.close()
+        sink.close()
+
+
 def test_a_failing_send_to_one_udpin_peer_is_counted_and_the_others_still_get_it():
     link = open_link("udpin:127.0.0.1:0", source_system=1, source_component=1, name="gcs")
     peer = _peer_socket()
@@ -238,6 +280,44 @@ def test_a_udpout_link_reads_its_destination_and_never_a_strangers_datagram():
     finally:
         for sock in (peer, stranger):
             sock.close()
+        link.close()
+
+
+def test_a_udpout_link_keeps_the_url_it_was_opened_with():
+    """``Link.url``: the connection string, as given (what status and logs name)."""
+    url = "udpout:127.0.0.1:9"
+    link = open_link(url, source_system=1, source_component=1, name="gcs")
+    try:
+        assert (link.url, link.name) == (url, "gcs")
+    finally:
+        link.close()
+
+
+def test_a_udpout_link_whose_socket_cannot_be_connected_sends_by_sendto_and_says_why(
+        monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture) -> None:
+    """UdpoutLink._connect: if the kernel refuses to connect the socket, the link stays
+    unconnected and its sends go as they would have (``sendto`` to the destination); why is
+    logged at DEBUG."""
+    peer = _peer_socket()
+
+    def refuse(sock: socket.socket, address: object) -> None:
+        raise OSError(errno.ENETUNREACH, "Network is unreachable")
+
+    with monkeypatch.context() as patched, caplog.at_level(logging.DEBUG,
+                                                           logger="mecanum_mav.io.links"):
+        patched.setattr(socket.socket, "connect", refuse)
+        link = open_link(f"udpout:127.0.0.1:{peer.getsockname()[1]}", source_system=1,
+                         source_component=1, name="gcs")
+    try:
+        assert [r.getMessage() for r in caplog.records if r.name == "mecanum_mav.io.links"] == [
+            f"gcs: udpout socket left unconnected: [Errno {errno.ENETUNREACH}] "
+            "Network is unreachable"]
+        assert link.send(link.mav.heartbeat_encode(10, 8, 0, 0, 4))
+        got = mavlink.MAVLink(None).parse_buffer(peer.recv(1024))
+        assert [m.get_type() for m in got] == ["HEARTBEAT"]
+        assert (link.sent, link.send_errors) == (1, 0)
+    finally:
+        peer.close()
         link.close()
 
 

@@ -300,6 +300,8 @@ def test_a_tcpin_link_with_no_client_refuses_a_send_saying_no_client_connected()
         assert str(raised.value) == "no client connected"
         assert link.send(link.mav.heartbeat_encode(6, 8, 0, 0, 4)) is False
         assert link.unsent == 1
+        assert link.send(link.mav.heartbeat_encode(6, 8, 0, 0, 4)) is False
+        assert (link.unsent, link.send_errors) == (2, 0)  # each one counted, not a failure
     finally:
         link.close()
 
