@@ -3,16 +3,23 @@ steps it: the pass the companion runs, wake for wake."""
 
 from __future__ import annotations
 
+import contextlib
 import math
+import select
 import selectors
-from typing import Any
+import socket
+from typing import Any, cast
 
+import pytest
 from conftest import lockstep
 
+from mecanum_mav.control.core import COMPANION_COMPID
+from mecanum_mav.io.links import open_link
 from mecanum_mav.protocol.dialect import mavlink
 from mecanum_mav.protocol.modes import Mode
+from mecanum_mav.protocol.signing import REFUSED_TEXTS, Check, SignatureCheck
 from mecanum_mav.runtime.loop import ControlLoop
-from mecanum_mav.sim.wires import VirtualPoller
+from mecanum_mav.sim.wires import SIGNING_START_TICKS, VirtualPoller
 
 
 def test_a_pass_that_wakes_before_anything_is_due_with_nothing_to_read_does_nothing():
@@ -266,3 +273,120 @@ def test_a_pass_that_answered_a_stick_yields_the_cpu_before_its_housekeeping_and
     assert len(with_stick) >= 3 and len(without) >= 3  # (both kinds were there)
     assert all(p.index("yield") < p.index("housekeeping") for p in with_stick), with_stick
     assert all("yield" not in p for p in passes if "stick" not in p)
+
+
+@pytest.mark.parametrize("timer", ["next_reopen_s", "next_send_s"])
+@pytest.mark.parametrize("name", ["gcs", "fc"])
+def test_the_loop_sleeps_until_a_links_timer_when_it_comes_before_the_cores(name: str,
+                                                                             timer: str):
+    """Module docstring, step 1: the pass waits until the earliest thing due, the core's next
+    timer or a link's own: a broken link is reopened at its ``next_reopen_s``, a packet
+    waiting for the wire goes at its ``next_send_s``. Waking only at the core's timer would
+    leave a serial board unplugged and plugged back in unopened, or an override paced behind
+    another waiting, until the core had something to do."""
+    h = lockstep()
+    h.run_for(1.0)
+    core_due = h.core.next_due_s()
+    assert h.now_s + 2 * h.dt_s < core_due < math.inf
+    link_due = (h.now_s + core_due) / 2
+    setattr(getattr(h.loop, name), timer, link_due)  # (the virtual links' timers: inf)
+    timeouts: list[float] = []
+    wait = h.loop.poller.wait
+
+    def watched_wait(timeout_s: float) -> list[tuple[Any, int]]:
+        timeouts.append(timeout_s)
+        return wait(timeout_s)
+
+    h.loop.poller.wait = watched_wait  # type: ignore[method-assign]
+    h.step()
+    assert timeouts[0] == pytest.approx(link_due - h.now_s)
+
+
+def test_packets_the_flight_controller_link_refuses_unsigned_are_said_as_the_boards():
+    """With ``--fc-signing-key`` the flight controller's link drops the board's unsigned
+    packets; the ground station is told they were the board's (a board without the key,
+    :data:`~mecanum_mav.control.refusals.FC_SIGNATURE_REFUSED`), not that its own packets
+    were refused."""
+    h = lockstep()
+    fc = h.loop.fc
+    check = SignatureCheck(bytes(range(32)), SIGNING_START_TICKS)
+    fc.inbound.parser.check = check  # the board's link checks signatures from now on
+    fc.signature_check = check
+    since = h.gcs.mark()
+    h.run_for(1.5)  # (the board's heartbeats, unsigned)
+    said = [m.text for m in h.gcs.received("STATUSTEXT", since)]
+    assert "FC sent unsigned: board has no signing key" in said
+    assert REFUSED_TEXTS[Check.UNSIGNED] not in said
+
+
+def test_a_wake_of_the_ground_stations_datagram_link_with_no_datagram_answers_no_stick():
+    """``_answer_first``: with no datagram waiting (the read found none: a wake it was not
+    for, or the link's break) nothing was answered in the lane: the pass goes on as one
+    without a stick (its housekeeping: the core was told of the break) and never yields the
+    CPU as after a stick (see the test above)."""
+    h = lockstep()
+    h.gcs.arm()
+    h.gcs.sticks(500)
+    h.run_for(0.2)
+    events: list[str] = []
+    housekeeping = h.core.housekeeping
+
+    def watched_housekeeping(now_s: float) -> Any:
+        events.append("housekeeping")
+        return housekeeping(now_s)
+
+    h.core.housekeeping = watched_housekeeping  # type: ignore[method-assign]
+    h.loop.poller.yield_cpu = lambda: events.append("yield")  # type: ignore[method-assign]
+    h.link_down("gcs", "connection closed")  # the link's descriptor wakes, no datagram
+    h.step()
+    assert events == ["housekeeping"]
+
+
+@pytest.mark.parametrize("way", ["general", "lane"])
+def test_a_udpin_ground_station_link_answers_whoever_sent_the_datagram_the_loop_read(way: str):
+    """``udpin:`` (mecanum_mav.io.links.udpin): the link answers the peers it heard a valid
+    message from. The loop reads the ground station's first datagram itself (its stick may
+    take the lane), so it hands the link each datagram's sender, read the general way (a
+    heartbeat) or answered in the lane (a stick): a pilot on a new port is answered from
+    then on (the rover's heartbeats reach it)."""
+    h = lockstep()
+    h.gcs.arm()
+    h.gcs.sticks(500)
+    h.run_for(0.2)  # driving: the lane is open
+    gcs = open_link("udpin:127.0.0.1:0", source_system=1, source_component=COMPANION_COMPID,
+                    name="gcs", clock=h.loop.clock)
+    pilot = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    try:
+        pilot.bind(("127.0.0.1", 0))
+        pilot.setblocking(False)
+
+        def readable() -> bool:
+            return bool(select.select([gcs.wait_fd()], [], [], 0)[0])
+
+        gcs.readable = readable  # type: ignore[attr-defined]  # (the virtual poller asks it)
+        h.loop = ControlLoop(h.core, cast(Any, gcs), h.loop.fc, clock=h.loop.clock,
+                             poller=VirtualPoller())
+        answer_first = h.loop._answer_first
+        answers: list[bool] = []
+
+        def watched_answer_first(link: Any, now_s: float) -> bool:
+            answers.append(answer_first(link, now_s))
+            return answers[-1]
+
+        h.loop._answer_first = watched_answer_first  # type: ignore[method-assign]
+        mav = mavlink.MAVLink(None, srcSystem=255, srcComponent=190)
+        datagram = (_stick(mav, 400) if way == "lane"
+                    else bytes(mav.heartbeat_encode(6, 8, 0, 0, 4).pack(mav)))
+        pilot.sendto(datagram, ("127.0.0.1", gcs.conn.port.getsockname()[1]))
+        h.step()
+        assert answers == [way == "lane"]
+        h.run_for(1.1)  # (the rover's heartbeat, once a second)
+        heard = mavlink.MAVLink(None)
+        got: list[str] = []
+        with contextlib.suppress(BlockingIOError):
+            while True:
+                got += [m.get_type() for m in heard.parse_buffer(pilot.recv(4096)) or []]
+        assert "HEARTBEAT" in got
+    finally:
+        pilot.close()
+        gcs.close()
