@@ -488,3 +488,30 @@ def test_a_stream_link_that_breaks_on_a_send_is_reported_with_the_time_of_the_pa
     said = [m.text for m in h.gcs.received("STATUSTEXT", since)]
     assert said.count("FC link down: device gone; reconnecting") == 1
     assert h.core.vehicle.fc_lost
+
+
+def test_an_idle_rovers_refresh_wake_is_the_tick_alone_with_a_stream_link_too():
+    """Module docstring, step 3: housekeeping is skipped while the core is settled and the
+    stream links are idle: an idle rover's refresh wake is its override alone, with the
+    flight controller on a stream link (a serial board) as on a datagram one."""
+    h = _stream_fc()
+    h.run_for(2.0)
+    events: list[str] = []
+    tick, housekeeping = h.core.tick, h.core.housekeeping
+
+    def watched_tick(now_s: float) -> Any:
+        events.append("tick")
+        return tick(now_s)
+
+    def watched_housekeeping(now_s: float) -> Any:
+        events.append("housekeeping")
+        return housekeeping(now_s)
+
+    h.core.tick = watched_tick  # type: ignore[method-assign]
+    h.core.housekeeping = watched_housekeeping  # type: ignore[method-assign]
+    for _ in range(1000):
+        events.append("pass")
+        h.step()
+    passes = [p.split() for p in " ".join(events).split("pass")[1:]]
+    assert sum(p == ["tick"] for p in passes) >= 10  # the refreshes, nothing else
+    assert sum(p == ["tick", "housekeeping"] for p in passes) >= 10  # (its telemetry)
