@@ -515,3 +515,36 @@ def test_an_idle_rovers_refresh_wake_is_the_tick_alone_with_a_stream_link_too():
     passes = [p.split() for p in " ".join(events).split("pass")[1:]]
     assert sum(p == ["tick"] for p in passes) >= 10  # the refreshes, nothing else
     assert sum(p == ["tick", "housekeeping"] for p in passes) >= 10  # (its telemetry)
+
+
+def test_a_wake_for_writing_alone_hands_over_and_reads_nothing():
+    """Module docstring, steps 2 and 4: a stream link watched for writing (the kernel refused
+    more) that wakes the loop only for writing has nothing to read: what waits in it is handed
+    over (``follow``), and it is not read (a read that finds nothing is a syscall and a raised
+    ``BlockingIOError`` wasted, on every such wake)."""
+    h = lockstep()
+    fc = h.loop.fc
+    fc.steady = False
+
+    class WritablePoller(VirtualPoller):
+        def wait(self, timeout_s: float) -> list[tuple[Any, int]]:
+            ready = super().wait(timeout_s)
+            if fc.wants_write and not fc.readable():
+                ready.append((fc, select.EPOLLOUT))  # (the kernel takes more now)
+            return ready
+
+    h.loop = ControlLoop(h.core, h.loop.gcs, fc, clock=h.loop.clock, poller=WritablePoller())
+    h.run_for(1.0)
+    reads: list[bool] = []  # per read of the board's link: whether anything was there
+    read = fc.read
+
+    def watched_read() -> list[Any]:
+        reads.append(fc.readable())
+        return read()
+
+    fc.read = watched_read  # type: ignore[method-assign]
+    fc.pending = fc.wants_write = True  # the kernel refused more: something waits
+    h.run_for(0.2)
+    fc.pending = fc.wants_write = False
+    h.run_for(0.5)
+    assert reads and all(reads)
