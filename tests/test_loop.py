@@ -390,3 +390,161 @@ def test_a_udpin_ground_station_link_answers_whoever_sent_the_datagram_the_loop_
     finally:
         pilot.close()
         gcs.close()
+
+
+def test_failed_sends_on_both_links_are_counted_together_in_the_status_line_and_sys_status():
+    """``link_counts``: what both links counted, for the status line (SIGUSR1 and at exit:
+    ``received N, malformed N, send failures N, refused N (...)``) and SYS_STATUS
+    ``errors_comm`` (malformed + refused + failed sends): 3 failed sends to the ground
+    station and 2 to the flight controller are 5."""
+    h = lockstep()
+    h.run_for(1.0)
+    gcs, fc = h.loop.gcs, h.loop.fc
+    gcs.send_errors, fc.send_errors = 3, 2  # type: ignore[misc]
+    assert h.core.status_line() == (f"received {gcs.received + fc.received}, malformed 0, "
+                                    "send failures 5, refused 0 (none)")
+    since = h.gcs.mark()
+    h.run_for(1.5)
+    assert [m.errors_comm for m in h.gcs.received("SYS_STATUS", since)][-1] == 5
+
+
+def test_a_ground_station_on_a_stream_link_drives_without_the_stick_lane():
+    """Module docstring, step 2: only a datagram link from the ground station has its first
+    datagram answered in the stick lane; on a stream link (``tcp:``, serial) the stick takes
+    the general way, read with the rest, and the rover drives all the same."""
+    h = lockstep()
+    gcs = h.loop.gcs
+    gcs.steady = False  # (a stream link's way)
+    h.loop = ControlLoop(h.core, gcs, h.loop.fc, clock=h.loop.clock, poller=VirtualPoller())
+    h.gcs.arm()
+    h.gcs.sticks(500)
+    h.run_for(0.5)
+    pilot = mavlink.MAVLink(None, srcSystem=255, srcComponent=190)
+    for i in range(20):
+        h.inject(_stick(pilot, 400 + i))
+        h.step()
+    assert h.lane_answers == 0
+    assert h.core.vehicle.armed and any(p != 1500 for p in h.core.pulses_us)
+
+
+def _stream_fc() -> Any:
+    """The harness with the flight controller on a stream link (a serial board)."""
+    h = lockstep()
+    fc = h.loop.fc
+    fc.steady = False
+    h.loop = ControlLoop(h.core, h.loop.gcs, fc, clock=h.loop.clock, poller=VirtualPoller())
+    return h
+
+
+def test_a_broken_stream_link_is_reopened_on_its_timer_and_the_core_told_before_anything_goes():
+    """Module docstring: a broken link is reopened on its own timer (``next_reopen_s``,
+    ``reopen``); when it is back the core is told (``core.link_up``: "FC link reconnected")
+    before anything else is sent, so the flight controller's first override is neutral."""
+    h = _stream_fc()
+    fc = h.loop.fc
+    h.gcs.arm()
+    h.gcs.sticks(500)
+    h.run_for(0.5)
+    h.link_down("fc", "device gone")
+    h.run_for(0.3)
+    assert not fc.up
+    back_s = h.now_s + 0.5
+
+    def reopen(now_s: float) -> bool:  # (the device is there again at back_s)
+        if now_s >= back_s:
+            fc.down_reason, fc.next_reopen_s, h.fc_link_up = None, math.inf, True
+        return bool(fc.up)
+
+    fc.reopen = reopen  # type: ignore[method-assign]
+    fc.next_reopen_s = back_s
+    since = h.gcs.mark()
+    h.run_for(1.0)
+    said = [m.text for m in h.gcs.received("STATUSTEXT", since)]
+    assert "FC link reconnected" in said
+    first = h.overrides_since(back_s)[0]
+    assert first.time_s == pytest.approx(back_s, abs=h.dt_s)
+    assert set(first.channels[:4]) == {1500}
+
+
+def test_a_stream_link_that_breaks_on_a_send_is_reported_with_the_time_of_the_pass():
+    """A link that breaks while the pass sends on it (serial device gone, peer closed) is
+    reported to the core once, at the end of that pass (``core.link_down`` at that time): said
+    once as a WARNING, and the flight controller's failsafe fires."""
+    h = _stream_fc()
+    fc = h.loop.fc
+    h.run_for(1.0)
+    send_all = fc.send_all
+    broke: list[float] = []
+
+    def breaking_send_all(messages: Any) -> None:
+        send_all(messages)
+        if not broke:  # the write failed: the link is down (not readable: no read finds it)
+            broke.append(h.now_s)
+            fc.down_reason = "device gone"
+
+    fc.send_all = breaking_send_all  # type: ignore[method-assign]
+    since = h.gcs.mark()
+    h.run_for(1.5)
+    said = [m.text for m in h.gcs.received("STATUSTEXT", since)]
+    assert said.count("FC link down: device gone; reconnecting") == 1
+    assert h.core.vehicle.fc_lost
+
+
+def test_an_idle_rovers_refresh_wake_is_the_tick_alone_with_a_stream_link_too():
+    """Module docstring, step 3: housekeeping is skipped while the core is settled and the
+    stream links are idle: an idle rover's refresh wake is its override alone, with the
+    flight controller on a stream link (a serial board) as on a datagram one."""
+    h = _stream_fc()
+    h.run_for(2.0)
+    events: list[str] = []
+    tick, housekeeping = h.core.tick, h.core.housekeeping
+
+    def watched_tick(now_s: float) -> Any:
+        events.append("tick")
+        return tick(now_s)
+
+    def watched_housekeeping(now_s: float) -> Any:
+        events.append("housekeeping")
+        return housekeeping(now_s)
+
+    h.core.tick = watched_tick  # type: ignore[method-assign]
+    h.core.housekeeping = watched_housekeeping  # type: ignore[method-assign]
+    for _ in range(1000):
+        events.append("pass")
+        h.step()
+    passes = [p.split() for p in " ".join(events).split("pass")[1:]]
+    assert sum(p == ["tick"] for p in passes) >= 10  # the refreshes, nothing else
+    assert sum(p == ["tick", "housekeeping"] for p in passes) >= 10  # (its telemetry)
+
+
+def test_a_wake_for_writing_alone_hands_over_and_reads_nothing():
+    """Module docstring, steps 2 and 4: a stream link watched for writing (the kernel refused
+    more) that wakes the loop only for writing has nothing to read: what waits in it is handed
+    over (``follow``), and it is not read (a read that finds nothing is a syscall and a raised
+    ``BlockingIOError`` wasted, on every such wake)."""
+    h = lockstep()
+    fc = h.loop.fc
+    fc.steady = False
+
+    class WritablePoller(VirtualPoller):
+        def wait(self, timeout_s: float) -> list[tuple[Any, int]]:
+            ready = super().wait(timeout_s)
+            if fc.wants_write and not fc.readable():
+                ready.append((fc, select.EPOLLOUT))  # (the kernel takes more now)
+            return ready
+
+    h.loop = ControlLoop(h.core, h.loop.gcs, fc, clock=h.loop.clock, poller=WritablePoller())
+    h.run_for(1.0)
+    reads: list[bool] = []  # per read of the board's link: whether anything was there
+    read = fc.read
+
+    def watched_read() -> list[Any]:
+        reads.append(fc.readable())
+        return read()
+
+    fc.read = watched_read  # type: ignore[method-assign]
+    fc.pending = fc.wants_write = True  # the kernel refused more: something waits
+    h.run_for(0.2)
+    fc.pending = fc.wants_write = False
+    h.run_for(0.5)
+    assert reads and all(reads)
