@@ -108,8 +108,9 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
             module = item.nodeid.split("::", 1)[0]
             item.add_marker(pytest.mark.xdist_group(f"{SHARED_FIXTURE_GROUP}:{module}"))
     items.sort(key=lambda item: not _runs_long(item))
-    limit_each_test_under_a_mutant(items, os.environ.get("MUTANT_UNDER_TEST", ""),
-                                   sys.modules.get("mutmut.state"))
+    if config.pluginmanager.hasplugin("timeout"):  # (pytest-timeout, a declared dependency)
+        limit_each_test_under_a_mutant(items, os.environ.get("MUTANT_UNDER_TEST", ""),
+                                       sys.modules.get("mutmut.state"))
 
 
 @pytest.hookimpl(trylast=True)  # after xdist's own, which marks a grouped test's node id
@@ -170,7 +171,8 @@ def limit_each_test_under_a_mutant(items: list[pytest.Item], mutant: str,
     mutant that makes a test hang (a blocking write that never returns, a wait that never
     ends) is killed in seconds. mutmut's own limit covers the sum of the tests' times, minutes
     for a function most tests reach. Outside mutmut nothing changes: the suite's tests wait
-    on their own deadlines."""
+    on their own deadlines. (Without pytest-timeout the caller adds no limit: an unknown
+    marker would fail every test, and every mutant would read killed.)"""
     if "__mutmut_" not in mutant or mutmut_state is None:
         return
     traced: dict[str, float] = mutmut_state.state().duration_by_test  # type: ignore[attr-defined]
