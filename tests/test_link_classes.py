@@ -3,9 +3,12 @@
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import select
 import socket
+from collections.abc import Iterator
+from typing import Any
 
 import pytest
 from support import RawPty, wait_until
@@ -53,56 +56,56 @@ def test_open_link_gives_each_transport_family_its_own_link_class():
         pty.close()
 
 
-def test_a_udpbcast_link_sends_to_the_address_that_answered_it():
+@contextlib.contextmanager
+def broadcast_then_answer(answer: Any) -> Iterator[tuple[Link, socket.socket, socket.socket]]:
+    """A ``udpbcast:`` link that has sent a HEARTBEAT to its destination (the first socket),
+    then got ``answer(station)``'s datagram from another socket (the answering one)."""
     first, answering = (socket.socket(socket.AF_INET, socket.SOCK_DGRAM) for _ in range(2))
     for sock in (first, answering):
         sock.bind(("127.0.0.1", 0))
         sock.settimeout(5.0)
     link = opened(f"udpbcast:127.0.0.1:{first.getsockname()[1]}")
     try:
-        beat = link.mav.heartbeat_encode(10, 8, 0, 0, 4)
-        assert link.send(beat)
+        assert link.send(BEAT)
         first.recvfrom(1024)
         station = mavlink.MAVLink(None, srcSystem=255, srcComponent=190)
-        answering.sendto(station.heartbeat_encode(6, 8, 0, 0, 4).pack(station),
-                         ("127.0.0.1", link.local_port))
-        assert wait_until(link.read, 5.0)
-        assert link.send(beat)
-        data, _ = answering.recvfrom(1024)
-        assert mavlink.MAVLink(None).parse_buffer(data)[0].get_type() == "HEARTBEAT"
+        answering.sendto(answer(station), ("127.0.0.1", link.local_port))
+        yield link, first, answering
     finally:
         link.close()
         first.close()
         answering.close()
+
+
+BEAT = mavlink.MAVLink_heartbeat_message(10, 8, 0, 0, 4, 3)
+
+
+def test_a_udpbcast_link_sends_to_the_address_that_answered_it():
+    with broadcast_then_answer(lambda station: station.heartbeat_encode(6, 8, 0, 0, 4).pack(
+            station)) as (link, _, answering):
+        assert wait_until(link.read, 5.0)
+        assert link.send(BEAT)
+        data, _ = answering.recvfrom(1024)
+        assert mavlink.MAVLink(None).parse_buffer(data)[0].get_type() == "HEARTBEAT"
+
+
+def _stick(station: Any) -> bytes:
+    return bytes(station.manual_control_encode(1, 250, 0, 500, 0, 0).pack(station))
 
 
 def test_a_udpbcast_link_whose_answerers_datagram_the_stick_lane_answered_sends_there():
     """A datagram the stick lane answers unparsed is taken as if read
     (``DatagramLink.answered``): on a broadcast link its sender is the address that answered,
     sent to from then on, as after :meth:`read`."""
-    first, answering = (socket.socket(socket.AF_INET, socket.SOCK_DGRAM) for _ in range(2))
-    for sock in (first, answering):
-        sock.bind(("127.0.0.1", 0))
-        sock.settimeout(5.0)
-    link = opened(f"udpbcast:127.0.0.1:{first.getsockname()[1]}")
-    try:
-        beat = link.mav.heartbeat_encode(10, 8, 0, 0, 4)
-        assert link.send(beat)
-        first.recvfrom(1024)
-        station = mavlink.MAVLink(None, srcSystem=255, srcComponent=190)
-        stick = bytes(station.manual_control_encode(1, 250, 0, 500, 0, 0).pack(station))
-        answering.sendto(stick, ("127.0.0.1", link.local_port))
+    with broadcast_then_answer(_stick) as (link, first, answering):
         got = wait_until(link.receive_datagram, 5.0)
-        assert got is not None and got[0] == stick
+        assert got is not None and got[0] == _stick(
+            mavlink.MAVLink(None, srcSystem=255, srcComponent=190))
         link.answered(*got)  # (as the companion's loop does after the lane's send)
-        assert link.send(beat)
+        assert link.send(BEAT)
         assert select.select([first, answering], [], [], 5.0)[0] == [answering]
         data, _ = answering.recvfrom(1024)
         assert mavlink.MAVLink(None).parse_buffer(data)[0].get_type() == "HEARTBEAT"
-    finally:
-        link.close()
-        first.close()
-        answering.close()
 
 
 @pytest.mark.parametrize("resolves", [True, False])

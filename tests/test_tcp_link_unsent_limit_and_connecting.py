@@ -21,6 +21,7 @@ from pathlib import Path
 import pytest
 from support import wait_until
 from test_links import FakeClock
+from test_stream_link_reads_records_and_breaks import tcp_pair
 
 from mecanum_mav.io import links
 from mecanum_mav.io.links import Link, LinkDownError, mavlink, open_link, tcp
@@ -214,23 +215,9 @@ def test_closing_a_tcp_link_with_a_linger_ends_as_soon_as_the_peer_has_closed():
         server.close()
 
 
-@contextlib.contextmanager
-def silent_peer() -> Iterator[tuple[Link, socket.socket]]:
-    """A ``tcp:`` link and its peer, which sends nothing and keeps the connection open."""
-    server = socket.create_server(("127.0.0.1", 0))
-    link = tcp_link(server, FakeClock())
-    peer, _ = server.accept()
-    try:
-        yield link, peer
-    finally:
-        link.close()
-        peer.close()
-        server.close()
-
-
 def test_closing_a_tcp_link_without_a_linger_ends_the_connection_at_once():
     """No linger is the default (``close()``: immediate; the companion asks for one)."""
-    with silent_peer() as (link, peer):
+    with tcp_pair(clock=FakeClock()) as (link, peer):  # a peer that says nothing
         start = time.monotonic()
         link.close()
         assert time.monotonic() - start < 0.9  # (a default linger of 1 s would show)
@@ -243,7 +230,7 @@ def test_closing_a_tcp_link_with_a_linger_holds_a_silent_peers_connection_for_th
     be reading the last packets), then ends; a peer that says nothing neither cuts it short
     nor holds it longer."""
     linger_s = 0.2
-    with silent_peer() as (link, peer):
+    with tcp_pair(clock=FakeClock()) as (link, peer):  # a peer that says nothing
         start = time.monotonic()
         link.close(linger_s=linger_s)
         took = time.monotonic() - start
