@@ -31,7 +31,7 @@ from typing import Any, ClassVar
 import serial
 
 from mecanum_mav.io.links.base import READ_CHUNK
-from mecanum_mav.io.links.stream import PACING_LEAD_S, StreamLink, queued_bytes
+from mecanum_mav.io.links.stream import PACING_LEAD_S, StreamLink, queued_bytes, ready_within
 
 log = logging.getLogger("mecanum_mav.io.links")
 
@@ -62,7 +62,6 @@ class SerialLink(StreamLink):
         """The wire's capacity: 8N1 at the URL's baud rate (bytes/s)."""
         self._wire_free_s = 0.0  # when what was handed over is on the wire (clock s)
         self._next_look_s = -math.inf  # when the lane's path next asks the kernel (clock s)
-        self._readable: tuple[int, Any] | None = None  # (descriptor, its poll for reading)
         limit = max(QUEUE_MIN_BYTES, int(QUEUE_S * self.bytes_per_s))
         super().__init__(conn, url=url, name=name, signing_key=signing_key, clock=clock,
                          queue_limit=limit)
@@ -79,14 +78,9 @@ class SerialLink(StreamLink):
         """What the device holds, read from its non-blocking descriptor (pyserial's read()
         waits in ``select()``, which refuses a descriptor past 1023: a process with many files
         open). Nothing from a device said readable is the device gone, as pyserial says."""
-        fd = self._port_fd
-        if self._readable is None or self._readable[0] != fd:  # (a new one after a reopen)
-            readable = select.poll()
-            readable.register(fd, select.POLLIN)
-            self._readable = (fd, readable)
-        if not self._readable[1].poll(0):  # (the tty, VMIN 0, reads b"" when it holds nothing)
-            return b""
-        data = os.read(fd, READ_CHUNK)
+        if not ready_within(self._port_fd, select.POLLIN, 0.0):  # (the tty, VMIN 0, reads
+            return b""  # b"" when it holds nothing)
+        data = os.read(self._port_fd, READ_CHUNK)
         if not data:
             raise OSError("device reports readiness to read but returned no data "
                           "(device disconnected?)")

@@ -81,6 +81,15 @@ def queued_bytes(fd: int, request: int) -> int:
     return count[0]
 
 
+def ready_within(fd: int, events: int, timeout_s: float) -> bool:
+    """Whether ``fd`` is ready for ``events`` (``select.POLLIN``, ``POLLOUT``) within
+    ``timeout_s`` seconds (0: now). With poll: ``select()`` refuses a descriptor past 1023,
+    which a process with many files open has."""
+    poll = select.poll()
+    poll.register(fd, events)
+    return bool(poll.poll(math.ceil(timeout_s * 1000.0)))
+
+
 class StreamLink(Link):
     """What every stream link has (module description). A transport says how it reads and
     writes its port (:meth:`_read_port`, :meth:`_write_port`), how long the kernel's backlog
@@ -440,10 +449,8 @@ class StreamLink(Link):
             deadline = start + limit
             if now >= deadline or time.monotonic() - real_start >= limit:
                 return
-            if self.wants_write:  # (poll: select() refuses a descriptor past 1023)
-                writable = select.poll()
-                writable.register(self._port_fd, select.POLLOUT)
-                writable.poll(math.ceil((deadline - now) * 1000.0))
+            if self.wants_write:
+                ready_within(self._port_fd, select.POLLOUT, deadline - now)
             else:
                 time.sleep(max(0.0, min(self.next_send_s, deadline) - now))
 
