@@ -50,6 +50,9 @@ def _waited_ms(interval: soak.Interval) -> float:
 
 
 @pytest.mark.slow
+# The suite's other minute of real time (the twin's mission, tests/test_twin_mission.py) runs
+# before or after, not beside.
+@pytest.mark.xdist_group("a minute of real time")
 def test_a_minute_of_50_hz_sticks_keeps_memory_flat_builds_no_queue_and_overrides_never_lapse():
     lines: list[str] = []
     result = soak.run_soak(DURATION_S, INTERVAL_S, lines.append)
