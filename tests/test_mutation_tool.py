@@ -78,6 +78,51 @@ def test_the_score_leaves_out_equivalent_mutants_and_counts_timeouts_as_killed(t
     assert tally.score == pytest.approx(3 / 5)  # the unchecked one is not scored yet
 
 
+def meta_with_hashes(tool: ModuleType, hashes: dict[str, str],
+                     codes: dict[str, int | None]) -> Path:
+    """mutants/'s record of io/tlog.py: its functions' hashes and verdicts (by mutant name)."""
+    meta = write_meta(tool, "io/tlog.py", codes)
+    meta.write_text(json.dumps({"exit_code_by_key": codes, "hash_by_function_name": hashes,
+                                "durations_by_key": {}, "estimated_durations_by_key": {}}))
+    return meta
+
+
+TLOG = "mecanum_mav.io.tlog."
+
+
+def test_the_ledger_carries_every_decided_verdict_to_a_working_copy_without_mutants(
+        tool, tmp_path):
+    """A fresh clone has no mutants/: the verdicts judged so far come from the ledger, with
+    the hashes mutmut compares before it keeps a verdict; unjudged mutants stay unjudged."""
+    ledger = tmp_path / "verdicts.json"
+    meta_with_hashes(tool, {"x_f": "h1", "xǁTlogǁwrite": "h2"},
+                     {TLOG + "x_f__mutmut_1": 1, TLOG + "x_f__mutmut_2": 0,
+                      TLOG + "x_f__mutmut_10": 36, TLOG + "xǁTlogǁwrite__mutmut_1": None})
+    assert tool.save_ledger(ledger) == 3
+    saved = json.loads(ledger.read_text())
+    assert saved == {"mecanum_mav/io/tlog.py": {"x_f": ["h1", "1:1 2:0 10:36"]}}
+    (tool.MUTANTS / "mecanum_mav" / "io" / "tlog.py.meta").unlink()
+    assert tool.restore_ledger(ledger) == 3
+    meta = json.loads((tool.MUTANTS / "mecanum_mav" / "io" / "tlog.py.meta").read_text())
+    assert meta["exit_code_by_key"] == {TLOG + "x_f__mutmut_1": 1, TLOG + "x_f__mutmut_2": 0,
+                                        TLOG + "x_f__mutmut_10": 36}
+    assert meta["hash_by_function_name"] == {"x_f": "h1"}
+
+
+def test_the_ledger_gives_no_verdict_to_a_changed_function_and_never_overrides_a_newer_one(
+        tool, tmp_path):
+    ledger = tmp_path / "verdicts.json"
+    ledger.write_text(json.dumps({"mecanum_mav/io/tlog.py": {
+        "x_f": ["h1", "1:1 2:0"], "x_g": ["old", "1:1"], "x_gone": ["h9", "1:1"]}}))
+    meta = meta_with_hashes(tool, {"x_f": "h1", "x_g": "new"},
+                            {TLOG + "x_f__mutmut_1": None, TLOG + "x_f__mutmut_2": 1,
+                             TLOG + "x_g__mutmut_1": None})
+    assert tool.restore_ledger(ledger) == 1
+    assert codes_in(meta) == {TLOG + "x_f__mutmut_1": 1,  # unjudged here: the ledger's
+                              TLOG + "x_f__mutmut_2": 1,  # judged here since: kept
+                              TLOG + "x_g__mutmut_1": None}  # the function changed
+
+
 class _Item:
     """The part of a pytest item the limit reads and writes."""
 

@@ -29,7 +29,10 @@ Usage
 
     The report is printed and written to mutants/report.md (survivors: mutants/survivors.md).
     Results stay in mutants/ between runs: mutmut reruns a mutant only when its function or
-    the tests changed, so a second run of the same package after a new test is quick.
+    the tests changed, so a second run of the same package after a new test is quick. Every
+    run also writes its verdicts to tools/mutation_verdicts.json (kept in the repository) and
+    every run starts by taking the verdicts mutants/ lacks from it: a fresh clone goes on
+    where the last run stopped (see save_ledger and restore_ledger).
 
 Exit status: 0 when every package reported meets its goal; 1 when one does not, or mutants
 were left unchecked; 2 on a stale entry in the equivalents file or when mutmut itself failed.
@@ -57,6 +60,7 @@ MUTANTS = ROOT / "mutants"
 EQUIVALENTS = ROOT / "tools" / "equivalent_mutants.toml"
 REPORT = MUTANTS / "report.md"
 SURVIVORS = MUTANTS / "survivors.md"
+LEDGER = ROOT / "tools" / "mutation_verdicts.json"
 
 GOALS: dict[str, float] = {
     "mecanum": 0.90, "config": 0.90, "protocol": 0.90, "control": 0.90, "io": 0.90,
@@ -283,6 +287,89 @@ def recheck_survivors(targets: set[str], equivalents: list[Equivalent]) -> int:
     return count
 
 
+def _function_and_number(key: str) -> tuple[str, str]:
+    """``mecanum_mav.io.tlog.xǁTlogǁwrite__mutmut_12`` -> (``xǁTlogǁwrite``, ``12``)."""
+    mangled, _, number = key.partition("__mutmut_")
+    return mangled.rpartition(".")[2], number
+
+
+def save_ledger(path: Path | None = None) -> int:
+    """Write every decided verdict in mutants/ to the ledger (:data:`LEDGER`); returns how many.
+
+    mutants/ is a scratch folder that a fresh clone does not have, and judging every mutant
+    takes hours: the ledger, kept in the repository, carries the verdicts from one working
+    copy to the next. Per source file, per function: the function's hash as mutmut computed
+    it and its decided verdicts as ``number:exit-code`` (``"1:1 2:0 5:36"``)."""
+    path = LEDGER if path is None else path
+    ledger: dict[str, dict[str, list[str]]] = {}
+    count = 0
+    for meta in sorted((MUTANTS / PACKAGE).rglob("*.py.meta")):
+        data = json.loads(meta.read_text())
+        codes: dict[str, list[str]] = {}
+        for key, code in data.get("exit_code_by_key", {}).items():
+            if code is not None:
+                function, number = _function_and_number(key)
+                codes.setdefault(function, []).append(f"{number}:{code}")
+                count += 1
+        hashes = data.get("hash_by_function_name", {})
+        functions = {f: [hashes[f], " ".join(sorted(c, key=lambda v: int(v.split(":")[0])))]
+                     for f, c in sorted(codes.items()) if f in hashes}
+        if functions:
+            ledger[meta.relative_to(MUTANTS).with_suffix("").as_posix()] = functions
+    path.write_text(json.dumps(ledger, indent=1, ensure_ascii=False, sort_keys=True) + "\n")
+    return count
+
+
+def restore_ledger(path: Path | None = None) -> int:
+    """Give mutants/ the ledger's verdicts it does not have (:func:`save_ledger`); returns how
+    many. A verdict is taken only where the function's hash in mutants/ is the ledger's (or
+    mutants/ has no record of the file yet: mutmut then compares the hashes itself when it
+    makes the mutants, and forgets the verdicts of every function that changed since). A
+    verdict mutants/ already has is kept: it is as new as the ledger's or newer."""
+    from mutmut.utils.format_utils import get_mutant_name
+    path = LEDGER if path is None else path
+    if not path.exists():
+        return 0
+    count = 0
+    for source, functions in json.loads(path.read_text()).items():
+        meta = MUTANTS / f"{source}.meta"
+        data = json.loads(meta.read_text()) if meta.exists() else {
+            "exit_code_by_key": {}, "hash_by_function_name": {f: h for f, (h, _) in
+                                                             functions.items()},
+            "durations_by_key": {}, "estimated_durations_by_key": {}}
+        codes, hashes = data["exit_code_by_key"], data["hash_by_function_name"]
+        taken = 0
+        for function, (function_hash, verdicts) in functions.items():
+            if hashes.get(function) != function_hash:
+                continue
+            for entry in verdicts.split():
+                number, _, code = entry.partition(":")
+                key = get_mutant_name(Path(source), f"{function}__mutmut_{number}")
+                if codes.get(key) is None and (key in codes or not meta.exists()):
+                    codes[key] = int(code)
+                    taken += 1
+        if taken:
+            meta.parent.mkdir(parents=True, exist_ok=True)
+            meta.write_text(json.dumps(data, indent=4))
+            count += taken
+    return count
+
+
+GENERATE = """
+from mutmut.__main__ import create_mutants, store_lines_covered_by_tests
+from mutmut.utils.file_utils import copy_also_copy_files, copy_src_dir, setup_source_paths
+copy_src_dir(); copy_also_copy_files(); setup_source_paths(); store_lines_covered_by_tests()
+create_mutants({jobs})
+"""
+"""The first step of ``mutmut run`` alone (mutmut has no command for it): make the mutants of
+every function whose source changed, forgetting their verdicts. No test runs."""
+
+
+def generate_mutants(jobs: int) -> int:
+    """Make the mutants as ``mutmut run`` would before it runs any (:data:`GENERATE`)."""
+    return subprocess.call([sys.executable, "-c", GENERATE.format(jobs=jobs)], cwd=ROOT)
+
+
 def run_mutmut(targets: list[str], jobs: int) -> int:
     """``mutmut run`` on the targets' mutants (names ``mecanum_mav.<target>.*``)."""
     globs = [f"{PACKAGE}.{t}.*" for t in targets]
@@ -320,15 +407,26 @@ def main(argv: list[str] | None = None) -> int:
     if unknown:
         parser.error(f"no package or module {', '.join(unknown)} in {PACKAGE}/")
     os.chdir(ROOT)  # mutmut reads its configuration and results from here
-    if not args.report_only:
+    restored = restore_ledger()
+    if restored:
+        print(f"mutation: {restored} verdicts taken from {LEDGER.relative_to(ROOT)}")
+    if args.report_only:
+        if generate_mutants(args.jobs) != 0:
+            print("mutation: mutmut could not make the mutants (its output above)",
+                  file=sys.stderr)
+            return 2
+    else:
         again = recheck_survivors(set(packages), load_equivalents())
         if again:
             print(f"mutation: {again} earlier survivors tried again against today's tests")
         if not (MUTANTS / STATS_NAME).exists():
             print("mutation: tracing every test first (which reaches which function)")
-    if not args.report_only and run_mutmut(packages, args.jobs) != 0:
-        print("mutation: mutmut failed (its output above)", file=sys.stderr)
-        return 2
+        status = run_mutmut(packages, args.jobs)
+        # (stopped by hand or not: what was judged is kept)
+        print(f"mutation: {save_ledger()} verdicts in {LEDGER.relative_to(ROOT)}")
+        if status != 0:
+            print("mutation: mutmut failed or was stopped (its output above)", file=sys.stderr)
+            return 2
 
     results = load_results()
     equivalents = load_equivalents()
