@@ -455,6 +455,12 @@ def firmware_in_virtual_time(monkeypatch: pytest.MonkeyPatch, fake: FakeArduPilo
     return port
 
 
+VIRTUAL_START_S = 2000.0
+"""Where virtual time starts for a fake that runs all in virtual time: the same on every
+machine, and so are the roundings of its sums (started at the machine's ``time.monotonic()``,
+four looks of 0.1 s summed to 0.4 s on one machine and to just less on another)."""
+
+
 def all_in_virtual_time(monkeypatch: pytest.MonkeyPatch, fake: FakeArduPilot,
                         port_type: type[VirtualPort] = VirtualPort) -> VirtualPort:
     """:func:`firmware_in_virtual_time`, and the module's clock (``time.monotonic()``) is the
@@ -561,7 +567,7 @@ def test_a_firmware_never_heard_fails_at_once_and_its_ground_station_is_closed(m
 
 
 def test_a_hold_shown_late_within_the_flights_time_ends_the_flight_in_hold(monkeypatch):
-    fake = FakeArduPilot(time.monotonic())
+    fake = FakeArduPilot(VIRTUAL_START_S)
     fake.mode_delays[Mode.HOLD] = 4.0  # (more than the 2 s it gets when the time is up)
     all_in_virtual_time(monkeypatch, fake)
     _, failure = tm.fly_firmware(FakeTwin(fake), POINTS, YAWS, 0.0, 10.0)
@@ -574,7 +580,7 @@ def test_a_hold_shown_late_within_the_flights_time_ends_the_flight_in_hold(monke
 def test_with_the_flights_time_up_the_firmware_still_gets_2_s_to_show_hold(
         monkeypatch, shown_after_s, failure):
     """_until_hold: HOLD's HEARTBEAT is waited for what is left of the time, at least 2 s."""
-    fake = FakeArduPilot(time.monotonic())
+    fake = FakeArduPilot(VIRTUAL_START_S)
     fake.mode_delays[Mode.HOLD] = shown_after_s
     all_in_virtual_time(monkeypatch, fake)
     # 1.2 m at 2 m/s and a pause: "Mission Complete" some 0.7 s after AUTO, of 1 s
@@ -585,7 +591,7 @@ def test_auto_refused_by_a_quiet_firmware_is_asked_every_half_second_until_the_w
         monkeypatch):
     """The failure's "AUTO refused for N s" is true to within one retry."""
     monkeypatch.setattr(tm, "ARM_TIMEOUT_S", 0.8)
-    fake = FakeArduPilot(time.monotonic())
+    fake = FakeArduPilot(VIRTUAL_START_S)
     fake.refusals[Mode.AUTO] = ALWAYS
     fake.periods = dict.fromkeys(fake.periods, math.inf)  # one of each, then only answers
     all_in_virtual_time(monkeypatch, fake)
@@ -748,7 +754,7 @@ def test_the_heading_settles_a_band_time_after_gps_its_difference_the_attitude_l
         monkeypatch):
     """Facing east (the truth's yaw not 0), ATTITUDE at 10 Hz as asked, each with a HEARTBEAT
     and an EKF_STATUS_REPORT in the same datagram; the EKF takes GPS 1 s after the call."""
-    start_s = time.monotonic()
+    start_s = VIRTUAL_START_S
     fake = FakeArduPilot(start_s, 2.0, 3.0, yaw_deg=90.0)
     fake.positioned_at = start_s + 1.0
     fake.periods["attitude"] = 0.1
@@ -765,7 +771,7 @@ def test_the_heading_settles_a_band_time_after_gps_its_difference_the_attitude_l
 
 def test_a_firmware_positioned_before_its_first_attitude_settles_from_that_attitude(
         monkeypatch):
-    start_s = time.monotonic()
+    start_s = VIRTUAL_START_S
     fake = FakeArduPilot(start_s)
     fake.due["attitude"] = start_s + 0.5  # (its EKF reports positioned well before)
     all_in_virtual_time(monkeypatch, fake)
@@ -779,7 +785,7 @@ def test_a_steady_heading_without_the_ekfs_absolute_position_never_counts_as_set
         monkeypatch, ekf):
     """EKF_POS_HORIZ_ABS is what says it uses GPS; a relative position (optical flow, wheel
     odometry) is not, and a firmware that never says anything is not positioned either."""
-    fake = FakeArduPilot(time.monotonic())
+    fake = FakeArduPilot(VIRTUAL_START_S)
     fake.positioned_at = math.inf
     fake.heading_error_deg = (1.5, 1.5)
     if ekf == "no EKF_STATUS_REPORT":
@@ -793,14 +799,16 @@ def test_a_steady_heading_without_the_ekfs_absolute_position_never_counts_as_set
 
 
 def test_a_firmware_fallen_silent_fails_the_wait_on_time_without_any_difference(monkeypatch):
-    fake = FakeArduPilot(time.monotonic())
+    fake = FakeArduPilot(VIRTUAL_START_S)
     fake.periods = dict.fromkeys(fake.periods, math.inf)  # one of each, then only answers
     port = all_in_virtual_time(monkeypatch, fake)
     called_s = port.now()
     with pytest.raises(RuntimeError, match=r"within 0\.4 s \(last \+nan deg from the truth; "
                                            r"EKF position none\)$"):
         tm.wait_heading_settled(FakeTwin(fake), timeout_s=0.4)
-    assert port.now() - called_s <= 0.4 + 0.1 + 1e-6  # (within one look of 0.1 s)
+    # the 0.4 s run from the first answer (a tick after the call) and end within a look of
+    # 0.1 s; one that ends on the dot may take one more (the sum of the looks' floats)
+    assert port.now() - called_s <= VirtualPort.TICK_S + 0.4 + 0.1 + 1e-6
     assert port.closed
 
 
@@ -818,7 +826,7 @@ class WanderingTruth(FakeTwin):
 
 def test_a_heading_out_of_the_band_after_gps_never_settles_and_says_the_ekf_is_positioned(
         monkeypatch):
-    fake = FakeArduPilot(time.monotonic())
+    fake = FakeArduPilot(VIRTUAL_START_S)
     all_in_virtual_time(monkeypatch, fake)
     with pytest.raises(RuntimeError, match=r"within 4 s \(last [+-]\d\.\d deg from the truth; "
                                            r"EKF position absolute\)$"):
@@ -913,7 +921,7 @@ def stick_runs(fake: FakeArduPilot) -> list[tuple[tuple[int, int, int, int], flo
 
 def test_the_manual_probe_holds_each_steps_sticks_then_centres_them_for_as_long(monkeypatch):
     """From (2, 3) facing east, in virtual time; z 0 is Rover's centred throttle."""
-    fake = FakeArduPilot(time.monotonic(), 2.0, 3.0, yaw_deg=90.0)
+    fake = FakeArduPilot(VIRTUAL_START_S, 2.0, 3.0, yaw_deg=90.0)
     all_in_virtual_time(monkeypatch, fake)
     steps = [("forward", 400, 0, 500, 0), ("strafe", 0, 500, 0, 0), ("rotate", 0, 0, 0, 600)]
     forward, strafe, rotate = tm.manual_probe(FakeTwin(fake), steps, hold_s=0.5)
