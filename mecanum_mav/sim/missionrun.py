@@ -154,6 +154,9 @@ class MissionRun:
     end, s (the twin: :meth:`~mecanum_mav.sim.twinmission.TruthTrack.lag_s`; 0 in lockstep).
     A companion that dead-reckons its commanded wheel speeds believes the rover drove that
     long more than it did: up to this times the speed, metres short."""
+    wall_span_s: tuple[float, float] | None = None
+    """The wall-clock times (monotonic s) :attr:`world_lag_s` was measured from and to: AUTO
+    and the last look (the twin; None in lockstep)."""
 
 
 def passed_at_speed(planned: Sequence[Vec], k: int) -> bool:

@@ -161,7 +161,7 @@ def grade(waypoints: Sequence[Waypoint], record: Recording, truth: TruthTrack,
     started, the firmware's home is set where it was armed; the chassis stood still there).
     Returns the run and why it did not finish (None: it did; else the record's own failure if
     it has one, or the watch's). The run's ``world_lag_s`` is :meth:`TruthTrack.lag_s` from
-    AUTO to the last look."""
+    AUTO to the last look (its ``wall_span_s``)."""
     watch = MissionWatch(waypoints, record.start_s)
     home = truth.at(record.start_s)
     origin = (home.north_m, home.east_m)
@@ -185,6 +185,7 @@ def grade(waypoints: Sequence[Waypoint], record: Recording, truth: TruthTrack,
     except RuntimeError as exc:
         failure = str(exc)
     watch.run.world_lag_s = truth.lag_s(record.start_s, now)
+    watch.run.wall_span_s = (record.start_s, now)
     return watch.run, record.failure or failure
 
 
