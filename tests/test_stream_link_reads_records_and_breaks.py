@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import array
 import fcntl
+import logging
 import os
 import resource
 import select
@@ -27,7 +28,7 @@ from test_links import FakeClock
 
 from mecanum_mav.io.links import Link, mavlink, mavutil, open_link
 from mecanum_mav.io.links.base import READ_CHUNK
-from mecanum_mav.io.links.stream import LAST_WORDS_MAX_S
+from mecanum_mav.io.links.stream import LAST_WORDS_MAX_S, ready_within
 from mecanum_mav.protocol.signing import TICKS_PER_S, ticks_from_unix
 
 KEY = bytes(range(32))
@@ -231,10 +232,11 @@ def test_the_last_words_reach_a_serial_board_whose_buffer_was_full_once_it_reads
 
 @pytest.mark.parametrize("first_fd", [0, 1024], ids=["any descriptor", "past select's 1024"])
 def test_a_serial_link_reads_what_its_board_sends_and_goes_down_when_it_is_unplugged(
-        first_fd: int):
+        first_fd: int, caplog: pytest.LogCaptureFixture):
     """``read()`` never raises, whatever number the link's descriptor has: a packet is read
     once the board sent it, nothing while the board is silent, and an unplugged board puts
-    the link down (``device gone``)."""
+    the link down (``device gone``), the log saying why in pyserial's words."""
+    caplog.set_level(logging.INFO, logger="mecanum_mav.io.links")
     pty = RawPty()
     link = serial_link_numbered_from(first_fd, pty, 115200)
     try:
@@ -247,8 +249,32 @@ def test_a_serial_link_reads_what_its_board_sends_and_goes_down_when_it_is_unplu
         pty.close()
         assert wait_until(lambda: link.read() == [] and link.down_reason is not None, 5.0)
         assert link.down_reason == "device gone"
+        assert "fc: device gone: read: device reports readiness to read but returned no data " \
+            "(device disconnected?)" in caplog.text
     finally:
         link.close()
+
+
+@pytest.mark.parametrize("first_fd", [0, 1024], ids=["any descriptor", "past select's 1024"])
+def test_ready_within_answers_at_once_when_ready_and_waits_the_time_given_when_not(
+        first_fd: int):
+    """``ready_within(fd, events, timeout_s)``: the time is in seconds, whatever number the
+    descriptor has (poll, not select)."""
+    with descriptors_taken_below(first_fd):
+        read_end, write_end = os.pipe()
+    try:
+        assert read_end >= first_fd
+        start = time.monotonic()
+        assert not ready_within(read_end, select.POLLIN, 0.0)
+        assert not ready_within(read_end, select.POLLIN, 0.2)
+        assert time.monotonic() - start >= 0.19  # (poll's milliseconds: 200)
+        os.write(write_end, b"x")
+        start = time.monotonic()
+        assert ready_within(read_end, select.POLLIN, 5.0)
+        assert time.monotonic() - start < 1.0
+    finally:
+        os.close(read_end)
+        os.close(write_end)
 
 
 def test_a_packet_split_across_reads_is_completed_by_the_next_read():
