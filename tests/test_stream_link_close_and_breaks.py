@@ -57,6 +57,18 @@ def test_closing_with_a_linger_gives_up_on_ordinary_packets_when_the_linger_is_o
     assert 0 < len(got) < 20
 
 
+def test_closing_a_serial_link_without_a_linger_ends_it_at_once_with_the_wire_still_busy(pty):
+    """No linger is the default (``close()``: immediate): not the queue's 5 s of wire, nor
+    the wait for what the kernel holds to drain to a board that reads nothing."""
+    link = slow_link(pty)
+    for k in range(20):  # 20 STATUSTEXT of 60 bytes: 5 s of the wire
+        link.conn.mav.statustext_send(6, f"queued {k}".encode())
+    link.flush()  # (the first handed to the kernel: on the wire for 0.25 s)
+    began = time.monotonic()
+    link.close()
+    assert time.monotonic() - began < 0.2
+
+
 def test_closing_waits_for_the_wire_to_carry_every_last_word_however_short_the_linger(pty):
     link = slow_link(pty)
     link.send_rc_override(1, 1, NEUTRAL, replace=False)
