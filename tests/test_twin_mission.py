@@ -111,10 +111,21 @@ def test_a_graded_run_carries_the_lag_from_auto_to_its_end_not_before_auto():
     run, _ = tm.grade(three_metres_north(), rec, tm.TruthTrack(samples))
     assert run.world_lag_s == pytest.approx(0.2, abs=2e-3)
     assert run.wall_span_s == (WALL0, WALL0 + 4.5)  # AUTO to the last look (the HOLD)
+    assert run.total_s == pytest.approx(4.5)  # from AUTO, not from the clock's 0
+
+
+def test_a_record_that_goes_on_after_the_truths_last_frame_is_graded_to_its_last_message():
+    """The bridge's last frame may come before the ground station's last message (the
+    physics stopped first): the flight is graded up to that message, the pose the last one."""
+    track = north_at_1_m_s(seconds=3.0)
+    truth = tm.TruthTrack([s for s in track.samples if s.wall_s <= WALL0 + 3.5])
+    rec = record((3.0, msg("MISSION_ITEM_REACHED", seq=2)), (4.5, HOLD))
+    run, failure = tm.grade(three_metres_north(), rec, truth)
+    assert failure is None and run.total_s == pytest.approx(4.5)
 
 
 def test_a_truth_with_no_frame_is_refused():
-    with pytest.raises(ValueError, match="no frame"):
+    with pytest.raises(ValueError, match=r"^no truth: the bridge answered no frame$"):
         tm.TruthTrack([])
 
 
